@@ -1,0 +1,49 @@
+"""The ``stackpick`` command line.
+
+Each subcommand lives in its own module ``stackpick_sim/cli/<name>_cmd.py`` exposing
+``register(subparsers) -> None``, which adds its parser and sets ``func=run`` where
+``run(args: argparse.Namespace) -> int`` returns the exit code. Any
+:class:`~stackpick_sim.exceptions.StackpickError` becomes one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from stackpick_sim.exceptions import StackpickError
+
+#: Subcommand modules, in the order --help lists them.
+COMMAND_MODULES: tuple[str, ...] = ()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="stackpick",
+        description="MuJoCo digital twin of a vision-guided cell that picks the top object off "
+        "stacks of cylinders on a moving conveyor.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"stackpick_sim.cli.{name}_cmd").register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``stackpick`` script; returns the process exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except StackpickError as exc:
+        print(f"stackpick {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"stackpick {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
