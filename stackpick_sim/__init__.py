@@ -1,7 +1,16 @@
 """stackpick-sim: a MuJoCo digital twin of a vision-guided cell picking the top object off
 stacks of overlapped cylinders on a moving conveyor."""
 
-from stackpick_sim.exceptions import (
+import os
+import sys
+
+# Headless by default: MuJoCo picks its GL backend when it is first imported, and this
+# package renders offscreen on machines without a display or GPU (Mesa's EGL). Remember
+# whether MuJoCo chose before us, so that a rendering failure can say so.
+MUJOCO_IMPORTED_FIRST = "mujoco" in sys.modules and "MUJOCO_GL" not in os.environ
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from stackpick_sim.exceptions import (  # noqa: E402 - after the GL default
     ConfigError,
     ImageError,
     ModelError,
@@ -9,7 +18,7 @@ from stackpick_sim.exceptions import (
     SceneGenerationError,
     StackpickError,
 )
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle, tilt_angles
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle, tilt_angles  # noqa: E402
 
 __all__ = [
     "CameraIntrinsics",

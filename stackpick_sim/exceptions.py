@@ -30,3 +30,15 @@ class SceneGenerationError(StackpickError):
 
 class ImageError(StackpickError):
     """An image given to the vision pipeline cannot be used (wrong dtype, shape, ...)."""
+
+
+class IKError(StackpickError):
+    """Inverse kinematics failed: unreachable target, bad input, or no convergence."""
+
+
+class ControlError(StackpickError):
+    """A servo input is malformed (wrong shape, unknown frame, non-positive depth, ...)."""
+
+
+class EstimationError(StackpickError):
+    """A tracker or back-projection input is malformed or geometrically impossible."""

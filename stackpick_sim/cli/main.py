@@ -14,9 +14,10 @@ import sys
 from collections.abc import Sequence
 
 from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.glcheck import gl_failure_message
 
 #: Subcommand modules, in the order --help lists them.
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,6 +35,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``stackpick`` script; returns the process exit code."""
+    try:
+        import mujoco  # noqa: F401 - it loads the GL backend at import and fails there if broken
+    except Exception as exc:
+        print(f"stackpick: error: {gl_failure_message(exc)}", file=sys.stderr)
+        return 2
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))

@@ -1,1 +1,26 @@
-"""vision subpackage."""
+"""Vision: find the top cylinder of a pile and its pose (paper section 2).
+
+Stages, one module each: :mod:`edges`, :mod:`segments`, :mod:`fitting`, :mod:`merging`,
+:mod:`occlusion` (the top-object rule, usable on any detector's ellipses), :mod:`pose`;
+:mod:`detector` runs them, :mod:`detection` holds the result, :mod:`synthetic` renders test
+stacks with ground truth.
+"""
+
+from stackpick_sim.vision.detection import DetectedEllipse, Detection
+from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector, detect
+from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
+from stackpick_sim.vision.pose import Pose, circle_poses, estimate_pose
+
+__all__ = [
+    "DetectedEllipse",
+    "Detection",
+    "DetectorConfig",
+    "OcclusionEvidence",
+    "Pose",
+    "TopChoice",
+    "TopObjectDetector",
+    "circle_poses",
+    "detect",
+    "estimate_pose",
+    "select_top",
+]

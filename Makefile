@@ -1,0 +1,45 @@
+# Two commands set everything up on a fresh machine:
+#   make demo   creates .venv, installs, runs the main job on the default scene, prints its summary
+#   make test   creates/updates .venv and runs the tests
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+DEMO_OUT ?= out/demo
+
+# Headless offscreen rendering through Mesa's EGL (no GPU, no display needed).
+export MUJOCO_GL ?= egl
+
+.PHONY: demo test lint bench gl-check system-deps clean
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+	  { echo "error: Python >= 3.11 is required; $(PYTHON) is $$($(PYTHON) --version 2>&1)"; exit 1; }
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	@touch $(STAMP)
+
+# One line naming the missing Debian packages if EGL rendering does not work.
+gl-check: $(STAMP)
+	@$(BIN)/python -m stackpick_sim.glcheck
+
+demo: $(STAMP) gl-check
+	$(BIN)/stackpick render --scene paper --seed 7 --out $(DEMO_OUT)
+
+test: $(STAMP) gl-check
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
+
+bench: $(STAMP) gl-check
+	$(BIN)/python benchmarks/bench_scene.py
+
+# The system libraries EGL rendering needs (Debian/Ubuntu, as root); gl-check says if missing.
+system-deps:
+	apt-get update && apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri
+
+clean:
+	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

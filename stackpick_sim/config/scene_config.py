@@ -1,0 +1,228 @@
+"""Frozen scene configuration: one ``SceneConfig`` nests every section of a ``scenes/*.toml``.
+
+Units: metres, seconds, kilograms, degrees where the name says ``_deg``. World frame: z up,
+the belt runs along +y with its centre line at ``x = conveyor.x``; the arm's base is at the
+origin. Every section validates itself in ``__post_init__`` and raises
+:class:`~stackpick_sim.exceptions.ConfigError` naming the dotted key.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from stackpick_sim.exceptions import ConfigError
+
+#: A pile larger than this cannot be placed so that every face overlaps another object
+#: within the camera's view; rejection sampling would only spin.
+MAX_OBJECTS = 10
+
+
+def _require(ok: bool, key: str, value: object, allowed: str) -> None:
+    if not ok:
+        raise ConfigError(f"{key} = {value!r} is out of range; allowed: {allowed}")
+
+
+def _positive(key: str, value: float) -> None:
+    _require(math.isfinite(value) and value > 0, key, value, "a finite number > 0")
+
+
+def _non_negative(key: str, value: float) -> None:
+    _require(math.isfinite(value) and value >= 0, key, value, "a finite number >= 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ConveyorCfg:
+    """The belt: a static box whose surface moves (MuJoCo ``surfacevel``)."""
+
+    speed: float = 0.1
+    """Nominal belt speed, m/s along world +y."""
+    speed_jitter: float = 0.0
+    """Std of the belt speed noise (the paper's n(k)), m/s, redrawn every ``jitter_period``."""
+    jitter_period: float = 0.1
+    """Seconds between redraws of the speed noise."""
+    x: float = 0.40
+    """Belt centre line, world x, m (the VS-060 reaches tool-down picks to about 0.56 m)."""
+    top_z: float = 0.10
+    """Height of the belt surface, m."""
+    width: float = 0.30
+    """Belt width along x, m."""
+    length: float = 1.40
+    """Belt length along y, m, centred on y = 0; objects past its ends are out of the cell."""
+    friction: float = 1.0
+    """Sliding friction of the belt surface (it carries objects by friction)."""
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.speed) and 0 <= self.speed <= 1.0, "conveyor.speed",
+                 self.speed, "0 to 1.0 m/s")
+        _non_negative("conveyor.speed_jitter", self.speed_jitter)
+        _positive("conveyor.jitter_period", self.jitter_period)
+        for key in ("width", "length", "friction"):
+            _positive(f"conveyor.{key}", getattr(self, key))
+        _require(math.isfinite(self.top_z) and 0.02 <= self.top_z <= 0.5, "conveyor.top_z",
+                 self.top_z, "0.02 to 0.5 m")
+        _require(math.isfinite(self.x) and 0.3 <= self.x <= 0.6, "conveyor.x", self.x,
+                 "0.3 to 0.6 m (the arm's pick zone)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObjectTypeCfg:
+    """One kind of cylinder (the paper used two)."""
+
+    radius: float
+    """m"""
+    height: float
+    """m"""
+    mass: float
+    """kg"""
+    rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
+    """Colour, components in [0, 1]."""
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.radius) and 0.01 <= self.radius <= 0.06,
+                 "object_types.*.radius", self.radius, "0.01 to 0.06 m")
+        _require(math.isfinite(self.height) and 0.01 <= self.height <= 0.15,
+                 "object_types.*.height", self.height, "0.01 to 0.15 m")
+        _require(math.isfinite(self.mass) and 0.01 <= self.mass <= 0.6,
+                 "object_types.*.mass", self.mass, "0.01 to 0.6 kg (what the suction cup holds)")
+        _require(all(0.0 <= c <= 1.0 for c in self.rgba), "object_types.*.rgba", self.rgba,
+                 "four components in [0, 1]")
+
+
+def _default_types() -> dict[str, ObjectTypeCfg]:
+    return {
+        "large": ObjectTypeCfg(radius=0.035, height=0.03, mass=0.15, rgba=(0.85, 0.6, 0.25, 1.0)),
+        "small": ObjectTypeCfg(radius=0.025, height=0.025, mass=0.08, rgba=(0.3, 0.6, 0.85, 1.0)),
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObjectsCfg:
+    """How piles are made."""
+
+    count: tuple[int, int] = (3, 5)
+    """[min, max] number of cylinders per scene, both inclusive."""
+    types: tuple[str, ...] = ("large", "small")
+    """Names of ``object_types`` to draw from, uniformly."""
+    max_tilt_deg: float = 45.0
+    """Largest allowed tilt of a settled cylinder's axis from vertical, degrees."""
+    pile_radius: float = 0.05
+    """Horizontal spread of drop points around the pile centre, m."""
+    centre_jitter: float = 0.02
+    """Std of the pile centre's offset from the look point, m."""
+
+    def __post_init__(self) -> None:
+        lo, hi = self.count
+        _require(1 <= lo <= hi, "objects.count", list(self.count),
+                 "[min, max] with 1 <= min <= max")
+        _require(hi <= MAX_OBJECTS, "objects.count", list(self.count),
+                 f"at most {MAX_OBJECTS} objects (more cannot be placed in one camera view)")
+        _require(len(self.types) >= 1, "objects.types", list(self.types), "at least one type name")
+        _require(math.isfinite(self.max_tilt_deg) and 0 < self.max_tilt_deg <= 80,
+                 "objects.max_tilt_deg", self.max_tilt_deg, "0 < tilt <= 80 degrees")
+        _require(math.isfinite(self.pile_radius) and 0 <= self.pile_radius <= 0.1,
+                 "objects.pile_radius", self.pile_radius, "0 to 0.1 m")
+        _require(math.isfinite(self.centre_jitter) and 0 <= self.centre_jitter <= 0.05,
+                 "objects.centre_jitter", self.centre_jitter, "0 to 0.05 m")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraCfg:
+    """The wrist camera."""
+
+    width: int = 320
+    """px (the paper's camera: 320x240)"""
+    height: int = 240
+    """px"""
+    fovy_deg: float = 45.0
+    """Vertical field of view, degrees."""
+    look_height: float = 0.30
+    """Camera height above the belt surface at the look pose, m."""
+    noise_std: float = 0.0
+    """Std of additive Gaussian pixel noise, grey levels (0-255 scale)."""
+    fps: float = 30.0
+    """Frame rate, Hz."""
+    shadows: bool = False
+    """Render shadows (about 8x slower on a CPU renderer; the ring light casts few)."""
+
+    def __post_init__(self) -> None:
+        _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
+        _require(16 <= self.height <= 4096, "camera.height", self.height, "16 to 4096 px")
+        _require(math.isfinite(self.fovy_deg) and 10 <= self.fovy_deg <= 120, "camera.fovy_deg",
+                 self.fovy_deg, "10 to 120 degrees")
+        _require(math.isfinite(self.look_height) and 0.15 <= self.look_height <= 0.6,
+                 "camera.look_height", self.look_height, "0.15 to 0.6 m")
+        _require(math.isfinite(self.noise_std) and 0 <= self.noise_std <= 50,
+                 "camera.noise_std", self.noise_std, "0 to 50 grey levels")
+        _require(math.isfinite(self.fps) and 1 <= self.fps <= 240, "camera.fps", self.fps,
+                 "1 to 240 Hz")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LightsCfg:
+    """The paper's ring light (Fig. 3a): lights around the camera, each with its own intensity."""
+
+    intensity: float = 1.0
+    """One factor scaling all ring lights; 1.0 nominal."""
+    ring: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)
+    """Relative intensity of each ring light; their number is the length of this list."""
+    ring_radius: float = 0.045
+    """Radius of the ring around the optical axis, m."""
+    ambient: float = 0.15
+    """Ambient light of the room, [0, 1]."""
+    jitter: float = 0.0
+    """Relative std of a per-frame random scaling of each ring light (illumination jitter)."""
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
+                 self.intensity, "0 to 5")
+        _require(1 <= len(self.ring) <= 16 and all(0 <= v <= 5 for v in self.ring), "lights.ring",
+                 list(self.ring), "1 to 16 intensities, each 0 to 5")
+        _require(math.isfinite(self.ring_radius) and 0.01 <= self.ring_radius <= 0.2,
+                 "lights.ring_radius", self.ring_radius, "0.01 to 0.2 m")
+        _require(0 <= self.ambient <= 1, "lights.ambient", self.ambient, "0 to 1")
+        _require(math.isfinite(self.jitter) and 0 <= self.jitter <= 0.5, "lights.jitter",
+                 self.jitter, "0 to 0.5")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimCfg:
+    """Physics settings."""
+
+    timestep: float = 0.002
+    """s"""
+    settle_time: float = 1.5
+    """Longest time a dropped pile is simulated to come to rest, s."""
+    max_attempts: int = 200
+    """Rejection-sampling budget per scene."""
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.timestep) and 1e-4 <= self.timestep <= 0.01, "sim.timestep",
+                 self.timestep, "1e-4 to 0.01 s")
+        _require(math.isfinite(self.settle_time) and 0.2 <= self.settle_time <= 10,
+                 "sim.settle_time", self.settle_time, "0.2 to 10 s")
+        _require(1 <= self.max_attempts <= 10_000, "sim.max_attempts", self.max_attempts,
+                 "1 to 10000")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SceneConfig:
+    """A whole scene: what ``scenes/<name>.toml`` describes."""
+
+    name: str = "paper"
+    description: str = ""
+    conveyor: ConveyorCfg = field(default_factory=ConveyorCfg)
+    objects: ObjectsCfg = field(default_factory=ObjectsCfg)
+    object_types: dict[str, ObjectTypeCfg] = field(default_factory=_default_types)
+    camera: CameraCfg = field(default_factory=CameraCfg)
+    lights: LightsCfg = field(default_factory=LightsCfg)
+    sim: SimCfg = field(default_factory=SimCfg)
+
+    def __post_init__(self) -> None:
+        unknown = [t for t in self.objects.types if t not in self.object_types]
+        if unknown:
+            raise ConfigError(f"objects.types names unknown type(s) {unknown}; "
+                              f"defined in object_types: {sorted(self.object_types)}")
+        widest = max(2 * self.object_types[t].radius for t in self.objects.types)
+        _require(widest < self.conveyor.width / 2, "conveyor.width", self.conveyor.width,
+                 f"more than twice the widest object's diameter ({widest:.3f} m)")

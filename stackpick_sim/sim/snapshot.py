@@ -1,0 +1,50 @@
+"""One look-pose frame of a scene with its ground truth, and its pictures for people."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.overlay import (
+    OTHER_COLOUR,
+    TOP_COLOUR,
+    draw_ellipse,
+    draw_label,
+    draw_marker,
+    upscale,
+)
+from stackpick_sim.sim.camera import WristCamera
+from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
+from stackpick_sim.sim.stacks import Scene
+
+#: Second entry of the seed sequence of the look frame's pixel noise and light jitter, so that
+#: they never share draws with the pile generator seeded by the scene seed alone.
+LOOK_FRAME_STREAM = 1
+#: Overlays are drawn on the frame enlarged by this factor.
+OVERLAY_SCALE = 2
+
+
+def look_frame(scene: Scene, camera: WristCamera) -> tuple[NDArray[np.uint8], FrameTruth]:
+    """(RGB image with the scene's noise, ground truth) of the scene's current state."""
+    rng = np.random.default_rng([scene.seed, LOOK_FRAME_STREAM])
+    image = camera.render(rng)
+    return image, frame_truth(scene.cell, camera.segmentation())
+
+
+def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth) -> NDArray[np.uint8]:
+    """BGR picture: ground-truth face ellipses (green: top objects), face centres, names."""
+    k = OVERLAY_SCALE
+    out = upscale(np.ascontiguousarray(image_rgb[..., ::-1]), k)  # RGB -> BGR
+    for obj in truth.objects:
+        if obj.ellipse is None:
+            continue
+        colour = TOP_COLOUR if obj.is_top else OTHER_COLOUR
+        e = obj.ellipse
+        scaled = type(e)(cx=(e.cx + 0.5) * k - 0.5, cy=(e.cy + 0.5) * k - 0.5, a=e.a * k,
+                         b=e.b * k, angle_deg=e.angle_deg)
+        draw_ellipse(out, scaled, colour, thickness=1)
+        u, v = obj.face_center_px
+        draw_marker(out, ((u + 0.5) * k - 0.5, (v + 0.5) * k - 0.5), colour)
+        label = f"{obj.name} {100 * obj.visible_fraction:.0f}%" + (" TOP" if obj.is_top else "")
+        draw_label(out, label, (scaled.cx - 30, scaled.cy - scaled.b - 4), colour)
+    return out

@@ -1,0 +1,293 @@
+"""Seeded piles of overlapping cylinders: physical placement, settling, rejection sampling.
+
+The seed draws the pile's size and kinds once; then, attempt after attempt from the same
+generator, cylinders are dropped one by one onto the belt or onto the pile (near a previous
+cylinder, slightly tilted) and simulated until they rest. A pile is accepted when every
+cylinder rests on the belt or on others, no axis is tilted past ``objects.max_tilt_deg``,
+every top face lies inside the look-pose image and overlaps at least one other object's
+silhouette there. Same config and seed give the same settled state, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import cv2
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.exceptions import SceneGenerationError
+from stackpick_sim.geometry import plane_basis, project_circle
+from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell, build_cell
+from stackpick_sim.sim.ground_truth import OFF_BELT_DROP, top_face
+
+#: A dropped object counts as resting when its speed is below this, m/s ...
+REST_LINEAR_SPEED = 0.002
+#: ... and its angular speed below this, rad/s.
+REST_ANGULAR_SPEED = 0.05
+#: Shortest simulated time after a drop before rest is checked, s (it must at least land).
+MIN_DROP_TIME = 0.1
+#: Rest is checked every this many steps.
+REST_CHECK_STEPS = 10
+#: Gap left between a dropped object's lowest point and the pile's highest point, m.
+DROP_CLEARANCE = 0.005
+#: Drop distance from the previous object's centre, as a range of fractions of the sum of radii:
+#: from well on top of it to leaning against its rim.
+NEIGHBOUR_DISTANCE = (0.4, 1.0)
+#: Tries at dropping one object before the whole pile is started again: a drop that leaves
+#: any object off the belt or tilted too far is undone (state restored) and redrawn.
+DROP_TRIES = 8
+#: Largest tilt of a cylinder as it is released, degrees. Objects are dropped nearly upright:
+#: the tilt of a pile comes from landing on a neighbour's rim; a tilted release tips them
+#: onto their side, where they roll off the belt.
+RELEASE_TILT_DEG = 5.0
+#: A face must overlap another silhouette by this share of its area to count as "in a stack".
+MIN_OVERLAP_FRACTION = 0.02
+#: Top faces must lie this far inside the image border, px.
+IMAGE_MARGIN_PX = 2.0
+#: Points per rim when rasterising silhouettes.
+RIM_POINTS = 48
+#: Time constants of the temporary viscous damping on the objects while they are placed, s.
+#: Placement is gentle (a hand setting objects down, not a free fall), so cylinders come to
+#: rest where they land instead of tumbling onto their side and rolling off the belt; the
+#: damping is removed before the stability check, so accepted piles are true equilibria.
+PLACEMENT_DAMPING_TAU = (0.05, 0.02)
+#: Undamped time a placed pile must then stay at rest, s ...
+STABILITY_CHECK_TIME = 0.3
+#: ... moving no object by more than this, m, ...
+STABILITY_MAX_DRIFT = 0.001
+#: ... nor turning its axis by more than this, degrees. (Instantaneous velocities are not
+#: used here: soft contacts keep a resting pile jittering at a few cm/s of angular speed
+#: without it going anywhere.)
+STABILITY_MAX_TURN_DEG = 1.0
+
+
+@dataclass(kw_only=True)
+class Scene:
+    """A settled pile in its cell, ready to render or to run an episode on."""
+
+    cell: Cell
+    seed: int
+    attempts: int
+    """Attempts it took (1 = the first pile was valid)."""
+    build_wall_s: float
+    """Wall time spent building and settling, s."""
+
+
+def _object_top_z(cell: Cell, i: int) -> float:
+    obj = cell.objects[i]
+    axis_z = abs(cell.data.xmat[obj.body_id][8])
+    return float(cell.data.xpos[obj.body_id][2] + axis_z * obj.height / 2
+                 + math.sqrt(max(0.0, 1 - axis_z**2)) * obj.radius)
+
+
+def _park_all(cell: Cell) -> None:
+    model, data = cell.model, cell.data
+    mujoco.mj_resetData(model, data)
+    cell.set_belt_speed(0.0)
+    cell.set_arm(cell.look_q)
+    for i, obj in enumerate(cell.objects):
+        data.qpos[obj.qpos_adr:obj.qpos_adr + 7] = [PARK_X, PARK_SPACING * i, obj.height / 2,
+                                                    1, 0, 0, 0]
+    mujoco.mj_forward(model, data)
+
+
+def _at_rest(cell: Cell, upto: int) -> bool:
+    for obj in cell.objects[:upto]:
+        v = cell.data.qvel[obj.dof_adr:obj.dof_adr + 6]
+        if np.linalg.norm(v[:3]) > REST_LINEAR_SPEED or np.linalg.norm(v[3:]) > REST_ANGULAR_SPEED:
+            return False
+    return True
+
+
+def _drop(cell: Cell, i: int, centre: NDArray[np.float64], rng: np.random.Generator) -> None:
+    """Drop object ``i`` above the pile near a previous object and simulate until all rest."""
+    cfg = cell.cfg.objects
+    obj = cell.objects[i]
+    data = cell.data
+    if i == 0:
+        r = 0.5 * cfg.pile_radius * math.sqrt(rng.uniform())
+        phi = rng.uniform(0, 2 * math.pi)
+        xy = centre + r * np.array([math.cos(phi), math.sin(phi)])
+    else:
+        j = int(rng.integers(i))
+        other = cell.objects[j]
+        d = rng.uniform(*NEIGHBOUR_DISTANCE) * (obj.radius + other.radius)
+        phi = rng.uniform(0, 2 * math.pi)
+        xy = data.xpos[other.body_id][:2] + d * np.array([math.cos(phi), math.sin(phi)])
+        off = xy - centre
+        if np.linalg.norm(off) > cfg.pile_radius:  # keep the pile together
+            xy = centre + off * cfg.pile_radius / np.linalg.norm(off)
+    tilt = rng.uniform(0, math.radians(RELEASE_TILT_DEG))
+    heading = rng.uniform(0, 2 * math.pi)
+    quat = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(quat, np.array([math.cos(heading), math.sin(heading), 0.0]), tilt)
+    half_extent = math.cos(tilt) * obj.height / 2 + math.sin(tilt) * obj.radius
+    # Drop just above what lies under the new object's footprint: a drop from the top of the
+    # whole pile would hit hard and scatter it.
+    reach = obj.radius + half_extent
+    floor = max([cell.cfg.conveyor.top_z] + [
+        _object_top_z(cell, k) for k in range(i)
+        if np.linalg.norm(data.xpos[cell.objects[k].body_id][:2] - xy)
+        < reach + math.hypot(cell.objects[k].radius, cell.objects[k].height / 2)])
+    data.qpos[obj.qpos_adr:obj.qpos_adr + 7] = [*xy, floor + DROP_CLEARANCE + half_extent, *quat]
+    data.qvel[obj.dof_adr:obj.dof_adr + 6] = 0.0
+    model = cell.model
+    min_steps = math.ceil(MIN_DROP_TIME / model.opt.timestep)
+    max_steps = math.ceil(cell.cfg.sim.settle_time / model.opt.timestep)
+    for step in range(1, max_steps + 1):
+        mujoco.mj_step(model, data)
+        if step >= min_steps and step % REST_CHECK_STEPS == 0 and _at_rest(cell, i + 1):
+            break
+
+
+def _silhouette_masks(cell: Cell, world_T_cam: NDArray[np.float64]) -> list[NDArray[np.uint8]]:
+    """Analytic image silhouette of each cylinder: the hull of its two projected rims."""
+    k = cell.intrinsics
+    r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
+    t = np.linspace(0, 2 * math.pi, RIM_POINTS, endpoint=False)
+    masks = []
+    for obj in cell.objects:
+        centre = cell.data.xpos[obj.body_id]
+        axis = cell.data.xmat[obj.body_id].reshape(3, 3)[:, 2]
+        u, v = plane_basis(axis)
+        ring = obj.radius * (np.outer(np.cos(t), u) + np.outer(np.sin(t), v))
+        pts = np.concatenate([centre + s * axis * obj.height / 2 + ring for s in (-1.0, 1.0)])
+        px = k.project((pts - p_wc) @ r_wc)
+        hull = cv2.convexHull(np.round(px * 16).astype(np.int32))
+        mask = np.zeros((k.height, k.width), np.uint8)
+        cv2.fillConvexPoly(mask, hull, 1, lineType=cv2.LINE_8, shift=4)
+        masks.append(mask)
+    return masks
+
+
+def pile_problem(cell: Cell) -> str | None:
+    """Why the current pile is not valid, or None if it is (see the module docstring)."""
+    cfg = cell.cfg
+    data = cell.data
+    belt = cfg.conveyor
+    for obj in cell.objects:
+        pos = data.xpos[obj.body_id]
+        if abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP:
+            return f"{obj.name} fell off the belt"
+        axis_z = abs(data.xmat[obj.body_id][8])
+        if math.degrees(math.acos(min(1.0, axis_z))) > cfg.objects.max_tilt_deg:
+            return f"{obj.name} tilted past objects.max_tilt_deg"
+    world_T_cam = cell.world_T_cam()
+    r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
+    k = cell.intrinsics
+    silhouettes = _silhouette_masks(cell, world_T_cam)
+    for i, obj in enumerate(cell.objects):
+        centre, normal = top_face(cell, obj, p_wc)
+        try:
+            face = project_circle(r_wc.T @ (centre - p_wc), -(r_wc.T @ normal), obj.radius, k)
+        except ValueError:
+            return f"{obj.name} is not in front of the camera"
+        u0, v0, u1, v1 = face.bounds()
+        if (u0 < IMAGE_MARGIN_PX or v0 < IMAGE_MARGIN_PX or u1 > k.width - 1 - IMAGE_MARGIN_PX
+                or v1 > k.height - 1 - IMAGE_MARGIN_PX):
+            return f"{obj.name}'s face leaves the image"
+        face_mask = face.mask((k.height, k.width))
+        others = np.zeros_like(face_mask)
+        for j, sil in enumerate(silhouettes):
+            if j != i:
+                others |= sil.astype(bool)
+        if np.count_nonzero(face_mask & others) < MIN_OVERLAP_FRACTION * face.area:
+            return f"{obj.name} overlaps no other object"
+    return None
+
+
+def _set_placement_damping(cell: Cell, on: bool) -> None:
+    model = cell.model
+    tau_lin, tau_ang = PLACEMENT_DAMPING_TAU
+    for obj in cell.objects:
+        dofs = slice(obj.dof_adr, obj.dof_adr + 6)
+        if on:
+            mass = model.body_mass[obj.body_id]
+            inertia = model.body_inertia[obj.body_id]
+            model.dof_damping[dofs] = np.concatenate([np.full(3, mass / tau_lin),
+                                                      inertia / tau_ang])
+        else:
+            model.dof_damping[dofs] = 0.0
+
+
+def _stays_at_rest(cell: Cell) -> bool:
+    """Simulate undamped for STABILITY_CHECK_TIME; True if no object drifted or turned."""
+    ids = [o.body_id for o in cell.objects]
+    pos0, axis0 = cell.data.xpos[ids].copy(), cell.data.xmat[ids][:, 6:9].copy()
+    for _ in range(math.ceil(STABILITY_CHECK_TIME / cell.model.opt.timestep)):
+        mujoco.mj_step(cell.model, cell.data)
+    drift = np.linalg.norm(cell.data.xpos[ids] - pos0, axis=1)
+    cos_turn = np.clip(np.sum(cell.data.xmat[ids][:, 6:9] * axis0, axis=1), -1.0, 1.0)
+    return bool(np.all(drift <= STABILITY_MAX_DRIFT)
+                and np.all(np.degrees(np.arccos(cos_turn)) <= STABILITY_MAX_TURN_DEG))
+
+
+def _placement_problem(cell: Cell, upto: int) -> str | None:
+    """Why the objects placed so far are not a valid partial pile (off belt, too tilted)."""
+    belt = cell.cfg.conveyor
+    for obj in cell.objects[:upto]:
+        pos = cell.data.xpos[obj.body_id]
+        if abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP:
+            return f"{obj.name} fell off the belt"
+        axis_z = abs(cell.data.xmat[obj.body_id][8])
+        if math.degrees(math.acos(min(1.0, axis_z))) > cell.cfg.objects.max_tilt_deg:
+            return f"{obj.name} tilted past objects.max_tilt_deg"
+    return None
+
+
+def settle_pile(cell: Cell, rng: np.random.Generator) -> str | None:
+    """Reset the cell and place a fresh pile drawn from ``rng``; None if it came to rest.
+
+    Otherwise the reason it could not be placed. The pile may still be invalid in other ways
+    (check ``pile_problem``).
+    """
+    _park_all(cell)
+    jitter = cell.cfg.objects.centre_jitter
+    centre = cell.look_point[:2] + jitter * rng.standard_normal(2)
+    model, data = cell.model, cell.data
+    _set_placement_damping(cell, True)
+    try:
+        for i in range(len(cell.objects)):
+            saved = (data.time, data.qpos.copy(), data.qvel.copy())
+            for _ in range(DROP_TRIES):
+                _drop(cell, i, centre, rng)
+                problem = _placement_problem(cell, i + 1)
+                if problem is None:
+                    break
+                data.time, data.qpos[:], data.qvel[:] = saved[0], saved[1], saved[2]
+                mujoco.mj_forward(model, data)
+            else:
+                return problem
+    finally:
+        _set_placement_damping(cell, False)
+    stable = _stays_at_rest(cell)
+    mujoco.mj_forward(model, data)
+    return None if stable else "not at rest"
+
+
+def generate_scene(cfg: SceneConfig, seed: int) -> Scene:
+    """The settled scene of ``cfg`` and ``seed`` (deterministic), or SceneGenerationError."""
+    start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    lo, hi = cfg.objects.count
+    count = int(rng.integers(lo, hi + 1))
+    kinds = [cfg.objects.types[int(k)] for k in rng.integers(len(cfg.objects.types), size=count)]
+    cell = build_cell(cfg, kinds)
+    problems: dict[str, int] = {}
+    for attempt in range(1, cfg.sim.max_attempts + 1):
+        problem = settle_pile(cell, rng) or pile_problem(cell)
+        if problem is None:
+            return Scene(cell=cell, seed=seed, attempts=attempt,
+                         build_wall_s=time.perf_counter() - start)
+        reason = problem.split(" ", 1)[1] if problem.startswith("obj") else problem
+        problems[reason] = problems.get(reason, 0) + 1
+    worst = ", ".join(f"{n}x {r}" for r, n in sorted(problems.items(), key=lambda x: -x[1]))
+    raise SceneGenerationError(
+        f"seed {seed}: no valid pile of {count} objects in {cfg.sim.max_attempts} attempts "
+        f"({worst}); try fewer objects (objects.count), a larger objects.max_tilt_deg or "
+        f"objects.pile_radius, or more sim.max_attempts")

@@ -1,0 +1,117 @@
+"""The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
+
+Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
+:class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
+input that is not an image at all (wrong dtype, shape, NaN), one
+:class:`~stackpick_sim.exceptions.ImageError`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.detection import DetectedEllipse, Detection
+from stackpick_sim.vision.edges import MIN_SIDE_PX, as_rgb_or_gray, detect_edges
+from stackpick_sim.vision.fitting import fit_or_split
+from stackpick_sim.vision.merging import merge_segments, support_map
+from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.pose import estimate_pose
+from stackpick_sim.vision.segments import link_segments
+
+#: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
+DEFAULT_FOVY_DEG = 45.0
+#: The paper scene's cylinder radii, metres (large and small kind).
+DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DetectorConfig:
+    """Detector settings.
+
+    ``intrinsics``: camera K (default: a centred pinhole of DEFAULT_FOVY_DEG for the image's
+    size). ``radii_m``: candidate face radii. ``depth_range_m``: expected (min, max) depth of
+    a top face, metres, used to choose among the radii (the caller knows the camera's height
+    above the belt); None takes the first radius.
+    """
+
+    intrinsics: CameraIntrinsics | None = None
+    radii_m: tuple[float, ...] = DEFAULT_RADII_M
+    depth_range_m: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if not self.radii_m or any(not r > 0 for r in self.radii_m):
+            raise ConfigError(f"radii_m must be positive metres, got {self.radii_m}")
+        if self.depth_range_m is not None:
+            lo, hi = self.depth_range_m
+            if not 0 < lo <= hi:
+                raise ConfigError(f"depth_range_m must be 0 < min <= max, got {self.depth_range_m}")
+
+
+class TopObjectDetector:
+    """Finds the top cylinder's face and pose in one image; see :func:`detect`."""
+
+    def __init__(self, config: DetectorConfig | None = None) -> None:
+        self.config = config or DetectorConfig()
+
+    def _intrinsics(self, shape: tuple[int, int]) -> CameraIntrinsics:
+        if self.config.intrinsics is not None:
+            return self.config.intrinsics
+        return CameraIntrinsics.from_fovy(DEFAULT_FOVY_DEG, shape[1], shape[0])
+
+    def detect(self, image: NDArray) -> Detection:
+        """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
+        t0 = time.perf_counter()
+        img = as_rgb_or_gray(image)
+        shape = (int(img.shape[0]), int(img.shape[1]))
+        if min(shape) < MIN_SIDE_PX:
+            return Detection(reason=f"image {shape[1]}x{shape[0]} smaller than "
+                             f"{MIN_SIDE_PX} px a side")
+        timings: dict[str, float] = {}
+
+        def lap(name: str, start: float) -> float:
+            now = time.perf_counter()
+            timings[name] = (now - start) * 1e3
+            return now
+
+        edges = detect_edges(img)
+        t = lap("edges", t0)
+        segs = link_segments(edges)
+        t = lap("segments", t)
+        pieces: list[NDArray[np.int32]] = []
+        fits: list[tuple[int, Ellipse]] = []
+        for chain in segs.chains:
+            for points, ellipse, _ in fit_or_split(chain, shape):
+                fits.append((len(pieces), ellipse))
+                pieces.append(points)
+        chains = tuple(pieces) + segs.chains
+        t = lap("fitting", t)
+        merged = merge_segments(chains, fits, edges)
+        t = lap("merging", t)
+        choice = select_top([m.ellipse for m in merged], edges)
+        t = lap("top", t)
+        ellipses = tuple(
+            DetectedEllipse(ellipse=m.ellipse, segments=m.segments, residual_px=m.residual_px,
+                            support=m.support,
+                            evidence=choice.evidence[i] if choice.evidence else None)
+            for i, m in enumerate(merged))
+        detection = Detection(ellipses=ellipses, segments=chains, top=choice.index,
+                              timings_ms=timings, reason=choice.reason)
+        if choice.index is not None:
+            pose = estimate_pose(merged[choice.index].ellipse, self._intrinsics(shape),
+                                 self.config.radii_m, support_map(edges),
+                                 self.config.depth_range_m)
+            detection = replace(detection, pose=pose)
+        t = lap("pose", t)
+        timings["total"] = (t - t0) * 1e3
+        return detection
+
+
+def detect(image: NDArray, config: DetectorConfig | None = None) -> Detection:
+    """Detect the top object and its pose in ``image`` ((H, W) or (H, W, 3) RGB)."""
+    return TopObjectDetector(config).detect(image)

@@ -1,0 +1,142 @@
+"""Stage 3: ellipse-specific least-squares fits of edge segments (paper Eq. 1 and 2).
+
+The paper writes an ellipse about its centre as ``A x^2 + 2 H x y + B y^2 = 1`` and accepts it
+only when ``A B - H^2 > 0``. Fitzgibbon's direct fit (``cv2.fitEllipseDirect``) minimises the
+algebraic error under exactly that constraint (normalised to ``4AB - (2H)^2 = 1``), so every
+fit it returns is an ellipse; the condition is still checked on the returned quadratic form,
+which also rejects the degenerate fits OpenCV returns for collinear points.
+
+Distances of points to an ellipse use the Sampson approximation (algebraic error over its
+gradient), accurate to a few percent within a few pixels of the curve, which is all the
+residual tests and the merging counts look at.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.geometry import Ellipse
+
+#: Segments shorter than this (px) are not fitted: a few pixels of arc do not fix 5 parameters.
+MIN_FIT_PX = 10
+#: A segment whose points spread less than this (px, RMS across its principal line) is
+#: straight: a side-wall line or a chord too flat to tell an ellipse from a line.
+MIN_BOW_PX = 0.6
+#: Largest RMS Sampson residual (px) of an accepted fit. Anti-aliased synthetic and rendered
+#: edges fit to ~0.2-0.3 px; 0.6 px rejects arcs that mix two curves.
+MAX_RESIDUAL_PX = 0.6
+#: Smallest semi-minor axis (px) of an accepted ellipse (faces are >= ~10 px).
+MIN_AXIS_PX = 5.0
+#: Largest semi-major axis as a multiple of the image diagonal (beyond: a near-line fit).
+MAX_AXIS_DIAGONALS = 1.0
+
+
+def fit_ellipse(points: NDArray) -> Ellipse | None:
+    """Ellipse-specific fit of (N, 2) pixels (u, v); None if N < 5 or not an ellipse."""
+    if points.shape[0] < 5:
+        return None
+    (cx, cy), (w, h), angle = cv2.fitEllipseDirect(np.asarray(points, np.float32))
+    if not (np.isfinite(cx) and np.isfinite(cy) and w > 0 and h > 0 and np.isfinite(angle)):
+        return None
+    if w >= h:
+        a, b, ang = w / 2.0, h / 2.0, angle
+    else:
+        a, b, ang = h / 2.0, w / 2.0, angle + 90.0
+    ellipse = Ellipse(cx=float(cx), cy=float(cy), a=float(a), b=float(b),
+                      angle_deg=float(ang % 180.0))
+    if not satisfies_eq2(ellipse):
+        return None
+    return ellipse
+
+
+def satisfies_eq2(ellipse: Ellipse) -> bool:
+    """Paper Eq. 2: the centred quadratic form A x^2 + 2Hxy + B y^2 has AB - H^2 > 0.
+
+    Computed in units of the semi-major axis (so the test is scale-free).
+    """
+    t = math.radians(ellipse.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0, (ellipse.a / ellipse.b) ** 2
+    big_a, big_b, big_h = c * c * ia + s * s * ib, s * s * ia + c * c * ib, c * s * (ia - ib)
+    return big_a * big_b - big_h * big_h > 0.0
+
+
+def ellipse_params(ellipses: list[Ellipse]) -> NDArray[np.float64]:
+    """(E, 5) array of (cx, cy, a, b, angle_rad) rows."""
+    return np.array([[e.cx, e.cy, e.a, e.b, math.radians(e.angle_deg)] for e in ellipses],
+                    dtype=np.float64).reshape(-1, 5)
+
+
+def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float64]:
+    """(E, N) approximate distances (px) of N points (N, 2) to E ellipses (E, 5) params.
+
+    Sampson distance |Q| / |grad Q| of the normalised implicit form
+    Q = (x/a)^2 + (y/b)^2 - 1 in each ellipse's own frame.
+    """
+    p = np.asarray(points, np.float64)
+    cx, cy, a, b, t = (params[:, i : i + 1] for i in range(5))
+    du, dv = p[None, :, 0] - cx, p[None, :, 1] - cy
+    c, s = np.cos(t), np.sin(t)
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    q = x * x + y * y - 1.0
+    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
+    return np.abs(q) / grad
+
+
+def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
+    """RMS Sampson distance (px) of (N, 2) points to ``ellipse``."""
+    d = distances(ellipse_params([ellipse]), points)[0]
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def bow_px(points: NDArray) -> float:
+    """RMS spread (px) of (N, 2) points across their principal line; ~0 for a straight run."""
+    p = np.asarray(points, np.float64)
+    centred = p - p.mean(axis=0)
+    sxx, syy = float(centred[:, 0] @ centred[:, 0]), float(centred[:, 1] @ centred[:, 1])
+    sxy = float(centred[:, 0] @ centred[:, 1])
+    n = max(1, p.shape[0])
+    half_trace, det = 0.5 * (sxx + syy) / n, (sxx * syy - sxy * sxy) / (n * n)
+    smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
+    return math.sqrt(max(0.0, smallest))
+
+
+def plausible(ellipse: Ellipse, shape: tuple[int, int]) -> bool:
+    """True when the axes are within MIN_AXIS_PX and MAX_AXIS_DIAGONALS of an (H, W) image."""
+    diagonal = math.hypot(*shape)
+    return MIN_AXIS_PX <= ellipse.b and ellipse.a <= MAX_AXIS_DIAGONALS * diagonal
+
+
+def fit_segment(points: NDArray, shape: tuple[int, int]) -> tuple[Ellipse, float] | None:
+    """(ellipse, rms residual px) of a segment (N, 2), or None if too short, straight or bad."""
+    if points.shape[0] < MIN_FIT_PX or bow_px(points) < MIN_BOW_PX:
+        return None
+    ellipse = fit_ellipse(points)
+    if ellipse is None or not plausible(ellipse, shape):
+        return None
+    residual = rms_residual(ellipse, points)
+    if residual > MAX_RESIDUAL_PX:
+        return None
+    return ellipse, residual
+
+
+def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
+                 ) -> list[tuple[NDArray, Ellipse, float]]:
+    """Fit a segment; if the fit fails on a long segment, split it in halves and retry.
+
+    Returns (points, ellipse, residual) per accepted piece. A wall line that runs smoothly
+    (no corner) into a face arc fails as a whole, and its arc half then fits on its own.
+    """
+    fit = fit_segment(points, shape)
+    if fit is not None:
+        return [(points, fit[0], fit[1])]
+    if depth == 0 or points.shape[0] < 2 * MIN_FIT_PX:
+        return []
+    half = points.shape[0] // 2
+    return (fit_or_split(points[:half], shape, depth - 1)
+            + fit_or_split(points[half:], shape, depth - 1))

@@ -1,0 +1,195 @@
+"""Stage 4: merge segment ellipses that describe the same ellipse (paper Eq. 3), then validate.
+
+``N_{A/B}`` is the share of segment A's pixels lying within ``MERGE_TOLERANCE_PX`` of the
+ellipse fitted to B. Two groups merge when ``C = N_{A/B} * N_{B/A} > MERGE_K`` and the refit on
+their union still fits; the best pair merges first and the counts are recomputed after every
+merge until no pair qualifies (the product is symmetric, so a short arc whose own ellipse is
+poorly constrained cannot absorb a long one by accident).
+
+All pair counts come from one (groups x pixels) boolean matrix and one matrix product per
+round. Afterwards every edge segment too short to have been fitted on its own is absorbed by
+the ellipse its pixels lie on, and each final ellipse is validated by the share of its
+circumference that edge pixels support.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.fitting import (
+    MAX_RESIDUAL_PX,
+    distances,
+    ellipse_params,
+    fit_ellipse,
+    plausible,
+    rms_residual,
+)
+
+#: Eq. 3 threshold k on C = N_{A/B} N_{B/A}. Two halves of one face extrapolate ~1 px off
+#: each other's far side and score only 0.25-0.6 (measured), so k is low; wrong merges are
+#: kept out by the refit checks instead (MERGE_MAX_RESIDUAL_PX and every part staying on the
+#: union's ellipse). Arcs of two different faces score ~0.
+MERGE_K = 0.2
+#: A pixel "pertains to" an ellipse within this distance, px: the RMS fit residual is ~0.3
+#: px on anti-aliased edges, and 1.5 px admits two pixels of quantisation either way.
+MERGE_TOLERANCE_PX = 1.5
+#: Largest RMS residual (px) of the refit on a merged pair. Tighter than a single segment's
+#: MAX_RESIDUAL_PX: two arcs of different but similar faces can be fitted together to ~0.5 px
+#: while true arcs of one face refit to ~0.3 px.
+MERGE_MAX_RESIDUAL_PX = 0.4
+#: A leftover segment joins an ellipse when this share of its pixels lies on it.
+ABSORB_FRACTION = 0.9
+#: Circumference samples are checked against the edge map dilated by this radius, px.
+SUPPORT_RADIUS_PX = 1
+#: A final ellipse must have edge pixels along at least this share of its circumference.
+#: A face half hidden under another object keeps ~0.5; a cylinder's far rim (its wall's
+#: silhouette) also shows about half and is told apart later by the occlusion tests.
+MIN_SUPPORT = 0.4
+
+
+@dataclass(frozen=True, kw_only=True)
+class MergedEllipse:
+    """One merged ellipse: its fit, segment indices, RMS residual (px) and support (0-1)."""
+
+    ellipse: Ellipse
+    segments: tuple[int, ...]
+    residual_px: float
+    support: float
+
+
+def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """(H, W) 0/1 map of pixels within SUPPORT_RADIUS_PX (Chebyshev) of an edge pixel."""
+    side = 2 * SUPPORT_RADIUS_PX + 1
+    return np.asarray(cv2.dilate(edges, np.ones((side, side), np.uint8)), np.uint8)
+
+
+def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
+    """(n, 2) points about 1 px apart along the ellipse (Ramanujan's perimeter)."""
+    a, b = ellipse.a, ellipse.b
+    h = ((a - b) / (a + b)) ** 2
+    perimeter = math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
+    return ellipse.points(max(16, math.ceil(perimeter)))
+
+
+def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:
+    """(n,) bool per boundary sample: is there an edge pixel near it (off-image: False)."""
+    pts = np.rint(boundary_samples(ellipse)).astype(np.int64)
+    h, w = support.shape
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    out = np.zeros(pts.shape[0], bool)
+    out[inside] = support[pts[inside, 1], pts[inside, 0]] > 0
+    return out
+
+
+def _pertain_matrix(params: NDArray[np.float64], points: NDArray[np.float64],
+                    owner: NDArray[np.int64], n_groups: int) -> NDArray[np.float64]:
+    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b."""
+    on = (distances(params, points) < MERGE_TOLERANCE_PX).astype(np.float64)
+    onehot = np.zeros((points.shape[0], n_groups))
+    onehot[np.arange(points.shape[0]), owner] = 1.0
+    counts = onehot.sum(axis=0)
+    return (on @ onehot) / np.maximum(counts, 1.0)
+
+
+def _keeps_members(merged: Ellipse, points: NDArray[np.float64], owner: NDArray[np.int64],
+                   groups: tuple[int, int]) -> bool:
+    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse.
+
+    A low RMS residual alone lets a big ellipse pass between the arcs of two different
+    faces; requiring each part to stay on the union's ellipse does not.
+    """
+    d = distances(ellipse_params([merged]), points)[0] < MERGE_TOLERANCE_PX
+    return all(float(d[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
+
+
+def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
+                   edges: NDArray[np.uint8]) -> list[MergedEllipse]:
+    """Merge per-segment fits by Eq. 3, absorb leftovers, validate by support.
+
+    ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
+    ellipse) for those that fitted on their own (one segment may appear once per piece);
+    ``edges`` the (H, W) 0/1 edge map. Returns ellipses sorted by support, best first.
+    """
+    shape = (int(edges.shape[0]), int(edges.shape[1]))
+    if not fits:
+        return []
+    members: list[list[int]] = [[i] for i, _ in fits]
+    ellipses: list[Ellipse | None] = [e for _, e in fits]
+    seg_of_piece = np.array([i for i, _ in fits])
+    points = np.vstack([chains[i] for i in seg_of_piece]).astype(np.float64)
+    owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
+    refused: set[tuple[int, int]] = set()
+    while True:
+        alive = [g for g, e in enumerate(ellipses) if e is not None]
+        if len(alive) < 2:
+            break
+        params = ellipse_params([ellipses[g] for g in alive])  # type: ignore[misc]
+        remap = -np.ones(len(ellipses), np.int64)
+        remap[alive] = np.arange(len(alive))
+        n = _pertain_matrix(params, points, remap[owner], len(alive))
+        c = n * n.T
+        np.fill_diagonal(c, 0.0)
+        for i, j in refused:
+            if remap[i] >= 0 and remap[j] >= 0:
+                c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
+        best = int(np.argmax(c))
+        bi, bj = divmod(best, len(alive))
+        if c[bi, bj] <= MERGE_K:
+            break
+        gi, gj = alive[bi], alive[bj]
+        union = points[(owner == gi) | (owner == gj)]
+        merged = fit_ellipse(union)
+        if (merged is None or not plausible(merged, shape)
+                or rms_residual(merged, union) > MERGE_MAX_RESIDUAL_PX
+                or not _keeps_members(merged, points, owner, (gi, gj))):
+            refused.add((gi, gj))
+            continue
+        ellipses[gi], ellipses[gj] = merged, None
+        members[gi] += members[gj]
+        owner[owner == gj] = gi
+    return _absorb_and_validate(chains, members, ellipses, edges)
+
+
+def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
+                         ellipses: list[Ellipse | None], edges: NDArray[np.uint8]
+                         ) -> list[MergedEllipse]:
+    """Add leftover segments lying on each final ellipse, refit, keep supported ones."""
+    groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
+    if not groups:
+        return []
+    all_points = np.vstack(chains).astype(np.float64)
+    seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
+    params = ellipse_params([e for _, e in groups])
+    on = distances(params, all_points) < MERGE_TOLERANCE_PX
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    hits = np.stack([np.bincount(seg_id, weights=row, minlength=len(chains)) for row in on])
+    frac = hits / lengths[None, :]
+    support = support_map(edges)
+    shape = (int(edges.shape[0]), int(edges.shape[1]))
+    out: list[MergedEllipse] = []
+    for g, (segs, ellipse) in enumerate(groups):
+        extra = [int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
+        segs_all = segs + extra
+        pts = np.vstack([chains[s] for s in segs_all]).astype(np.float64)
+        refit = fit_ellipse(pts) if extra else ellipse
+        if refit is not None and plausible(refit, shape):
+            residual = rms_residual(refit, pts)
+            if residual <= MAX_RESIDUAL_PX:
+                ellipse = refit
+            else:
+                segs_all, pts = segs, np.vstack([chains[s] for s in segs]).astype(np.float64)
+                residual = rms_residual(ellipse, pts)
+        else:
+            residual = rms_residual(ellipse, pts)
+        share = float(np.mean(supported(ellipse, support)))
+        if share >= MIN_SUPPORT:
+            out.append(MergedEllipse(ellipse=ellipse, segments=tuple(segs_all),
+                                     residual_px=residual, support=share))
+    out.sort(key=lambda m: -m.support)
+    return out

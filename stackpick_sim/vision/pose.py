@@ -1,0 +1,183 @@
+"""Stage 6: pose of a circular face from its image ellipse (camera frame, OpenCV axes).
+
+With K known, an image ellipse is a cone ``X^T Q X = 0`` (``Q = K^T C K``, ``C`` the pixel
+conic). Sorting Q's eigenvalues so that l1 >= l2 > 0 > l3 (eigenvectors e1, e2, e3), the
+planes cutting the cone in circles have normals ``n ~ +-sqrt(l1 - l2) e1 + sqrt(l2 - l3) e3``:
+two solutions, the classic two-fold ambiguity. For each normal the circle's centre projects
+to the pole of the plane's vanishing line, ``C^-1 K^-T n`` (which corrects the perspective
+shift between the ellipse centre and the face centre), and the depth follows from the radius:
+everything scales with it, so each candidate radius gives one depth.
+
+**Radius**: of the candidate radii, the one whose implied face depth lies inside the expected
+depth range (nearest to the range's middle if several do, nearest to the range if none).
+Only depth depends on it; the face-centre pixel and the tilt angles do not.
+
+**Two-fold ambiguity**: the cylinder's side wall is visible on the side its axis leans
+towards (the inward normal, projected). For each solution the two straight silhouette lines
+of the wall are predicted (the hull of the face rim and a rim WALL_PROBE_RADII radii further
+along the axis) and checked against the edge map; the solution whose lines have more edge
+support wins. When neither has wall evidence (a face seen square on, where both solutions
+nearly coincide) the smaller tilt is taken.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, plane_basis, tilt_angles
+
+#: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
+#: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.
+WALL_PROBE_RADII = 1.0
+#: Rim points used to predict the wall hull.
+WALL_RIM_POINTS = 48
+#: Samples along each predicted silhouette line, skipping this many px at each end, where the
+#: line meets the face outline (whose own edge would support either solution).
+WALL_END_SKIP_PX = 2.0
+#: Wall support difference below which the evidence is called a tie.
+WALL_TIE = 0.15
+
+
+@dataclass(frozen=True, kw_only=True)
+class CirclePose:
+    """One pose solution: inward unit normal (3,), face centre (3,) m, camera frame."""
+
+    normal_cam: FloatArray
+    centre_cam: FloatArray
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pose:
+    """The top face's pose: paper's (x, y, theta_x, theta_y) plus depth and 3-D vectors.
+
+    ``x``, ``y``: face-centre pixel (perspective-corrected); ``theta_x_deg``,
+    ``theta_y_deg``: tilt angles (see :mod:`stackpick_sim.geometry`); ``depth_m``: z of the
+    face centre; ``normal_cam``: inward face normal; ``centre_cam``: face centre, metres;
+    ``radius_m``: the chosen radius; ``wall_support``: wall evidence of the chosen and the
+    rejected solution (0-1 each).
+    """
+
+    x: float
+    y: float
+    theta_x_deg: float
+    theta_y_deg: float
+    depth_m: float
+    radius_m: float
+    normal_cam: FloatArray
+    centre_cam: FloatArray
+    wall_support: tuple[float, float]
+
+    def as_dict(self) -> dict[str, float]:
+        """JSON-friendly dict of the paper's pose (x, y, theta_x, theta_y) and depth."""
+        return {"x": self.x, "y": self.y, "theta_x": self.theta_x_deg,
+                "theta_y": self.theta_y_deg, "depth_m": self.depth_m, "radius_m": self.radius_m}
+
+
+def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
+                 ) -> tuple[CirclePose, CirclePose]:
+    """The two circle poses (radius ``radius`` m) whose image is ``ellipse``."""
+    k = intrinsics.K
+    conic = ellipse.conic()
+    q = k.T @ conic @ k
+    q = 0.5 * (q + q.T)
+    evals, evecs = np.linalg.eigh(q)
+    if np.count_nonzero(evals > 0) == 1:
+        q, evals, evecs = -q, -evals[::-1], evecs[:, ::-1]
+    # Now evals ascending with evals[0] < 0 < evals[1] <= evals[2].
+    l3, l2, l1 = evals
+    e3, e1 = evecs[:, 0], evecs[:, 2]
+    g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
+    h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
+    k_inv_t = np.linalg.inv(k).T
+    conic_inv = np.linalg.inv(conic)
+    out = []
+    for sign in (1.0, -1.0):
+        n = sign * g * e1 + h * e3
+        n = n if n[2] > 0 else -n
+        centre_px = conic_inv @ (k_inv_t @ n)
+        ray = np.linalg.solve(k, centre_px / centre_px[2])
+        x0 = ray / float(n @ ray)  # circle centre on the plane n . X = 1
+        u, _ = plane_basis(n)
+        s2 = -float(x0 @ q @ x0) / float(u @ q @ u)
+        scale = radius / math.sqrt(max(s2, 1e-300))
+        out.append(CirclePose(normal_cam=n, centre_cam=x0 * scale))
+    return out[0], out[1]
+
+
+def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,
+                 support: NDArray[np.uint8]) -> float:
+    """Share of the predicted wall silhouette lines (px samples) on the (H, W) support map."""
+    u, v = plane_basis(pose.normal_cam)
+    t = np.linspace(0.0, 2.0 * np.pi, WALL_RIM_POINTS, endpoint=False)
+    rim = pose.centre_cam + radius * (np.outer(np.cos(t), u) + np.outer(np.sin(t), v))
+    probe = rim + WALL_PROBE_RADII * radius * pose.normal_cam
+    pts = intrinsics.project(np.vstack([rim, probe])).astype(np.float32)
+    hull = cv2.convexHull(pts, returnPoints=False)[:, 0]
+    samples = []
+    for a, b in zip(hull, np.roll(hull, -1), strict=True):
+        if (a < WALL_RIM_POINTS) == (b < WALL_RIM_POINTS):
+            continue  # not a line from the face rim to the probe rim
+        p, q = pts[a].astype(float), pts[b].astype(float)
+        length = float(np.hypot(*(q - p)))
+        if length <= 2 * WALL_END_SKIP_PX + 1:
+            continue
+        s = np.linspace(WALL_END_SKIP_PX / length, 1.0 - WALL_END_SKIP_PX / length,
+                        max(2, int(length)))
+        samples.append(p + np.outer(s, q - p))
+    if not samples:
+        return 0.0
+    pix = np.rint(np.vstack(samples)).astype(np.int64)
+    h, w = support.shape
+    ok = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
+    hits = np.zeros(pix.shape[0], bool)
+    hits[ok] = support[pix[ok, 1], pix[ok, 0]] > 0
+    return float(hits.mean())
+
+
+def choose_radius(depth_per_metre: float, radii: Sequence[float],
+                  depth_range_m: tuple[float, float] | None) -> float:
+    """The candidate radius whose implied depth (``depth_per_metre * r``) fits the range."""
+    if not radii:
+        raise ValueError("no candidate radii")
+    if depth_range_m is None:
+        return float(radii[0])
+    lo, hi = depth_range_m
+    mid = 0.5 * (lo + hi)
+
+    def cost(r: float) -> tuple[float, float]:
+        z = depth_per_metre * r
+        return (max(lo - z, 0.0, z - hi), abs(z - mid))
+
+    return float(min(radii, key=cost))
+
+
+def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequence[float],
+                  support: NDArray[np.uint8],
+                  depth_range_m: tuple[float, float] | None = None) -> Pose:
+    """Pose of the face imaged as ``ellipse``; see the module docstring for the choices.
+
+    ``support`` is the (H, W) 0/1 dilated edge map used for the wall evidence.
+    """
+    unit = circle_poses(ellipse, intrinsics, 1.0)
+    radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
+    scores = [wall_support(p, radius * 1.0, intrinsics,  support)
+              for p in (CirclePose(normal_cam=s.normal_cam, centre_cam=s.centre_cam * radius)
+                        for s in unit)]
+    tilts = [math.acos(min(1.0, float(s.normal_cam[2]))) for s in unit]
+    if abs(scores[0] - scores[1]) >= WALL_TIE:
+        best = 0 if scores[0] > scores[1] else 1
+    else:
+        best = 0 if tilts[0] <= tilts[1] else 1
+    chosen = unit[best]
+    centre = chosen.centre_cam * radius
+    px = intrinsics.project(centre)[0]
+    tx, ty = tilt_angles(chosen.normal_cam)
+    return Pose(x=float(px[0]), y=float(px[1]), theta_x_deg=tx, theta_y_deg=ty,
+                depth_m=float(centre[2]), radius_m=radius, normal_cam=chosen.normal_cam,
+                centre_cam=centre, wall_support=(scores[best], scores[1 - best]))

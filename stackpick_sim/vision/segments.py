@@ -1,0 +1,151 @@
+"""Stage 2: link edge pixels into segments (paper section 2.2, Fig. 6).
+
+Each edge pixel is classified by its count of 8-connected edge neighbours: 2 continues a
+segment, 1 ends one, 3 or more is a junction. Junction pixels are cut out, every remaining
+8-connected chain is traced in order (OpenCV's contour follower walks a one-pixel-wide open
+chain from one end to the other and back; the first half is the ordered chain), and chains
+are split again at corners, so a cylinder's straight side wall and the arc of its face that
+meet at a corner are never fitted together.
+
+Everything per pixel is done by OpenCV or numpy; Python loops run over segments only.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+#: 3x3 kernel counting a pixel's 8 neighbours.
+NEIGHBOUR_KERNEL = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], np.float32)
+#: Chains shorter than this (px) are dropped: too short to constrain an ellipse.
+MIN_CHAIN_PX = 6
+#: Tolerance (px) of the polygonal approximation whose vertices are read for turns: 1 px
+#: keeps pixel staircases out of the polygon.
+POLY_EPSILON_PX = 1.0
+#: Turn (deg) at one polygon vertex above which it is a corner. With a 1 px tolerance a
+#: vertex on an arc of curvature radius R turns by sqrt(8 / R) rad; the sharpest face end
+#: expected (a = 15 px, b = 10 px, R = b^2 / a = 6.7 px) gives ~63 deg, so 80 deg keeps
+#: every ellipse arc whole.
+CORNER_ANGLE_DEG = 80.0
+#: A vertex turning by more than SPIKE_MIN_DEG and SPIKE_RATIO times either neighbour is a
+#: corner too: along an ellipse arc consecutive vertices turn alike, so a lone sharp turn is
+#: where one outline meets another (a T-junction Canny bridged without a junction pixel).
+SPIKE_MIN_DEG = 30.0
+SPIKE_RATIO = 2.0
+#: Polygon vertices turning by less than this (deg) carry no reliable turning sign.
+MIN_SIGNED_TURN_DEG = 4.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class EdgeSegments:
+    """Edge segments of one image.
+
+    ``chains``: ordered pixel chains, each (N_i, 2) int32 (u, v).
+    ``junctions``: (H, W) bool, edge pixels with three or more edge neighbours.
+    ``edges``: (H, W) uint8 0/1 one-pixel-wide edge map the chains came from.
+    """
+
+    chains: tuple[NDArray[np.int32], ...]
+    junctions: NDArray[np.bool_]
+    edges: NDArray[np.uint8]
+
+
+def neighbour_count(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """(H, W) uint8 count of 8-neighbours set in a 0/1 image (0 outside the image)."""
+    return np.asarray(cv2.filter2D(binary, cv2.CV_8U, NEIGHBOUR_KERNEL,
+                                   borderType=cv2.BORDER_CONSTANT), np.uint8)
+
+
+def find_junctions(edges: NDArray[np.uint8]) -> NDArray[np.bool_]:
+    """(H, W) bool: edge pixels of a 0/1 edge map with three or more edge neighbours."""
+    return (neighbour_count(edges) >= 3) & (edges > 0)
+
+
+def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArray[np.int32]:
+    """Ordered (N, 2) chain from an OpenCV contour of a one-pixel-wide curve.
+
+    ``contour`` is (M, 2) (u, v) and ``is_end`` (M,) marks end-point pixels. An open chain's
+    contour runs end -> end -> back; a closed one is already a loop.
+    """
+    ends = np.flatnonzero(is_end)
+    if ends.size == 0:
+        return contour
+    rolled = np.roll(contour, -int(ends[0]), axis=0)
+    rolled_ends = np.flatnonzero(np.roll(is_end, -int(ends[0])))
+    stop = int(rolled_ends[1]) if rolled_ends.size > 1 else rolled.shape[0] - 1
+    return rolled[: stop + 1]
+
+
+def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
+    """Index of the chain pixel equal to ``vertex`` (approxPolyDP keeps original points)."""
+    hits = np.flatnonzero((chain[:, 0] == vertex[0]) & (chain[:, 1] == vertex[1]))
+    return int(hits[0])
+
+
+def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32]]:
+    """Split an ordered (N, 2) chain at corners and where its turning direction flips.
+
+    Turns are read at the vertices of a polygonal approximation (tolerance POLY_EPSILON_PX)
+    so pixel staircases do not count. A vertex is a cut when it turns by more than
+    CORNER_ANGLE_DEG (a corner) or against the turning sign of the previous signed vertex:
+    an ellipse arc turns one way throughout, while the outline of two overlapping convex
+    faces has a reflex corner where it passes from one to the other, even when Canny left no
+    junction pixel there; S-bends flip too.
+    """
+    poly = cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX, closed)[:, 0, :]
+    if poly.shape[0] < 3:
+        return [chain]
+    verts = np.vstack([poly[-1:], poly, poly[:1]]) if closed else poly
+    sides = np.diff(verts.astype(np.float64), axis=0)
+    cross = sides[:-1, 0] * sides[1:, 1] - sides[:-1, 1] * sides[1:, 0]
+    turn = np.degrees(np.arctan2(cross, np.einsum("ij,ij->i", sides[:-1], sides[1:])))
+    # turn[k] is the turn at poly[k] if closed, at poly[k + 1] if open.
+    sign = np.where(np.abs(turn) < MIN_SIGNED_TURN_DEG, 0.0, np.sign(turn))
+    mag = np.abs(turn)
+    if closed:
+        before, after = np.roll(mag, 1), np.roll(mag, -1)
+    else:
+        before = np.concatenate([[0.0], mag[:-1]])
+        after = np.concatenate([mag[1:], [0.0]])
+    spike = (mag > SPIKE_MIN_DEG) & (mag > SPIKE_RATIO * np.maximum(before, after))
+    cut = (mag > CORNER_ANGLE_DEG) | spike
+    signed = np.flatnonzero(sign)
+    if signed.size > 1:
+        flips = signed[1:][sign[signed[1:]] != sign[signed[:-1]]]
+        cut[flips] = True
+    at = np.flatnonzero(cut) + (0 if closed else 1)
+    if at.size == 0:
+        return [chain]
+    cuts = sorted({_vertex_index(chain, poly[k]) for k in at})
+    if closed:
+        chain = np.roll(chain, -cuts[0], axis=0)
+        bounds = [c - cuts[0] for c in cuts] + [chain.shape[0]]
+    else:
+        bounds = [0, *cuts, chain.shape[0]]
+    return [chain[i:j] for i, j in itertools.pairwise(bounds) if j > i]
+
+
+def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
+    """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments."""
+    junctions = find_junctions(edges)
+    cut = edges.copy()
+    cut[junctions] = 0
+    is_end = (neighbour_count(cut) <= 1) & (cut > 0)
+    contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    chains: list[NDArray[np.int32]] = []
+    if hierarchy is None:
+        return EdgeSegments(chains=(), junctions=junctions, edges=edges)
+    for contour, link in zip(contours, hierarchy[0], strict=True):
+        if link[3] != -1 or contour.shape[0] < MIN_CHAIN_PX:
+            continue  # hole boundaries repeat their outer contour's pixels
+        pts = np.asarray(contour[:, 0, :], np.int32)
+        ends = is_end[pts[:, 1], pts[:, 0]]
+        chain = _order_chain(pts, ends)
+        for arc in split_chain(chain, closed=not ends.any()):
+            if arc.shape[0] >= MIN_CHAIN_PX:
+                chains.append(arc)
+    return EdgeSegments(chains=tuple(chains), junctions=junctions, edges=edges)

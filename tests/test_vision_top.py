@@ -1,0 +1,169 @@
+"""Tests of the top-object rule, the pose and the detector on synthetic stacks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from stackpick_sim.exceptions import ImageError
+from stackpick_sim.geometry import (
+    CameraIntrinsics,
+    Ellipse,
+    mask_iou,
+    normal_from_tilt,
+    project_circle,
+    tilt_angles,
+)
+from stackpick_sim.vision import __all__ as vision_all
+from stackpick_sim.vision import detector as detector_module
+from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.edges import detect_edges
+from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.pose import choose_radius, circle_poses
+from stackpick_sim.vision.synthetic import (
+    SyntheticConfig,
+    draw_ellipses,
+    generate_stack,
+    render_cylinders,
+)
+
+SHAPE = (240, 320)
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+
+
+def test_vision_all_names_exist() -> None:
+    import stackpick_sim.vision as vision
+
+    for name in vision_all:
+        assert hasattr(vision, name), name
+
+
+@pytest.mark.parametrize("upper_first", [False, True])
+def test_t_junction_decides_which_disc_is_on_top(upper_first: bool) -> None:
+    left = Ellipse(cx=130, cy=120, a=40, b=30, angle_deg=10)
+    right = Ellipse(cx=180, cy=125, a=38, b=30, angle_deg=100)
+    order = [left, right] if not upper_first else [right, left]
+    image = draw_ellipses(SHAPE, order, noise_sigma=2.0, rng=np.random.default_rng(3))
+    choice = select_top(order, detect_edges(image))
+    assert choice.index == 1, choice.evidence
+    under = choice.evidence[0]
+    assert under.occluded and under.occluded_ends >= 1
+
+
+def test_isolated_disc_is_top_candidate_and_rule_takes_foreign_ellipses() -> None:
+    disc = Ellipse(cx=160, cy=120, a=30, b=22, angle_deg=45)
+    image = draw_ellipses(SHAPE, [disc])
+    wrong = Ellipse(cx=100, cy=60, a=20, b=15, angle_deg=0)  # e.g. a peer's false positive
+    choice = select_top([wrong, disc], detect_edges(image))
+    assert choice.index == 1
+    assert choice.evidence[0].support < 0.2
+
+
+def test_rule_on_no_ellipses_is_a_miss() -> None:
+    choice = select_top([], np.zeros(SHAPE, np.uint8))
+    assert not choice and choice.reason
+
+
+def test_circle_poses_contain_the_truth() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        normal = normal_from_tilt(*rng.uniform(-45, 45, 2))
+        centre = np.array([*rng.uniform(-0.06, 0.06, 2), rng.uniform(0.2, 0.3)])
+        ellipse = project_circle(centre, normal, 0.03, K)
+        poses = circle_poses(ellipse, K, 0.03)
+        err = min(np.linalg.norm(p.normal_cam - normal) + np.linalg.norm(p.centre_cam - centre)
+                  for p in poses)
+        assert err < 1e-6
+
+
+def test_radius_chosen_by_depth_range() -> None:
+    # A face 0.25 m away with radius 0.035 m implies 0.179 m if its radius were 0.025 m.
+    per_metre = 0.25 / 0.035
+    assert choose_radius(per_metre, (0.025, 0.035), (0.22, 0.30)) == 0.035
+    assert choose_radius(per_metre, (0.035, 0.025), (0.15, 0.19)) == 0.025
+
+
+@pytest.mark.xfail(strict=True, reason="known shortfall: the predicted wall lines of both "
+                   "solutions hug the face outline, so edge support does not tell them apart")
+def test_wall_resolves_tilt_ambiguity() -> None:
+    for tilt in ((25.0, 0.0), (-25.0, 0.0), (0.0, 30.0), (0.0, -30.0)):
+        normal = normal_from_tilt(*tilt)
+        centre = np.array([0.005, -0.004, 0.25])
+        render = render_cylinders([(centre, normal, 0.035, 0.055)], [(220, 60, 50)], K)
+        image = np.clip(np.round(render), 0, 255).astype(np.uint8)
+        det = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.035,)))
+        assert det, det.reason
+        assert det.pose is not None
+        assert abs(det.pose.theta_x_deg - tilt[0]) < 1.0
+        assert abs(det.pose.theta_y_deg - tilt[1]) < 1.0
+        assert abs(det.pose.depth_m - 0.25) < 0.005
+
+
+def test_stack_top_found_and_pose_accurate() -> None:
+    successes, trials = 0, 12
+    centre_errors = []
+    for seed in range(trials):
+        scene = generate_stack(np.random.default_rng(1000 + seed),
+                               SyntheticConfig(noise_sigma=(2.0, 2.0)))
+        det = detect(scene.image, DetectorConfig(intrinsics=scene.intrinsics))
+        if not det or det.top_ellipse is None or det.pose is None:
+            continue
+        ious = [mask_iou(det.top_ellipse, o.ellipse, SHAPE) for o in scene.objects]
+        best = int(np.argmax(ious))
+        if ious[best] > 0.8 and scene.objects[best].is_top:
+            successes += 1
+            o = scene.objects[best]
+            centre_errors.append(math.hypot(det.pose.x - o.face_center_px[0],
+                                            det.pose.y - o.face_center_px[1]))
+    assert successes >= 0.75 * trials
+    assert float(np.median(centre_errors)) < 0.5
+
+
+@pytest.mark.parametrize("image", [
+    np.zeros((240, 320, 3), np.uint8),
+    np.full((240, 320), 255, np.uint8),
+    np.random.default_rng(0).integers(0, 256, (240, 320, 3), dtype=np.uint8),
+    np.zeros((5, 7), np.uint8),
+    np.zeros((1200, 1600), np.uint8),
+    np.random.default_rng(1).random((100, 120)).astype(np.float32),
+    np.zeros((60, 80, 4), np.uint16),
+    np.zeros((60, 80, 1), bool),
+])
+def test_garbage_images_give_a_result(image: np.ndarray) -> None:
+    det = detect(image)
+    if not det:
+        assert det.reason
+    assert "total" in det.timings_ms or det.reason
+
+
+@pytest.mark.parametrize("image", [
+    np.zeros((10, 10, 2), np.uint8),
+    np.zeros((10,), np.uint8),
+    np.zeros((20, 20), np.complex64),
+    np.full((20, 20), np.nan, np.float32),
+    [[0, 1], [1, 0]],
+])
+def test_non_images_raise_image_error(image: object) -> None:
+    with pytest.raises(ImageError):
+        detect(image)  # type: ignore[arg-type]
+
+
+def test_detection_dict_has_documented_keys() -> None:
+    scene = generate_stack(np.random.default_rng(7))
+    out = detect(scene.image).as_dict()
+    assert set(out) >= {"ellipses", "top", "pose", "timings_ms"}
+    for e in out["ellipses"]:
+        assert set(e) == {"cx", "cy", "a", "b", "angle_deg", "support"}
+    if out["pose"] is not None:
+        assert {"x", "y", "theta_x", "theta_y"} <= set(out["pose"])
+    assert detector_module.DEFAULT_RADII_M
+
+
+def test_synthetic_ground_truth_is_consistent() -> None:
+    scene = generate_stack(np.random.default_rng(5))
+    assert scene.top_indices and scene.objects[-1].is_top
+    for o in scene.objects:
+        assert tilt_angles(o.normal_cam) == (o.theta_x_deg, o.theta_y_deg)
+        assert 0.0 <= o.visible_fraction <= 1.0
