@@ -259,13 +259,9 @@ def test_feed_forward_removes_tracking_lag(model, arm, speed: float) -> None:
 
 
 def test_vs060_chain_matches_finite_differences() -> None:
-    from stackpick_sim.exceptions import ModelError
     from stackpick_sim.sim import robot
 
-    try:
-        vs060 = robot.robot_spec().compile()
-    except ModelError as exc:  # models/vs060 is written by another helper; may be mid-edit
-        pytest.skip(f"VS-060 model not usable yet: {exc}")
+    vs060 = robot.robot_spec().compile()
     vs_arm = EyeInHand(vs060, site=robot.TOOL_SITE, camera=robot.CAMERA, joints=robot.ARM_JOINTS)
     data = mujoco.MjData(vs060)
     assert _chain_fd_error(vs_arm, data, LOOK_Q) < FD_TOL

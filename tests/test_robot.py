@@ -25,8 +25,8 @@ NOTES_TABLE = (
     ((0.0, 0.0, 0.070), (0, 0, 1), (-6.283185, 6.283185), 6.283),
 )
 FLANGE_AT_ZERO = np.array([-0.010, 0.0, 1.020])
-# The cell the lead builds: belt centre line x = 0.45 m, belt top z = 0.10 m.
-LOOK_POINT = np.array([0.45, 0.0, 0.10])
+# The cell: belt centre line x = 0.40 m (conveyor.x default), belt top z = 0.10 m.
+LOOK_POINT = np.array([0.40, 0.0, 0.10])
 LOOK_HEIGHT = 0.30
 # Saving the composed spec to MJCF keeps 6 significant digits (robot.py): joint ranges such as
 # 2.094395 come back as 2.0944, 5e-6 rad off.

@@ -17,7 +17,7 @@ from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.glcheck import gl_failure_message
 
 #: Subcommand modules, in the order --help lists them.
-COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect")
+COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -144,6 +144,11 @@ class CameraCfg:
     """Frame rate, Hz."""
     shadows: bool = False
     """Render shadows (about 8x slower on a CPU renderer; the ring light casts few)."""
+    latency_s: float = 0.010
+    """Delay from a frame's capture to its detection being usable, s. Measured: the vision
+    pipeline's median ``timings_ms["total"]`` on 320x240 paper-scene frames was 8-9 ms on the
+    project's 2-core machine (benchmarks/bench_episodes.py, 2025), rounded up to 10 ms.
+    Modelled as this constant, never the wall clock, so episodes are deterministic."""
 
     def __post_init__(self) -> None:
         _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
@@ -156,6 +161,8 @@ class CameraCfg:
                  "camera.noise_std", self.noise_std, "0 to 50 grey levels")
         _require(math.isfinite(self.fps) and 1 <= self.fps <= 240, "camera.fps", self.fps,
                  "1 to 240 Hz")
+        _require(math.isfinite(self.latency_s) and 0 <= self.latency_s <= 1.0,
+                 "camera.latency_s", self.latency_s, "0 to 1 s")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -205,6 +212,83 @@ class SimCfg:
                  "1 to 10000")
 
 
+#: Detectors an episode can use: the vision pipeline, or ground truth (isolates control).
+DETECTORS = ("ours", "oracle")
+#: Frames the Kalman tracker can estimate in (stackpick_sim.estimation.kalman).
+TRACKER_FRAMES = ("belt", "image")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EpisodeCfg:
+    """One pick: phase settings and time-outs (stackpick_sim/episodes/).
+
+    Defaults are placeholders chosen in simulation for the paper cell, not identified on
+    hardware; each is what the name says, in SI units.
+    """
+
+    detector: str = "ours"
+    """``ours`` (the vision pipeline) or ``oracle`` (ground-truth top object and pose)."""
+    tracker_frame: str = "belt"
+    """Kalman state frame: ``belt`` (back-projected, metres) or ``image`` (paper, pixels)."""
+    control_period: float = 0.01
+    """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
+    track_frames: int = 3
+    """Detections fused before the approach starts (two initialise the filter)."""
+    standoff: float = 0.17
+    """Distance tool tip to face centre along the face normal at the end of approach and
+    servo, m: the largest face (r = 35 mm) must stay in the 240 px tall image, whose centre
+    is 60 mm off the tool axis on the camera mount."""
+    approach_gain: float = 8.0
+    """Gain of the approach's mink FrameTask differential IK, 1/s."""
+    servo_lateral_tol: float = 0.0015
+    """Servo converged: face centre within this of the tool axis, m ..."""
+    servo_depth_tol: float = 0.003
+    """... standoff within this, m ..."""
+    servo_tilt_tol_deg: float = 1.5
+    """... tool axis within this angle of the face normal, degrees."""
+    descend_speed: float = 0.35
+    """Speed of the descent along the approach axis, m/s."""
+    overtravel: float = 0.006
+    """How far past the predicted face the descent goes before calling a miss, m."""
+    grasp_dwell: float = 0.06
+    """Time the suction is on before lifting, s."""
+    lift_height: float = 0.10
+    """Lift of the tool after the grasp, straight up, m."""
+    lift_speed: float = 0.4
+    """Lift speed, m/s."""
+    verify_time: float = 0.15
+    """Time the lifted object must stay held, s."""
+    timeout_look: float = 0.2
+    timeout_detect: float = 0.4
+    timeout_track: float = 0.5
+    timeout_approach: float = 1.2
+    timeout_servo: float = 1.0
+    timeout_descend: float = 1.0
+    timeout_grasp: float = 0.3
+    timeout_lift: float = 0.8
+    timeout_verify: float = 0.5
+    """Longest sim time of each phase, s; past it the episode fails with ``timeout``."""
+
+    def __post_init__(self) -> None:
+        _require(self.detector in DETECTORS, "episode.detector", self.detector,
+                 ", ".join(DETECTORS))
+        _require(self.tracker_frame in TRACKER_FRAMES, "episode.tracker_frame",
+                 self.tracker_frame, ", ".join(TRACKER_FRAMES))
+        _require(math.isfinite(self.control_period) and 1e-3 <= self.control_period <= 0.1,
+                 "episode.control_period", self.control_period, "0.001 to 0.1 s")
+        _require(2 <= self.track_frames <= 30, "episode.track_frames", self.track_frames,
+                 "2 to 30 frames")
+        for key in ("standoff", "approach_gain", "servo_lateral_tol", "servo_depth_tol",
+                    "servo_tilt_tol_deg", "descend_speed", "overtravel", "lift_height",
+                    "lift_speed"):
+            _positive(f"episode.{key}", getattr(self, key))
+        for key in ("grasp_dwell", "verify_time"):
+            _non_negative(f"episode.{key}", getattr(self, key))
+        for key in ("look", "detect", "track", "approach", "servo", "descend", "grasp", "lift",
+                    "verify"):
+            _non_negative(f"episode.timeout_{key}", getattr(self, f"timeout_{key}"))
+
+
 @dataclass(frozen=True, kw_only=True)
 class SceneConfig:
     """A whole scene: what ``scenes/<name>.toml`` describes."""
@@ -217,6 +301,7 @@ class SceneConfig:
     camera: CameraCfg = field(default_factory=CameraCfg)
     lights: LightsCfg = field(default_factory=LightsCfg)
     sim: SimCfg = field(default_factory=SimCfg)
+    episode: EpisodeCfg = field(default_factory=EpisodeCfg)
 
     def __post_init__(self) -> None:
         unknown = [t for t in self.objects.types if t not in self.object_types]

@@ -25,6 +25,8 @@ from stackpick_sim.sim.ik import look_pose_q
 
 #: Belt box thickness, m (visual only: the top surface is what matters).
 BELT_THICKNESS = 0.04
+#: Belt speed the model is compiled with, m/s: any non-zero value (see _add_belt).
+COMPILED_BELT_SPEED = 1.0
 #: Parked objects wait on the floor this far from the cell, m (outside every camera view).
 PARK_X = -2.0
 #: Spacing of parked objects along y, m.
@@ -130,7 +132,10 @@ def _add_belt(spec: mujoco.MjSpec, cfg: SceneConfig) -> None:
         name="belt", type=mujoco.mjtGeom.mjGEOM_BOX,
         size=[belt.width / 2, belt.length / 2, BELT_THICKNESS / 2], pos=centre,
         material="belt_mat", friction=[belt.friction, 0.005, 0.0001],
-        surfacevel=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        # MuJoCo only moves surfaces whose surfacevel is non-zero when the model is compiled:
+        # a belt compiled at rest ignores later run-time speeds. build_cell stops it after
+        # compiling; Conveyor sets the running speed.
+        surfacevel=[0.0, COMPILED_BELT_SPEED, 0.0, 0.0, 0.0, 0.0])
     # Side rails and legs: visual only, so they never touch the objects.
     for side in (-1.0, 1.0):
         spec.worldbody.add_geom(
@@ -152,7 +157,7 @@ def _add_lights(spec: mujoco.MjSpec, cfg: SceneConfig) -> None:
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]
     # A dim room light so the external view is readable; the ring light dominates the wrist view.
     spec.worldbody.add_light(name="room_light", pos=[0.4, 0.0, 2.5], dir=[0, 0, -1],
-                             diffuse=[0.25, 0.25, 0.25], specular=[0.0, 0.0, 0.0],
+                             diffuse=[0.35, 0.35, 0.35], specular=[0.0, 0.0, 0.0],
                              castshadow=False, cutoff=80.0)
     cam = spec.camera(robot.CAMERA)
     body = spec.body(robot.CAMERA_BODY)
@@ -274,6 +279,7 @@ def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
         intrinsics=CameraIntrinsics.from_fovy(cfg.camera.fovy_deg, cfg.camera.width,
                                               cfg.camera.height),
     )
+    cell.set_belt_speed(0.0)
     cell.set_arm(look_q)
     mujoco.mj_forward(model, data)
     return cell

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 import cv2
@@ -74,6 +75,10 @@ class Scene:
     seed: int
     attempts: int
     """Attempts it took (1 = the first pile was valid)."""
+    rejections: dict[str, int]
+    """Why the rejected attempts were rejected: reason -> count."""
+    drop_retries: dict[str, int]
+    """Single drops undone and redrawn within the attempts (see DROP_TRIES): reason -> count."""
     build_wall_s: float
     """Wall time spent building and settling, s."""
 
@@ -240,7 +245,13 @@ def _placement_problem(cell: Cell, upto: int) -> str | None:
     return None
 
 
-def settle_pile(cell: Cell, rng: np.random.Generator) -> str | None:
+def _reason(problem: str) -> str:
+    """A problem without the object's name, for counting."""
+    return problem.split(" ", 1)[1] if problem.startswith("obj") else problem
+
+
+def settle_pile(cell: Cell, rng: np.random.Generator,
+                retries: Counter[str] | None = None) -> str | None:
     """Reset the cell and place a fresh pile drawn from ``rng``; None if it came to rest.
 
     Otherwise the reason it could not be placed. The pile may still be invalid in other ways
@@ -259,6 +270,8 @@ def settle_pile(cell: Cell, rng: np.random.Generator) -> str | None:
                 problem = _placement_problem(cell, i + 1)
                 if problem is None:
                     break
+                if retries is not None:
+                    retries[_reason(problem)] += 1
                 data.time, data.qpos[:], data.qvel[:] = saved[0], saved[1], saved[2]
                 mujoco.mj_forward(model, data)
             else:
@@ -278,15 +291,15 @@ def generate_scene(cfg: SceneConfig, seed: int) -> Scene:
     count = int(rng.integers(lo, hi + 1))
     kinds = [cfg.objects.types[int(k)] for k in rng.integers(len(cfg.objects.types), size=count)]
     cell = build_cell(cfg, kinds)
-    problems: dict[str, int] = {}
+    problems: Counter[str] = Counter()
+    retries: Counter[str] = Counter()
     for attempt in range(1, cfg.sim.max_attempts + 1):
-        problem = settle_pile(cell, rng) or pile_problem(cell)
+        problem = settle_pile(cell, rng, retries) or pile_problem(cell)
         if problem is None:
-            return Scene(cell=cell, seed=seed, attempts=attempt,
-                         build_wall_s=time.perf_counter() - start)
-        reason = problem.split(" ", 1)[1] if problem.startswith("obj") else problem
-        problems[reason] = problems.get(reason, 0) + 1
-    worst = ", ".join(f"{n}x {r}" for r, n in sorted(problems.items(), key=lambda x: -x[1]))
+            return Scene(cell=cell, seed=seed, attempts=attempt, rejections=dict(problems),
+                         drop_retries=dict(retries), build_wall_s=time.perf_counter() - start)
+        problems[_reason(problem)] += 1
+    worst = ", ".join(f"{n}x {r}" for r, n in problems.most_common())
     raise SceneGenerationError(
         f"seed {seed}: no valid pile of {count} objects in {cfg.sim.max_attempts} attempts "
         f"({worst}); try fewer objects (objects.count), a larger objects.max_tilt_deg or "

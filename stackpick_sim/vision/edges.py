@@ -14,6 +14,8 @@ more noise needs no retuning.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -33,7 +35,7 @@ SOBEL_GAIN = 8.0
 NOISE_MULTIPLE = 6.0
 #: High threshold >= this fraction of the 99th-percentile magnitude (real edges' contrast):
 #: keeps smooth shading ramps, whose magnitude is small next to object boundaries, out.
-CONTRAST_FRACTION = 0.15
+CONTRAST_FRACTION = 0.04
 #: Absolute floor of the high threshold, grey levels/px (an empty or near-flat image).
 MIN_HIGH_THRESHOLD = 2.0
 #: Low hysteresis threshold as a fraction of the high one (Canny's recommended 1:2 to 1:3).
@@ -106,18 +108,21 @@ def colour_gradients(blurred: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDA
     return best_x, best_y
 
 
-def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> tuple[float, float]:
-    """(low, high) Canny thresholds in Sobel units for gradients (H, W) int16 dx, dy."""
+def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16]
+                        ) -> tuple[float, float, float]:
+    """(low, high) Canny thresholds in Sobel units for gradients (H, W) int16 dx, dy, and the
+    noise level (median magnitude, grey levels/px)."""
     sx = dx[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
     sy = dy[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
     mag = np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN
     if mag.size == 0:
-        return MIN_HIGH_THRESHOLD * LOW_RATIO * SOBEL_GAIN, MIN_HIGH_THRESHOLD * SOBEL_GAIN
+        return (MIN_HIGH_THRESHOLD * LOW_RATIO * SOBEL_GAIN, MIN_HIGH_THRESHOLD * SOBEL_GAIN,
+                0.0)
     k50, k99 = mag.size // 2, min(mag.size - 1, int(0.99 * mag.size))
     part = np.partition(mag, (k50, k99))
     high = max(MIN_HIGH_THRESHOLD, NOISE_MULTIPLE * float(part[k50]),
                CONTRAST_FRACTION * float(part[k99]))
-    return LOW_RATIO * high * SOBEL_GAIN, high * SOBEL_GAIN
+    return LOW_RATIO * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
 
 
 def _ring_groups(code: int) -> tuple[int, int]:
@@ -191,10 +196,31 @@ def remove_stairs(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return b
 
 
-def detect_edges(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """(H, W) 0/1 uint8 edge map, one pixel wide, of a uint8 gray or RGB image."""
+@dataclass(frozen=True, kw_only=True)
+class EdgeImage:
+    """The edge stage's output: the edge map and the gradients it came from.
+
+    ``edges``: (H, W) uint8 0/1, one pixel wide. ``gx``, ``gy``: (H, W) int16 Sobel gradients
+    of the smoothed image (strongest colour channel per pixel), SOBEL_GAIN x grey levels/px.
+    ``noise``: median gradient magnitude, grey levels/px (the flat background's noise level).
+    """
+
+    edges: NDArray[np.uint8]
+    gx: NDArray[np.int16]
+    gy: NDArray[np.int16]
+    noise: float
+
+
+def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
+    """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image."""
     blurred = np.asarray(cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE),
                                           GAUSSIAN_SIGMA_PX), np.uint8)
     gx, gy = colour_gradients(blurred)
-    low, high = adaptive_thresholds(gx, gy)
-    return remove_stairs(np.asarray(cv2.Canny(gx, gy, low, high, L2gradient=True), np.uint8))
+    low, high, noise = adaptive_thresholds(gx, gy)
+    edges = remove_stairs(np.asarray(cv2.Canny(gx, gy, low, high, L2gradient=True), np.uint8))
+    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)
+
+
+def detect_edges(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """(H, W) 0/1 uint8 edge map, one pixel wide, of a uint8 gray or RGB image."""
+    return edge_image(image).edges

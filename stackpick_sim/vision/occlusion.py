@@ -29,6 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import contrast_support
+from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, boundary_samples, support_map
 
@@ -104,15 +106,23 @@ def _gaps(ok: NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 
 def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
-                 support: NDArray[np.uint8]) -> OcclusionEvidence:
+                 support: NDArray[np.uint8], gradients: EdgeImage | None = None
+                 ) -> OcclusionEvidence:
     """Occlusion evidence of ``ellipse`` given the edge pixels (M, 2) (u, v) and the
-    (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX)."""
+    (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX).
+
+    With ``gradients`` the circumference's support is read from the consistent edge contrast
+    (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
+    """
     samples = boundary_samples(ellipse)
-    pix = np.rint(samples).astype(np.int64)
-    h, w = support.shape
-    inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
-    ok = np.zeros(pix.shape[0], bool)
-    ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
+    if gradients is not None:
+        ok = contrast_support(ellipse, gradients)
+    else:
+        pix = np.rint(samples).astype(np.int64)
+        h, w = support.shape
+        inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
+        ok = np.zeros(pix.shape[0], bool)
+        ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     params = ellipse_params([ellipse])
     near = np.abs(edge_points[:, 0] - ellipse.cx) <= ellipse.a + JUNCTION_RADIUS_PX + 1
     near &= np.abs(edge_points[:, 1] - ellipse.cy) <= ellipse.a + JUNCTION_RADIUS_PX + 1
@@ -138,19 +148,23 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
                              perimeter_px=n)
 
 
-def select_top(ellipses: Sequence[Ellipse], edges: NDArray) -> TopChoice:
+def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
-    ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`).
-    Returns the chosen index (best-supported unoccluded ellipse) or None with the reason.
+    ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
+    or, better, the whole :class:`~stackpick_sim.vision.edges.EdgeImage` (then faint but
+    consistent edges count as support too). Returns the chosen index (best-supported
+    unoccluded ellipse) or None with the reason.
     """
-    binary = (np.asarray(edges) > 0).astype(np.uint8)
+    gradients = edges if isinstance(edges, EdgeImage) else None
+    edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
+    binary = (np.asarray(edge_map) > 0).astype(np.uint8)
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
     support = support_map(binary)
     vv, uu = np.nonzero(binary)
     edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
-    evidence = tuple(evidence_for(e, edge_points, support) for e in ellipses)
+    evidence = tuple(evidence_for(e, edge_points, support, gradients) for e in ellipses)
     candidates = [i for i, ev in enumerate(evidence) if not ev.occluded]
     if not candidates:
         return TopChoice(index=None, evidence=evidence,

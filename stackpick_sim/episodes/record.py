@@ -1,0 +1,106 @@
+"""What one episode leaves behind: its phases, failure reason and measurements.
+
+The JSON schema of ``results.jsonl`` is :meth:`EpisodeRecord.as_dict`; every field below is
+documented with its unit and frame. "Look view" pixels are those of the wrist camera at the
+look pose (0.30 m above the belt, looking straight down): the paper's reference image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+#: Phases in the order an episode goes through them (the issue's phase machine).
+PHASES: tuple[str, ...] = ("look", "detect", "track", "approach", "servo", "descend", "grasp",
+                           "lift", "verify")
+
+#: The fixed list of failure reasons. ``dropped`` covers any object falling: the picked one
+#: out of the cup, or another one knocked off the belt (``knocked_off`` names those).
+FAILURES: tuple[str, ...] = ("no_detection", "wrong_object", "lost_track", "servo_diverged",
+                             "missed_grasp", "dropped", "joint_limit", "timeout",
+                             "unstable_sim")
+
+#: The picked object must rest in the cup at least this far above its start, m (the issue).
+MIN_LIFT_M = 0.05
+
+
+@dataclass(kw_only=True)
+class PoseErrors:
+    """A pose (x px, y px, theta_x deg, theta_y deg) estimated vs. true, and the errors."""
+
+    estimated: tuple[float, float, float, float]
+    actual: tuple[float, float, float, float]
+
+    @property
+    def center_error_px(self) -> float:
+        """Distance of the two (x, y), px."""
+        return float(((self.estimated[0] - self.actual[0]) ** 2
+                      + (self.estimated[1] - self.actual[1]) ** 2) ** 0.5)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-friendly: both poses and the three errors."""
+        return {"estimated": list(self.estimated), "actual": list(self.actual),
+                "center_error_px": self.center_error_px,
+                "theta_x_error_deg": abs(self.estimated[2] - self.actual[2]),
+                "theta_y_error_deg": abs(self.estimated[3] - self.actual[3])}
+
+
+@dataclass(kw_only=True)
+class EpisodeRecord:
+    """One episode's outcome (see the module docstring for the frames)."""
+
+    seed: int
+    scene: str
+    detector: str
+    tracker_frame: str
+    belt_speed: float
+    """Nominal belt speed, m/s."""
+    success: bool = False
+    failure: str | None = None
+    failure_detail: str = ""
+    """Free text: which check failed and with what numbers."""
+    failed_phase: str | None = None
+    picked_object: str | None = None
+    target_object: str | None = None
+    """The true object nearest the detected face at detection time (None: nothing there)."""
+    top_objects: list[str] = field(default_factory=list)
+    """Names of the true top objects at detection time."""
+    knocked_off: list[str] = field(default_factory=list)
+    lift_height_m: float | None = None
+    """Rise of the picked object above its height at detection time, m."""
+    detection: PoseErrors | None = None
+    """Table 1: the first detection vs. the true pose of the target, in the look view."""
+    pick_estimate: PoseErrors | None = None
+    """Table 2: the Kalman estimate vs. the true pose at the pick moment, in the look view."""
+    prediction_error_px: float | None = None
+    """|predicted - actual| face centre at the pick moment, projected into the look view, px."""
+    prediction_error_mm: float | None = None
+    """|predicted - actual| face centre at the pick moment, 3-D, mm."""
+    cycle_time_s: float | None = None
+    """Sim time from the first image to the end of the lift, s."""
+    phases: dict[str, float] = field(default_factory=dict)
+    """Sim time spent in each phase entered, s."""
+    frames: int = 0
+    """Camera frames captured."""
+    measurements_fused: int = 0
+    sim_time_s: float = 0.0
+    scene_build_wall_s: float = 0.0
+    """Wall time to generate the pile (not part of ``wall_s``), s."""
+    wall_s: float = 0.0
+    """Wall time of the episode proper (after the pile exists), s."""
+    wall_breakdown_s: dict[str, float] = field(default_factory=dict)
+    """Wall time by activity: physics, render, vision, control, truth, s."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict; ``detection`` carries the issue's three error fields."""
+        out = asdict(self)
+        det = self.detection.as_dict() if self.detection is not None else None
+        out["detection"] = det or {"center_error_px": None, "theta_x_error_deg": None,
+                                   "theta_y_error_deg": None}
+        out["pick_estimate"] = (self.pick_estimate.as_dict()
+                                if self.pick_estimate is not None else None)
+        return out
+
+
+#: Keys that differ between two runs of one seed only through the wall clock.
+WALL_CLOCK_KEYS: tuple[str, ...] = ("wall_s", "wall_breakdown_s", "scene_build_wall_s")

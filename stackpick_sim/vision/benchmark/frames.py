@@ -1,0 +1,144 @@
+"""Benchmark input: camera frames with their ground truth, from a data set or the simulator.
+
+A data set directory is what ``stackpick dataset`` writes: ``<seed:06d>.png`` (BGR PNG of the
+wrist camera) and ``<seed:06d>.json`` (the :class:`~stackpick_sim.sim.ground_truth.FrameTruth`
+schema). Frames generated in-process go through the same JSON-shaped dict, so both sources
+give identical :class:`BenchFrame` objects.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.exceptions import ImageError, SceneGenerationError
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+
+#: Tallest pile expected above the belt, m: five 0.03 m cylinders. Top faces lie between the
+#: belt and this height, which bounds the depth the detector may assume.
+MAX_PILE_HEIGHT_M = 0.15
+#: Lowest face above the belt, m: the shorter kind (0.025 m) lying flat.
+MIN_FACE_HEIGHT_M = 0.02
+
+
+@dataclass(frozen=True, kw_only=True)
+class TruthFace:
+    """Ground truth of one cylinder's camera-facing face (pixels, degrees)."""
+
+    name: str
+    radius_m: float
+    ellipse: Ellipse | None
+    face_center_px: tuple[float, float]
+    theta_x_deg: float
+    theta_y_deg: float
+    visible_fraction: float
+    is_top: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchFrame:
+    """One frame: ``image_rgb`` (H, W, 3) uint8 RGB, intrinsics, the depth range a caller knows
+    (metres along the optical axis, from the camera height above the belt) and the faces."""
+
+    seed: int
+    image_rgb: NDArray[np.uint8]
+    intrinsics: CameraIntrinsics
+    depth_range_m: tuple[float, float]
+    faces: tuple[TruthFace, ...]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the image."""
+        return int(self.image_rgb.shape[0]), int(self.image_rgb.shape[1])
+
+    @property
+    def tops(self) -> list[TruthFace]:
+        """The true top objects' faces."""
+        return [f for f in self.faces if f.is_top and f.ellipse is not None]
+
+
+def depth_range(world_T_cam: NDArray[np.float64], belt_top_z: float) -> tuple[float, float]:
+    """(min, max) depth (m) of a top face for a camera ``world_T_cam`` (4, 4) looking down."""
+    belt_depth = float(world_T_cam[2, 3]) - belt_top_z
+    return (max(1e-3, belt_depth - MAX_PILE_HEIGHT_M), max(2e-3, belt_depth - MIN_FACE_HEIGHT_M))
+
+
+def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str, Any],
+                      belt_top_z: float) -> BenchFrame:
+    """A BenchFrame from an RGB image and a ground-truth dict (FrameTruth JSON schema)."""
+    k = record["intrinsics"]
+    intr = CameraIntrinsics(fx=k["fx"], fy=k["fy"], cx=k["cx"], cy=k["cy"],
+                            width=int(record["width"]), height=int(record["height"]))
+    faces = []
+    for o in record["objects"]:
+        e = o["ellipse"]
+        faces.append(TruthFace(
+            name=o["name"], radius_m=float(o["radius"]),
+            ellipse=None if e is None else Ellipse(**e),
+            face_center_px=(float(o["face_center_px"][0]), float(o["face_center_px"][1])),
+            theta_x_deg=float(o["theta_x_deg"]), theta_y_deg=float(o["theta_y_deg"]),
+            visible_fraction=float(o["visible_fraction"]), is_top=bool(o["is_top"])))
+    rng = depth_range(np.asarray(record["world_T_cam"], float), belt_top_z)
+    return BenchFrame(seed=seed, image_rgb=image_rgb, intrinsics=intr, depth_range_m=rng,
+                      faces=tuple(faces))
+
+
+def dataset_seeds(directory: Path) -> list[int]:
+    """Seeds of the frames present in a data set directory, ascending."""
+    return sorted(int(p.stem) for p in directory.glob("*.json") if p.stem.isdigit())
+
+
+def load_frame(directory: Path, seed: int, belt_top_z: float) -> BenchFrame:
+    """Read frame ``seed`` of a data set directory; ImageError if its files are missing."""
+    stem = directory / f"{seed:06d}"
+    bgr = cv2.imread(f"{stem}.png", cv2.IMREAD_COLOR)
+    if bgr is None or not Path(f"{stem}.json").exists():
+        raise ImageError(f"frame {seed} missing in {directory} (need {stem}.png and .json)")
+    record = json.loads(Path(f"{stem}.json").read_text())
+    rgb = np.ascontiguousarray(bgr[:, :, ::-1])
+    return frame_from_record(seed, rgb, record, belt_top_z)
+
+
+def dataset_belt_z(directory: Path, default: float) -> float:
+    """Belt top height recorded in a data set's index.json, else ``default`` (m)."""
+    index = directory / "index.json"
+    if index.exists():
+        scene = json.loads(index.read_text()).get("scene", {})
+        return float(scene.get("conveyor", {}).get("top_z", default))
+    return default
+
+
+def iter_dataset(directory: Path, seeds: Sequence[int] | None,
+                 belt_top_z: float) -> Iterator[BenchFrame]:
+    """Frames of a data set directory (all present, or the given seeds that are present)."""
+    present = dataset_seeds(directory)
+    wanted = present if seeds is None else [s for s in seeds if s in set(present)]
+    for seed in wanted:
+        yield load_frame(directory, seed, belt_top_z)
+
+
+def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFrame]:
+    """Frames rendered by the simulator for each seed (seeds whose pile fails are skipped)."""
+    from stackpick_sim.sim.camera import WristCamera  # heavy (MuJoCo); only when generating
+    from stackpick_sim.sim.snapshot import look_frame
+    from stackpick_sim.sim.stacks import generate_scene
+
+    for seed in seeds:
+        try:
+            scene = generate_scene(cfg, seed)
+        except SceneGenerationError:
+            continue
+        camera = WristCamera(scene.cell)
+        try:
+            image, truth = look_frame(scene, camera)
+        finally:
+            camera.close()
+        yield frame_from_record(seed, image, truth.as_dict(), cfg.conveyor.top_z)

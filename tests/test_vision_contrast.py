@@ -1,0 +1,54 @@
+"""Tests of the contrast-based outline support, the refit on edge pixels and the top rule
+over faint same-colour boundaries (the simulator's common case)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stackpick_sim.geometry import Ellipse, mask_iou
+from stackpick_sim.vision.contrast import contrast_support
+from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.refine import edge_points, refine
+
+SHAPE = (240, 320)
+LOWER = Ellipse(cx=140, cy=120, a=40, b=34, angle_deg=20)
+UPPER = Ellipse(cx=185, cy=125, a=38, b=33, angle_deg=110)
+
+
+def faint_pair(step: float, noise: float, seed: int) -> np.ndarray:
+    """Two discs of one colour, the upper one ``step`` grey levels brighter, on a dark belt."""
+    rng = np.random.default_rng(seed)
+    img = np.full(SHAPE, 35.0)
+    img[LOWER.mask(SHAPE)] = 150.0
+    img[UPPER.mask(SHAPE)] = 150.0 + step
+    img += rng.normal(0.0, noise, SHAPE)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def test_faint_boundary_supports_top_and_leaves_hidden_arc_a_gap() -> None:
+    grad = edge_image(faint_pair(step=8.0, noise=1.0, seed=0))
+    upper = contrast_support(UPPER, grad)
+    lower = contrast_support(LOWER, grad)
+    assert upper.mean() > 0.95
+    assert lower.mean() < 0.8  # the arc under the upper disc has no consistent edge
+
+
+def test_top_rule_picks_upper_disc_over_faint_boundary() -> None:
+    for seed in range(3):
+        grad = edge_image(faint_pair(step=8.0, noise=1.0, seed=seed))
+        for order in ([LOWER, UPPER], [UPPER, LOWER]):
+            choice = select_top(order, grad)
+            assert choice.index is not None
+            assert order[choice.index] is UPPER
+
+
+def test_refine_recovers_ellipse_from_offset_start() -> None:
+    image = faint_pair(step=60.0, noise=1.0, seed=1)
+    grad = edge_image(image)
+    points, grads = edge_points(grad)
+    start = Ellipse(cx=UPPER.cx + 1.5, cy=UPPER.cy - 1.0, a=UPPER.a - 1.5, b=UPPER.b + 1.0,
+                    angle_deg=UPPER.angle_deg + 8)
+    refined = refine(start, points, grads, SHAPE)
+    assert abs(refined.cx - UPPER.cx) < 0.5 and abs(refined.cy - UPPER.cy) < 0.5
+    assert mask_iou(refined, UPPER, SHAPE) > 0.97
