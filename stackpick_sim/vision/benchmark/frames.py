@@ -103,7 +103,7 @@ def load_frame(directory: Path, seed: int, belt_top_z: float) -> BenchFrame:
     if bgr is None or not Path(f"{stem}.json").exists():
         raise ImageError(f"frame {seed} missing in {directory} (need {stem}.png and .json)")
     record = json.loads(Path(f"{stem}.json").read_text())
-    rgb = np.ascontiguousarray(bgr[:, :, ::-1])
+    rgb = np.ascontiguousarray(bgr[:, :, ::-1], dtype=np.uint8)
     return frame_from_record(seed, rgb, record, belt_top_z)
 
 

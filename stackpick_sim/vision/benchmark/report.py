@@ -86,16 +86,16 @@ def markdown(summaries: dict[str, dict[str, Any]], title: str) -> str:
              "| theta_x err deg (mean / med / p95) | theta_y err deg (mean / med / p95) "
              "| time ms (med / p95) | x ours | detector-only ms (med) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    def trio(d: dict[str, float]) -> str:
+        return f"{d['mean']:.2f} / {d['median']:.2f} / {d['p95']:.2f}"
+
     for name, s in summaries.items():
-        def trio(key: str) -> str:
-            d = s[key]
-            return f"{d['mean']:.2f} / {d['median']:.2f} / {d['p95']:.2f}"
         t = s["time_ms"]
         lines.append(
             f"| {name} | {s['frames']} | {s['top_success']:.1%} ({s['top_found']}/"
             f"{s['frames_with_top']}) | {s['precision']:.3f} | {s['recall']:.3f} | "
-            f"{s['f_measure']:.3f} | {trio('centre_err_px')} | {trio('theta_x_err_deg')} | "
-            f"{trio('theta_y_err_deg')} | {t['median']:.2f} / {t['p95']:.2f} | "
+            f"{s['f_measure']:.3f} | {trio(s['centre_err_px'])} | {trio(s['theta_x_err_deg'])} | "
+            f"{trio(s['theta_y_err_deg'])} | {t['median']:.2f} / {t['p95']:.2f} | "
             f"{t['median'] / ref:.2f} | {s['detector_ms']['median']:.2f} |")
     lines += ["", "Median per-stage time, ms:", ""]
     for name, s in summaries.items():
