@@ -42,3 +42,7 @@ class ControlError(StackpickError):
 
 class EstimationError(StackpickError):
     """A tracker or back-projection input is malformed or geometrically impossible."""
+
+
+class EpisodeError(StackpickError):
+    """An episode cannot be set up or run as asked (bad settings, unknown failure reason)."""

@@ -199,7 +199,7 @@ class SimCfg:
     timestep: float = 0.002
     """s"""
     settle_time: float = 1.5
-    """Longest time a dropped pile is simulated to come to rest, s."""
+    """Longest time one dropped object is simulated to come to rest, s."""
     max_attempts: int = 200
     """Rejection-sampling budget per scene."""
 
@@ -234,10 +234,11 @@ class EpisodeCfg:
     """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
     track_frames: int = 3
     """Detections fused before the approach starts (two initialise the filter)."""
-    standoff: float = 0.17
+    standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
-    servo, m: the largest face (r = 35 mm) must stay in the 240 px tall image, whose centre
-    is 60 mm off the tool axis on the camera mount."""
+    servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
+    centre is 60 mm off the tool axis on the camera mount (at 0.19 m it clears the top edge
+    by ~11 px)."""
     approach_gain: float = 8.0
     """Gain of the approach's mink FrameTask differential IK, 1/s."""
     servo_lateral_tol: float = 0.0015

@@ -26,9 +26,11 @@ from stackpick_sim.geometry import plane_basis, project_circle
 from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell, build_cell
 from stackpick_sim.sim.ground_truth import OFF_BELT_DROP, top_face
 
-#: A dropped object counts as resting when its speed is below this, m/s ...
+#: While being placed, an object counts as resting when its speed is below this, m/s ...
 REST_LINEAR_SPEED = 0.002
-#: ... and its angular speed below this, rad/s.
+#: ... and its angular speed below this, rad/s. (Damped, a tipping cylinder turns slowly: a
+#: looser bound declares it at rest mid-tip; soft-contact jitter of a resting pile is about
+#: this size, so such drops run to ``sim.settle_time`` and the undamped check decides.)
 REST_ANGULAR_SPEED = 0.05
 #: Shortest simulated time after a drop before rest is checked, s (it must at least land).
 MIN_DROP_TIME = 0.1

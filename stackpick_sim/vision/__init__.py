@@ -1,6 +1,8 @@
 """Vision: find the top cylinder of a pile and its pose (paper section 2).
 
 Stages, one module each: :mod:`edges`, :mod:`segments`, :mod:`fitting`, :mod:`merging`,
+:mod:`refine` (refit on all edge pixels along each ellipse), :mod:`contrast` (outline support
+from consistent gradients),
 :mod:`occlusion` (the top-object rule, usable on any detector's ellipses), :mod:`pose`;
 :mod:`detector` runs them, :mod:`detection` holds the result, :mod:`synthetic` renders test
 stacks with ground truth.

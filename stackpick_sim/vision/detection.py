@@ -40,7 +40,8 @@ class Detection:
     ``ellipses``: all validated ellipses, best-supported first. ``segments``: the edge
     segments, each (N_i, 2) int32 pixels (u, v) in chain order. ``top``: index of the top
     object's face in ``ellipses`` or None. ``pose``: its pose or None. ``timings_ms``:
-    wall-clock milliseconds per stage (edges, segments, fitting, merging, top, pose, total).
+    wall-clock milliseconds per stage (edges, segments, fitting, merging, refine, top, pose,
+    total).
     """
 
     ellipses: tuple[DetectedEllipse, ...] = ()

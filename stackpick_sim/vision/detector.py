@@ -99,9 +99,10 @@ class TopObjectDetector:
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
         merged = merge_segments(chains, fits, edges)
+        t = lap("merging", t)
         points, grads = edge_points(grad)
         merged = [replace(m, ellipse=refine(m.ellipse, points, grads, shape)) for m in merged]
-        t = lap("merging", t)
+        t = lap("refine", t)
         choice = select_top([m.ellipse for m in merged], grad)
         t = lap("top", t)
         keep = [i for i, ev in enumerate(choice.evidence)
