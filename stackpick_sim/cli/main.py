@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -17,7 +18,8 @@ from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.glcheck import gl_failure_message
 
 #: Subcommand modules, in the order --help lists them.
-COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect")
+COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect", "run",
+                                     "replay")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -49,6 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"stackpick {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into e.g. `head`, which stopped reading
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -143,7 +143,7 @@ class CameraCfg:
     fps: float = 30.0
     """Frame rate, Hz."""
     shadows: bool = False
-    """Render shadows (about 8x slower on a CPU renderer; the ring light casts few)."""
+    """Render shadows (several times slower on a CPU renderer; the ring light casts few)."""
     latency_s: float = 0.010
     """Delay from a frame's capture to its detection being usable, s. Measured: the vision
     pipeline's median ``timings_ms["total"]`` on 320x240 paper-scene frames was 8-9 ms on the
