@@ -41,6 +41,9 @@ DROP_CLEARANCE = 0.005
 #: Drop distance from the previous object's centre, as a range of fractions of the sum of radii:
 #: from well on top of it to leaning against its rim.
 NEIGHBOUR_DISTANCE = (0.4, 1.0)
+#: A drop is abandoned as soon as its object tips this far past ``objects.max_tilt_deg``,
+#: degrees: it would only be rejected after settling (it does not right itself, damped).
+ABANDON_TILT_MARGIN_DEG = 15.0
 #: Tries at dropping one object before the whole pile is started again: a drop that leaves
 #: any object off the belt or tilted too far is undone (state restored) and redrawn.
 DROP_TRIES = 8
@@ -146,9 +149,14 @@ def _drop(cell: Cell, i: int, centre: NDArray[np.float64], rng: np.random.Genera
     model = cell.model
     min_steps = math.ceil(MIN_DROP_TIME / model.opt.timestep)
     max_steps = math.ceil(cell.cfg.sim.settle_time / model.opt.timestep)
+    give_up_cos = math.cos(math.radians(min(90.0, cfg.max_tilt_deg + ABANDON_TILT_MARGIN_DEG)))
     for step in range(1, max_steps + 1):
         mujoco.mj_step(model, data)
-        if step >= min_steps and step % REST_CHECK_STEPS == 0 and _at_rest(cell, i + 1):
+        if step % REST_CHECK_STEPS:
+            continue
+        if abs(data.xmat[obj.body_id][8]) < give_up_cos:
+            break  # tipped far past the limit: the caller redraws this drop
+        if step >= min_steps and _at_rest(cell, i + 1):
             break
 
 
