@@ -238,7 +238,7 @@ class EpisodeCfg:
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
     centre is 60 mm off the tool axis on the camera mount (at 0.19 m it clears the top edge
-    by ~11 px)."""
+    by ~10 px)."""
     approach_gain: float = 8.0
     """Gain of the approach's mink FrameTask differential IK, 1/s."""
     servo_lateral_tol: float = 0.0015

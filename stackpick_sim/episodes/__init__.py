@@ -1,1 +1,27 @@
-"""episodes subpackage."""
+"""Pick episodes: the phase machine, its records, batches, summaries and replays."""
+
+from stackpick_sim.episodes.batch import RunSpec, run_batch, write_outputs
+from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
+from stackpick_sim.episodes.record import FAILURES, MIN_LIFT_M, PHASES, EpisodeRecord
+from stackpick_sim.episodes.replay import ReplayResult, replay_episode
+from stackpick_sim.episodes.summary import summarize, summary_markdown, wilson_interval
+from stackpick_sim.exceptions import EpisodeError
+
+__all__ = [
+    "FAILURES",
+    "MIN_LIFT_M",
+    "PHASES",
+    "EpisodeError",
+    "EpisodeHooks",
+    "EpisodeRecord",
+    "ReplayResult",
+    "RunSpec",
+    "TickInfo",
+    "replay_episode",
+    "run_batch",
+    "run_episode",
+    "summarize",
+    "summary_markdown",
+    "wilson_interval",
+    "write_outputs",
+]

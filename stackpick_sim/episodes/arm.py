@@ -160,7 +160,8 @@ class ArmController:
         c_tool = invert_transform(tool) @ np.r_[target.centre, 1.0]
         cos = float(np.clip(tool[:3, 2] @ target.normal, -1.0, 1.0))
         errors = ServoErrors(lateral=float(np.hypot(c_tool[0], c_tool[1])),
-                             depth=float(c_tool[2] - standoff), tilt_deg=math.degrees(math.acos(cos)),
+                             depth=float(c_tool[2] - standoff),
+                             tilt_deg=math.degrees(math.acos(cos)),
                              feature_norm=float(np.max(np.abs(error))))
         return feasible, errors
 

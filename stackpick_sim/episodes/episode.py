@@ -30,7 +30,7 @@ from stackpick_sim.episodes.outcome import lip_geoms, unstable
 from stackpick_sim.episodes.phases import PhaseLogic
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Observation, Sensor
-from stackpick_sim.episodes.target import TargetEstimator
+from stackpick_sim.episodes.target import RadiusHypotheses
 from stackpick_sim.exceptions import EstimationError, StackpickError
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.conveyor import Conveyor
@@ -70,11 +70,20 @@ class Episode:
     record: EpisodeRecord
     sensor: Sensor
     arm: ArmController
-    estimator: TargetEstimator
+    estimator: RadiusHypotheses
     conveyor: Conveyor
     camera: WristCamera | None
     lips: frozenset[int]
     wall: dict[str, float] = field(default_factory=dict)
+
+
+def make_estimator(scene: Scene) -> RadiusHypotheses:
+    """The tracker: one radius hypothesis per object kind for ``ours``, the truth for the oracle."""
+    cfg = scene.cell.cfg
+    oracle = cfg.episode.detector == "oracle"
+    radii = sorted({t.radius for t in cfg.object_types.values()}, reverse=True)
+    return RadiusHypotheses(cfg, scene.cell.intrinsics, oracle=oracle,
+                            radii=(0.0,) if oracle else tuple(radii))
 
 
 def run_episode(scene: Scene, hooks: EpisodeHooks | None = None) -> EpisodeRecord:
@@ -96,15 +105,15 @@ def run_episode(scene: Scene, hooks: EpisodeHooks | None = None) -> EpisodeRecor
                     detector=ep_cfg.detector, keep_images=hooks.keep_images)
     conveyor = Conveyor(cell, np.random.default_rng([scene.seed, BELT_STREAM]))
     episode = Episode(scene=scene, record=record, sensor=sensor, arm=ArmController(cell),
-                      estimator=TargetEstimator(cfg, cell.intrinsics,
-                                                oracle=ep_cfg.detector == "oracle"),
+                      estimator=make_estimator(scene),
                       conveyor=conveyor, camera=camera, lips=lip_geoms(cell),
                       wall={"physics": 0.0, "control": 0.0, "truth": 0.0})
-    logic = PhaseLogic(episode)
     model, data = cell.model, cell.data
     substeps = max(1, round(ep_cfg.control_period / model.opt.timestep))
     dt = substeps * model.opt.timestep
     data.warning.number[:] = 0  # warnings of the pile's settling are not this episode's
+    data.time = 0.0  # episode time: the first image is taken at t = 0
+    logic = PhaseLogic(episode)
     conveyor.start()
     try:
         while logic.failure is None and not logic.done:

@@ -84,8 +84,7 @@ def match_object(truth: FrameTruth, pixel: FloatArray) -> str | None:
 def face_in_view(cell: Cell, obj: ObjectInfo, world_T_cam: FloatArray,
                  k: CameraIntrinsics) -> tuple[tuple[float, float, float, float], FloatArray]:
     """((x px, y px, theta_x deg, theta_y deg), centre world (3,)) of a face, true pose."""
-    r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
-    centre_w, normal_w = top_face(cell, obj, p)
+    centre_w, normal_w = top_face(cell, obj, world_T_cam[:3, 3])
     return view_pose(centre_w, -normal_w, world_T_cam, k), centre_w
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -28,6 +29,7 @@ from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.cell import Cell, ObjectInfo
 from stackpick_sim.sim.ground_truth import top_face
 from stackpick_sim.vision import Detection, DetectorConfig, circle_poses, detect
+from stackpick_sim.vision.pose import CirclePose
 
 FloatArray = NDArray[np.float64]
 
@@ -108,9 +110,9 @@ def detection_candidates(det: Detection, k: CameraIntrinsics, radius: float | No
         pixel = np.array([de.ellipse.cx, de.ellipse.cy])
         if radius is not None and reference_normal_cam is not None:
             try:
-                sols = circle_poses(de.ellipse, k, radius)
+                sols: Sequence[CirclePose] = circle_poses(de.ellipse, k, radius)
             except (ValueError, np.linalg.LinAlgError):
-                sols = []
+                sols = ()
             if sols:
                 best = max(sols, key=lambda s: float(s.normal_cam @ reference_normal_cam))
                 normal, centre = np.asarray(best.normal_cam), np.asarray(best.centre_cam)
@@ -202,10 +204,11 @@ class Sensor:
                               depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)))
 
 
-def ellipse_inside(e: Ellipse, k: CameraIntrinsics) -> bool:
-    """Whether the whole ellipse lies inside the image."""
+def ellipse_inside(e: Ellipse, k: CameraIntrinsics, margin_px: float = 0.0) -> bool:
+    """Whether the whole ellipse lies inside the image, ``margin_px`` px from its border."""
     u0, v0, u1, v1 = e.bounds()
-    return u0 >= 0 and v0 >= 0 and u1 <= k.width - 1 and v1 <= k.height - 1
+    return (u0 >= margin_px and v0 >= margin_px and u1 <= k.width - 1 - margin_px
+            and v1 <= k.height - 1 - margin_px)
 
 
 def angle_deg(a: FloatArray, b: FloatArray) -> float:

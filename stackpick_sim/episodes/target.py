@@ -19,12 +19,13 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.estimation import (
     ConstantVelocityTracker,
     TrackerConfig,
@@ -33,8 +34,7 @@ from stackpick_sim.estimation import (
     plane_backprojection_jacobian,
 )
 from stackpick_sim.exceptions import EstimationError
-from stackpick_sim.geometry import CameraIntrinsics
-from stackpick_sim.episodes.sensing import Candidate, Observation
+from stackpick_sim.geometry import CameraIntrinsics, project_circle
 
 FloatArray = NDArray[np.float64]
 
@@ -53,6 +53,18 @@ MIN_SPEED_JITTER = 5e-4
 IMAGE_ACCEL_PSD = 1.5e6
 #: Fastest plausible image speed of a face, px/s (camera and belt together).
 IMAGE_MAX_SPEED = 4000.0
+#: A radius hypothesis takes over when its summed NIS is this much below the active one's
+#: (two measurements at the edge of a 2-dof 1-sigma ellipse): hysteresis against flapping.
+NIS_SWITCH_MARGIN = 4.0
+#: Faces whose ellipse comes this close to the image border are not used, px.
+EDGE_MARGIN_PX = 2.0
+#: Before the filter has a velocity, a detection is associated with the track only within
+#: this distance of where the nominal belt speed puts the first one (m, belt frame; px,
+#: image frame): a few times the detector's centre noise.
+INIT_GATE = {"belt": 0.004, "image": 6.0}
+#: Two face normals within this angle (deg) agree; the normal estimate is the mean of the
+#: largest agreeing group, so an occasional flip of the pose's two-fold ambiguity is outvoted.
+NORMAL_AGREEMENT_DEG = 10.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,20 +87,23 @@ class TargetEstimator:
         jitter = max(cfg.conveyor.speed_jitter, MIN_SPEED_JITTER)
         if self.frame == "belt":
             focal = 0.5 * (intrinsics.fx + intrinsics.fy)
+            q = belt_accel_psd(jitter, cfg.conveyor.jitter_period)
             config = TrackerConfig.belt(depth=cfg.camera.look_height, focal_px=focal,
-                                        pixel_std=self.pixel_std,
-                                        accel_psd=belt_accel_psd(jitter, cfg.conveyor.jitter_period))
+                                        pixel_std=self.pixel_std, accel_psd=q)
         else:
             config = TrackerConfig.image(accel_psd=IMAGE_ACCEL_PSD, pixel_std=self.pixel_std,
                                          max_speed=IMAGE_MAX_SPEED)
         self.tracker = ConstantVelocityTracker(config)
-        self._normal_sum = np.zeros(3)
-        self._z_sum = 0.0
-        self._z_count = 0
+        self._normals: list[FloatArray] = []
+        self._zs: list[float] = []
+        self._normal = np.array([0.0, 0.0, -1.0])
+        self.correct_centres = not oracle
         self.radius: float | None = None
         self._last: tuple[float, FloatArray] | None = None
         self.fused = 0
         self.last_fused_time: float | None = None
+        self.nis = 0.0
+        """Sum of the measurements' normalised innovations squared (capped at the gate)."""
 
     @property
     def initialised(self) -> bool:
@@ -102,20 +117,27 @@ class TargetEstimator:
 
     @property
     def normal(self) -> FloatArray:
-        """Unit inward face normal, world frame (mean of the detections' normals)."""
-        n = float(np.linalg.norm(self._normal_sum))
-        return self._normal_sum / n if n > 0 else np.array([0.0, 0.0, -1.0])
+        """Unit inward face normal, world frame (consensus of the detections' normals)."""
+        return self._normal
 
     @property
     def face_z(self) -> float:
-        """Height of the face centre, world z, m."""
-        return self._z_sum / max(self._z_count, 1)
+        """Height of the face centre, world z, m (median of the detections' heights)."""
+        return float(np.median(self._zs)) if self._zs else 0.0
 
-    def start(self, obs: Observation, cand: Candidate) -> None:
-        """Begin with the first detection of the face to pick (its pose must be known)."""
+    def start(self, obs: Observation, cand: Candidate, radius: float | None = None) -> None:
+        """Begin with the first detection of the face to pick (its pose must be known).
+
+        ``radius`` (m) overrides the detection's face radius: a monocular pose is known up
+        to scale, so the face centre (and its height) is rescaled to that radius.
+        """
         if cand.normal_cam is None or cand.centre_cam is None:
             raise EstimationError("the first detection must carry a pose (normal and centre)")
+        if radius and cand.radius > 0:
+            cand = replace(cand, centre_cam=cand.centre_cam * (radius / cand.radius),
+                           radius=radius)
         self.radius = cand.radius
+        self.nis = 0.0
         self._fuse(obs, cand)
 
     def offer(self, obs: Observation) -> bool:
@@ -123,8 +145,14 @@ class TargetEstimator:
         if not obs.candidates:
             return False
         predicted = self._predicted_measurement(obs.capture_time)
+        shift = self._centre_shift(obs) if self.correct_centres else None
         scored = []
         for cand in obs.candidates:
+            e = cand.ellipse
+            if e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX):
+                continue  # a face cut by the image border gives a biased ellipse
+            if shift is not None and cand.ellipse is not None:
+                cand = replace(cand, pixel=np.array([cand.ellipse.cx, cand.ellipse.cy]) + shift)
             try:
                 z = self._measurement(obs, cand.pixel)
             except EstimationError:
@@ -132,8 +160,28 @@ class TargetEstimator:
             scored.append((float(np.linalg.norm(z - predicted)), cand))
         if not scored:
             return False
-        _, best = min(scored, key=lambda s: s[0])
+        distance, best = min(scored, key=lambda s: s[0])
+        if not self.tracker.initialised and distance > INIT_GATE[self.frame]:
+            return False
         return self._fuse(obs, best)
+
+    def _centre_shift(self, obs: Observation) -> FloatArray | None:
+        """(2,) px from the face's ellipse centre to its centre's image, from the estimate.
+
+        Perspective moves an ellipse's centre off the image of the circle's centre; with
+        the tracked normal (a consensus over frames) this shift is steadier than each
+        frame's own pose.
+        """
+        if not self.tracker.initialised or self.radius is None:
+            return None
+        state = self.state(obs.capture_time, obs.world_T_cam)
+        r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        c_cam, n_cam = r.T @ (state.centre - p), r.T @ state.normal
+        try:
+            e = project_circle(c_cam, n_cam, self.radius, self.k)
+        except ValueError:
+            return None
+        return np.asarray(self.k.project(c_cam)[0] - np.array([e.cx, e.cy]))
 
     def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
         """The face predicted at sim time ``t`` s (Eq. 4); needs :attr:`initialised`."""
@@ -166,7 +214,7 @@ class TargetEstimator:
                                     plane)[0, :2]
 
     def _fuse(self, obs: Observation, cand: Candidate) -> bool:
-        first = self._z_count == 0 and cand.centre_cam is not None
+        first = not self._zs and cand.centre_cam is not None
         if first:
             self._add_pose(obs, cand)  # the plane height is needed to back-project
         z = self._measurement(obs, cand.pixel)
@@ -177,20 +225,87 @@ class TargetEstimator:
         else:
             r = np.eye(2) * self.pixel_std**2
         result = self.tracker.update(obs.capture_time, z, r)
+        self.nis += min(result.mahalanobis_sq, self.tracker.config.gate_chi2)
         accepted = bool(result) or result.reason.startswith("initialising: first")
         if accepted:
             self._last = (obs.capture_time, z)
             self.fused += 1
             self.last_fused_time = obs.capture_time
-            if cand.centre_cam is not None and not first:
-                self._add_pose(obs, cand)
+            if cand.normal_cam is not None and not first:
+                self._add_normal(obs.world_T_cam[:3, :3] @ cand.normal_cam)
         return accepted
 
     def _add_pose(self, obs: Observation, cand: Candidate) -> None:
         r_wc, p_wc = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
         assert cand.centre_cam is not None
-        self._z_sum += float((r_wc @ cand.centre_cam + p_wc)[2])
-        self._z_count += 1
+        self._zs.append(float((r_wc @ cand.centre_cam + p_wc)[2]))
         if cand.normal_cam is not None:
-            n = r_wc @ cand.normal_cam
-            self._normal_sum += n / float(np.linalg.norm(n))
+            self._add_normal(r_wc @ cand.normal_cam)
+
+    def _add_normal(self, n: FloatArray) -> None:
+        self._normals.append(n / float(np.linalg.norm(n)))
+        normals = np.array(self._normals)
+        agree = normals @ normals.T >= np.cos(np.radians(NORMAL_AGREEMENT_DEG))
+        best = int(np.argmax(agree.sum(axis=1)))  # first of the largest group: deterministic
+        mean = normals[agree[best]].sum(axis=0)
+        self._normal = mean / float(np.linalg.norm(mean))
+
+
+class RadiusHypotheses:
+    """One :class:`TargetEstimator` per candidate face radius; the most consistent one acts.
+
+    A single image fixes a face's pose only up to scale: the face radius and its depth are
+    tied. With two cylinder sizes the detector may choose the wrong radius, putting the face
+    at the wrong height. Each hypothesis back-projects the same pixels onto its own plane;
+    once the camera moves, only the right height keeps the track on a straight line
+    (parallax), so the hypothesis with the smallest summed innovation (NIS) is used. The
+    same interface as TargetEstimator.
+    """
+
+    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
+                 radii: tuple[float, ...]) -> None:
+        self._radii = radii
+        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in radii]
+        self.active = self.hypotheses[0]
+
+    def start(self, obs: Observation, cand: Candidate) -> None:
+        """Start every hypothesis on the first detection; the detector's radius acts first."""
+        for h, r in zip(self.hypotheses, self._radii, strict=True):
+            h.start(obs, cand, r)
+        self.active = min(self.hypotheses, key=lambda h: abs((h.radius or 0) - cand.radius))
+
+    def offer(self, obs: Observation) -> bool:
+        """Fuse ``obs`` into every hypothesis; switch to the most consistent one."""
+        used = [h.offer(obs) for h in self.hypotheses]
+        best = min(self.hypotheses, key=lambda h: (h.nis, h is not self.active))
+        if best.nis + NIS_SWITCH_MARGIN < self.active.nis:
+            self.active = best
+        return used[self.hypotheses.index(self.active)]
+
+    def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
+        """The active hypothesis' prediction at ``t`` s."""
+        return self.active.state(t, world_T_cam_now)
+
+    @property
+    def initialised(self) -> bool:
+        return self.active.initialised
+
+    @property
+    def lost(self) -> bool:
+        return all(h.lost for h in self.hypotheses)
+
+    @property
+    def normal(self) -> FloatArray:
+        return self.active.normal
+
+    @property
+    def radius(self) -> float | None:
+        return self.active.radius
+
+    @property
+    def fused(self) -> int:
+        return self.active.fused
+
+    @property
+    def last_fused_time(self) -> float | None:
+        return self.active.last_fused_time
