@@ -1,5 +1,6 @@
 # Two commands set everything up on a fresh machine:
-#   make demo   creates .venv, installs, runs the main job on the default scene, prints its summary
+#   make demo   creates .venv, installs, runs a short seeded batch of pick episodes on the default
+#               scene and prints its summary
 #   make test   creates/updates .venv and runs the tests
 PYTHON ?= python3
 VENV   := .venv
@@ -25,7 +26,7 @@ gl-check: $(STAMP)
 	@$(BIN)/python -m stackpick_sim.glcheck
 
 demo: $(STAMP) gl-check
-	$(BIN)/stackpick render --scene paper --seed 7 --out $(DEMO_OUT)
+	$(BIN)/stackpick run --scene paper --seeds 0:10 --out $(DEMO_OUT) --quiet
 
 test: $(STAMP) gl-check
 	$(BIN)/python -m pytest -q

@@ -127,3 +127,10 @@ def test_cli_bad_input_is_one_line_and_exit_2(argv: list[str], tmp_path: Path,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error:" in err and "Traceback" not in err
+
+
+def test_choice_keys_accept_only_their_choices() -> None:
+    assert load_scene("paper", ["episode.detector=oracle"]).episode.detector == "oracle"
+    with pytest.raises(ConfigError, match=r"episode.detector = 'magic' is not allowed; "
+                                          r"choose one of 'ours', 'oracle'"):
+        load_scene("paper", ["episode.detector=magic"])

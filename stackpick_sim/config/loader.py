@@ -100,6 +100,8 @@ def _type_name(hint: Any) -> str:
         if len(args) == 2 and args[1] is Ellipsis:
             return f"a list of {_type_name(args[0])}"
         return f"a list of {len(args)} {_type_name(args[0])}"
+    if origin is typing.Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(hint))
     return {float: "number", int: "integer", bool: "boolean", str: "string"}.get(hint, str(hint))
 
 
@@ -131,6 +133,12 @@ def _convert(value: Any, hint: Any, key: str) -> Any:
         if len(value) != len(args):
             raise bad
         return tuple(_convert(v, a, key) for v, a in zip(value, args, strict=True))
+    if origin is typing.Literal:
+        allowed = typing.get_args(hint)
+        if value not in allowed:
+            raise ConfigError(f"{key} = {value!r} is not allowed; choose one of "
+                              f"{', '.join(repr(a) for a in allowed)}")
+        return value
     if hint is bool:
         if not isinstance(value, bool):
             raise bad
@@ -193,7 +201,7 @@ def parse_override(text: str) -> tuple[str, Any]:
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
-        if hint is str:
+        if hint is str or typing.get_origin(hint) is typing.Literal:
             return key, raw.strip()
         raise ConfigError(f"override {key}={raw!r}: the value is not a TOML value; expected "
                           f"{_type_name(hint)}") from None

@@ -9,7 +9,9 @@ origin. Every section validates itself in ``__post_init__`` and raises
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass, field
+from typing import Literal
 
 from stackpick_sim.exceptions import ConfigError
 
@@ -213,9 +215,11 @@ class SimCfg:
 
 
 #: Detectors an episode can use: the vision pipeline, or ground truth (isolates control).
-DETECTORS = ("ours", "oracle")
+Detector = Literal["ours", "oracle"]
+DETECTORS: tuple[str, ...] = typing.get_args(Detector)
 #: Frames the Kalman tracker can estimate in (stackpick_sim.estimation.kalman).
-TRACKER_FRAMES = ("belt", "image")
+TrackerFrame = Literal["belt", "image"]
+TRACKER_FRAMES: tuple[str, ...] = typing.get_args(TrackerFrame)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -226,9 +230,9 @@ class EpisodeCfg:
     hardware; each is what the name says, in SI units.
     """
 
-    detector: str = "ours"
+    detector: Detector = "ours"
     """``ours`` (the vision pipeline) or ``oracle`` (ground-truth top object and pose)."""
-    tracker_frame: str = "belt"
+    tracker_frame: TrackerFrame = "belt"
     """Kalman state frame: ``belt`` (back-projected, metres) or ``image`` (paper, pixels)."""
     control_period: float = 0.01
     """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
