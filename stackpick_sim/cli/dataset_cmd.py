@@ -13,9 +13,7 @@ from tqdm import tqdm
 from stackpick_sim.cli.common import add_scene_args, parse_seeds, scene_from_args
 from stackpick_sim.config.loader import scene_to_dict
 from stackpick_sim.exceptions import SceneGenerationError
-from stackpick_sim.sim.camera import WristCamera
-from stackpick_sim.sim.snapshot import look_frame
-from stackpick_sim.sim.stacks import generate_scene
+from stackpick_sim.sim.snapshot import seeded_look_frame
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,16 +43,11 @@ def run(args: argparse.Namespace) -> int:
                file=sys.stderr)
     for seed in bar:
         try:
-            scene = generate_scene(cfg, seed)
+            scene, image, truth = seeded_look_frame(cfg, seed)
         except SceneGenerationError as exc:
             failures[seed] = str(exc)
             tqdm.write(f"warning: {exc}", file=sys.stderr)
             continue
-        camera = WristCamera(scene.cell)
-        try:
-            image, truth = look_frame(scene, camera)
-        finally:
-            camera.close()
         stem = out / f"{seed:06d}"
         cv2.imwrite(f"{stem}.png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
         record = {"scene": cfg.name, "seed": seed, "attempts": scene.attempts, **truth.as_dict()}

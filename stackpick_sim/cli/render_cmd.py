@@ -9,9 +9,8 @@ from pathlib import Path
 import cv2
 
 from stackpick_sim.cli.common import add_scene_args, scene_from_args, seed_arg
-from stackpick_sim.sim.camera import WristCamera, make_renderer
-from stackpick_sim.sim.snapshot import look_frame, truth_overlay
-from stackpick_sim.sim.stacks import generate_scene
+from stackpick_sim.sim.camera import make_renderer
+from stackpick_sim.sim.snapshot import seeded_look_frame, truth_overlay
 
 #: Size of the external overview picture, px.
 OVERVIEW_SIZE = (480, 640)
@@ -35,14 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Render the scene and write its files; prints a one-line summary per object."""
     cfg = scene_from_args(args)
-    scene = generate_scene(cfg, args.seed)
+    scene, image, truth = seeded_look_frame(cfg, args.seed)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    camera = WristCamera(scene.cell)
-    try:
-        image, truth = look_frame(scene, camera)
-    finally:
-        camera.close()
     cv2.imwrite(str(out / "frame.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     cv2.imwrite(str(out / "overlay.png"), truth_overlay(image, truth))
     record = {"scene": cfg.name, "seed": args.seed, "attempts": scene.attempts, **truth.as_dict()}
