@@ -1,11 +1,13 @@
 """Seeded piles of overlapping cylinders: physical placement, settling, rejection sampling.
 
 The seed draws the pile's size and kinds once; then, attempt after attempt from the same
-generator, cylinders are dropped one by one onto the belt or onto the pile (near a previous
-cylinder, slightly tilted) and simulated until they rest. A pile is accepted when every
-cylinder rests on the belt or on others, no axis is tilted past ``objects.max_tilt_deg``,
-every top face lies inside the look-pose image and overlaps at least one other object's
-silhouette there. Same config and seed give the same settled state, bit for bit.
+generator, cylinders are set down one by one onto the belt or onto the pile (near a previous
+cylinder, nearly upright) and simulated, with a temporary viscous damping, until they rest; a
+drop that leaves a cylinder off the belt or tilted too far is undone and redrawn. A pile is
+accepted when, the damping removed, it stays put, every cylinder rests on the belt or on
+others, no axis is tilted past ``objects.max_tilt_deg``, and every top face lies inside the
+look-pose image and overlaps at least one other object's silhouette there. Same config and
+seed give the same settled state, bit for bit.
 """
 
 from __future__ import annotations
@@ -180,18 +182,24 @@ def _silhouette_masks(cell: Cell, world_T_cam: NDArray[np.float64]) -> list[NDAr
     return masks
 
 
-def pile_problem(cell: Cell) -> str | None:
-    """Why the current pile is not valid, or None if it is (see the module docstring)."""
-    cfg = cell.cfg
-    data = cell.data
-    belt = cfg.conveyor
-    for obj in cell.objects:
-        pos = data.xpos[obj.body_id]
+def _placement_problem(cell: Cell, upto: int) -> str | None:
+    """Why the objects placed so far are not a valid partial pile (off belt, too tilted)."""
+    belt = cell.cfg.conveyor
+    for obj in cell.objects[:upto]:
+        pos = cell.data.xpos[obj.body_id]
         if abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP:
             return f"{obj.name} fell off the belt"
-        axis_z = abs(data.xmat[obj.body_id][8])
-        if math.degrees(math.acos(min(1.0, axis_z))) > cfg.objects.max_tilt_deg:
+        axis_z = abs(cell.data.xmat[obj.body_id][8])
+        if math.degrees(math.acos(min(1.0, axis_z))) > cell.cfg.objects.max_tilt_deg:
             return f"{obj.name} tilted past objects.max_tilt_deg"
+    return None
+
+
+def pile_problem(cell: Cell) -> str | None:
+    """Why the current pile is not valid, or None if it is (see the module docstring)."""
+    problem = _placement_problem(cell, len(cell.objects))
+    if problem is not None:
+        return problem
     world_T_cam = cell.world_T_cam()
     r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
     k = cell.intrinsics
@@ -240,19 +248,6 @@ def _stays_at_rest(cell: Cell) -> bool:
     cos_turn = np.clip(np.sum(cell.data.xmat[ids][:, 6:9] * axis0, axis=1), -1.0, 1.0)
     return bool(np.all(drift <= STABILITY_MAX_DRIFT)
                 and np.all(np.degrees(np.arccos(cos_turn)) <= STABILITY_MAX_TURN_DEG))
-
-
-def _placement_problem(cell: Cell, upto: int) -> str | None:
-    """Why the objects placed so far are not a valid partial pile (off belt, too tilted)."""
-    belt = cell.cfg.conveyor
-    for obj in cell.objects[:upto]:
-        pos = cell.data.xpos[obj.body_id]
-        if abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP:
-            return f"{obj.name} fell off the belt"
-        axis_z = abs(cell.data.xmat[obj.body_id][8])
-        if math.degrees(math.acos(min(1.0, axis_z))) > cell.cfg.objects.max_tilt_deg:
-            return f"{obj.name} tilted past objects.max_tilt_deg"
-    return None
 
 
 def _reason(problem: str) -> str:
