@@ -268,8 +268,7 @@ def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
     arm_joints = [model.joint(name) for name in robot.ARM_JOINTS]
     look = (cfg.conveyor.x, 0.0, cfg.conveyor.top_z)
     # The look pose depends only on the robot and the look geometry, not on the objects.
-    robot_xml = robot.robot_spec().to_xml()
-    look_q = np.array(_look_q_cached(robot_xml, look, cfg.camera.look_height))
+    look_q = np.array(_look_q_cached(robot.robot_xml(), look, cfg.camera.look_height))
     cell = Cell(
         cfg=cfg, model=model, data=data, spec_xml=xml, objects=tuple(objects),
         camera_id=model.camera(robot.CAMERA).id, belt_geom_id=model.geom("belt").id,

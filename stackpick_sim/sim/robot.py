@@ -13,6 +13,7 @@ sphere contacts spread over the lip are stable without it, so we leave ``multicc
 
 from __future__ import annotations
 
+import functools
 import warnings
 from pathlib import Path
 
@@ -92,7 +93,26 @@ def _attach_quietly(parent: mujoco.MjSpec, child: mujoco.MjSpec, site: mujoco.Mj
 
 
 def robot_spec() -> mujoco.MjSpec:
-    """The arm with the suction tool at its flange, as an uncompiled spec.
+    """The arm with the suction tool at its flange, as a fresh uncompiled spec (yours to edit).
+
+    See :func:`robot_xml` for the composition; the composed MJCF is cached per file version.
+    """
+    return mujoco.MjSpec.from_string(robot_xml())
+
+
+def robot_xml() -> str:
+    """MJCF text of the arm with the suction tool at its flange (cached per file version)."""
+    arm_path, tool_path = model_path(ARM_MODEL), model_path(TOOL_MODEL)
+    return _composed_xml(arm_path, tool_path, _mtime(arm_path), _mtime(tool_path))
+
+
+def _mtime(path: Path) -> int:
+    return path.stat().st_mtime_ns if path.is_file() else -1
+
+
+@functools.lru_cache(maxsize=4)
+def _composed_xml(arm_path: Path, tool_path: Path, arm_mtime: int, tool_mtime: int) -> str:
+    """The composition; the modification times only key the cache.
 
     The arm's base is at the world origin; the tool's frame coincides with the flange frame.
     The ``home`` keyframe gets ctrl = (arm qpos, suction 0). The spec is parsed back from the
@@ -101,7 +121,6 @@ def robot_spec() -> mujoco.MjSpec:
     changes measurably. Raises ModelError naming the file if a model file is missing or does
     not compile, or if the composition fails.
     """
-    arm_path, tool_path = model_path(ARM_MODEL), model_path(TOOL_MODEL)
     arm = _load_spec(arm_path)
     tool = _load_spec(tool_path)
     flange = arm.site(FLANGE_SITE)
@@ -122,6 +141,7 @@ def robot_spec() -> mujoco.MjSpec:
         except ValueError as exc:
             raise ModelError(f"{what} failed to compile: {exc}") from None
     try:
-        return mujoco.MjSpec.from_string(xml)
+        mujoco.MjSpec.from_string(xml)
     except ValueError as exc:
         raise ModelError(f"{what} compiled but its saved MJCF does not parse: {exc}") from None
+    return xml
