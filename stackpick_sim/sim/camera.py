@@ -14,11 +14,19 @@ from numpy.typing import NDArray
 from stackpick_sim.exceptions import RenderError
 from stackpick_sim.glcheck import gl_failure_message
 from stackpick_sim.sim.cell import Cell
+from stackpick_sim.sim.renderer_pool import active_pool
 
 
 def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
-    """A ``mujoco.Renderer``, or a RenderError that names the missing system packages."""
+    """A ``mujoco.Renderer``, or a RenderError that names the missing system packages.
+
+    With :func:`~stackpick_sim.sim.renderer_pool.enable_renderer_reuse` on, a pooled one
+    (its ``close()`` returns it to the pool).
+    """
+    pool = active_pool()
     try:
+        if pool is not None:
+            return pool.acquire(model, height, width)
         return mujoco.Renderer(model, height, width)
     except Exception as exc:  # MuJoCo raises bare RuntimeError/AttributeError/ImportError here
         raise RenderError(gl_failure_message(exc)) from None

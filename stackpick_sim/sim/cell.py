@@ -27,6 +27,8 @@ from stackpick_sim.sim.ik import look_pose_q
 BELT_THICKNESS = 0.04
 #: Belt speed the model is compiled with, m/s: any non-zero value (see _add_belt).
 COMPILED_BELT_SPEED = 1.0
+#: An object whose centre is this far below the belt surface has fallen off, m.
+OFF_BELT_DROP = 0.01
 #: Parked objects wait on the floor this far from the cell, m (outside every camera view).
 PARK_X = -2.0
 #: Spacing of parked objects along y, m.
@@ -110,6 +112,12 @@ class Cell:
     def set_belt_speed(self, speed: float) -> None:
         """Set the belt surface speed along world +y, m/s."""
         self.model.geom_surfacevel[self.belt_geom_id, 1] = speed
+
+    def fell_off_belt(self, obj: ObjectInfo) -> bool:
+        """Whether ``obj`` left the belt sideways or fell below its surface (not its ends)."""
+        belt = self.cfg.conveyor
+        pos = self.data.xpos[obj.body_id]
+        return bool(abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP)
 
     def set_arm(self, q: NDArray[np.float64]) -> None:
         """Put the arm at joint angles ``q`` (rad) at rest, with its position targets there."""

@@ -16,7 +16,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle, tilt_angles
-from stackpick_sim.sim.cell import Cell, ObjectInfo
+from stackpick_sim.sim.cell import OFF_BELT_DROP, Cell, ObjectInfo
+
+__all__ = ["OFF_BELT_DROP", "TOP_VISIBLE_FRACTION", "FrameTruth", "ObjectTruth", "frame_truth",
+           "resting_on", "top_face"]
 
 #: A face at least this visible (and with nothing resting on it) is a top object (the issue).
 TOP_VISIBLE_FRACTION = 0.98
@@ -25,8 +28,6 @@ TOP_VISIBLE_FRACTION = 0.98
 VISIBILITY_INSET_PX = 1.0
 #: A contact whose normal has at least this upward component means "resting on".
 RESTING_NORMAL_Z = 0.3
-#: An object whose centre is this far below the belt surface has fallen off, m.
-OFF_BELT_DROP = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -168,10 +169,8 @@ def frame_truth(cell: Cell, segmentation: NDArray[np.int32]) -> FrameTruth:
         except ValueError:
             ellipse = None
         visible = _visible_fraction(ellipse, obj, segmentation) if ellipse is not None else 0.0
-        body_pos = cell.data.xpos[obj.body_id]
-        on_belt = bool(abs(body_pos[0] - belt.x) <= belt.width / 2
-                       and abs(body_pos[1]) <= belt.length / 2
-                       and body_pos[2] >= belt.top_z - OFF_BELT_DROP)
+        on_belt = (not cell.fell_off_belt(obj)
+                   and abs(cell.data.xpos[obj.body_id][1]) <= belt.length / 2)
         u, v = k.project(centre_c)[0]
         th_x, th_y = tilt_angles(inward_c)
         tilt = math.degrees(math.acos(min(1.0, abs(float(normal_w[2])))))

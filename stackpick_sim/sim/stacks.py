@@ -26,7 +26,7 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.geometry import plane_basis, project_circle
 from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell, build_cell
-from stackpick_sim.sim.ground_truth import OFF_BELT_DROP, top_face
+from stackpick_sim.sim.ground_truth import top_face
 
 #: While being placed, an object counts as resting when its speed is below this, m/s ...
 REST_LINEAR_SPEED = 0.002
@@ -184,10 +184,8 @@ def _silhouette_masks(cell: Cell, world_T_cam: NDArray[np.float64]) -> list[NDAr
 
 def _placement_problem(cell: Cell, upto: int) -> str | None:
     """Why the objects placed so far are not a valid partial pile (off belt, too tilted)."""
-    belt = cell.cfg.conveyor
     for obj in cell.objects[:upto]:
-        pos = cell.data.xpos[obj.body_id]
-        if abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP:
+        if cell.fell_off_belt(obj):
             return f"{obj.name} fell off the belt"
         axis_z = abs(cell.data.xmat[obj.body_id][8])
         if math.degrees(math.acos(min(1.0, axis_z))) > cell.cfg.objects.max_tilt_deg:
