@@ -170,7 +170,7 @@ def frame_truth(cell: Cell, segmentation: NDArray[np.int32]) -> FrameTruth:
             ellipse = None
         visible = _visible_fraction(ellipse, obj, segmentation) if ellipse is not None else 0.0
         on_belt = (not cell.fell_off_belt(obj)
-                   and abs(cell.data.xpos[obj.body_id][1]) <= belt.length / 2)
+                   and bool(abs(cell.data.xpos[obj.body_id][1]) <= belt.length / 2))
         u, v = k.project(centre_c)[0]
         th_x, th_y = tilt_angles(inward_c)
         tilt = math.degrees(math.acos(min(1.0, abs(float(normal_w[2])))))
