@@ -85,8 +85,6 @@ def test_radius_chosen_by_depth_range() -> None:
     assert choose_radius(per_metre, (0.035, 0.025), (0.15, 0.19)) == 0.025
 
 
-@pytest.mark.xfail(strict=True, reason="known shortfall: the predicted wall lines of both "
-                   "solutions hug the face outline, so edge support does not tell them apart")
 def test_wall_resolves_tilt_ambiguity() -> None:
     for tilt in ((25.0, 0.0), (-25.0, 0.0), (0.0, 30.0), (0.0, -30.0)):
         normal = normal_from_tilt(*tilt)

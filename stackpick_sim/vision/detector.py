@@ -19,10 +19,11 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import MIN_SIDE_PX, as_rgb_or_gray, edge_image
 from stackpick_sim.vision.fitting import fit_or_split
-from stackpick_sim.vision.merging import merge_segments, support_map
+from stackpick_sim.vision.merging import merge_segments
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import estimate_pose
-from stackpick_sim.vision.refine import edge_points, refine
+from stackpick_sim.vision.refine import edge_points, refine, refine_subpixel
+from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
@@ -85,15 +86,21 @@ class TopObjectDetector:
             timings[name] = (now - start) * 1e3
             return now
 
-        grad = edge_image(img)
+        roi = find_roi(img)
+        work = np.ascontiguousarray(roi.crop(img))
+        if min(work.shape[:2]) < MIN_SIDE_PX:
+            roi, work = Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), img
+        crop = (int(work.shape[0]), int(work.shape[1]))
+        t = lap("roi", t0)
+        grad = edge_image(work)
         edges = grad.edges
-        t = lap("edges", t0)
+        t = lap("edges", t)
         segs = link_segments(edges)
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
         for chain in segs.chains:
-            for points, ellipse, _ in fit_or_split(chain, shape):
+            for points, ellipse, _ in fit_or_split(chain, crop):
                 fits.append((len(pieces), ellipse))
                 pieces.append(points)
         chains = tuple(pieces) + segs.chains
@@ -101,28 +108,40 @@ class TopObjectDetector:
         merged = merge_segments(chains, fits, edges)
         t = lap("merging", t)
         points, grads = edge_points(grad)
-        merged = [replace(m, ellipse=refine(m.ellipse, points, grads, shape)) for m in merged]
+        merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
         t = lap("refine", t)
         choice = select_top([m.ellipse for m in merged], grad)
         t = lap("top", t)
+        du, dv = roi.offset
         keep = [i for i, ev in enumerate(choice.evidence)
                 if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index]
         ellipses = tuple(
-            DetectedEllipse(ellipse=merged[i].ellipse, segments=merged[i].segments,
-                            residual_px=merged[i].residual_px, support=merged[i].support,
-                            evidence=choice.evidence[i])
+            DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
+                            segments=merged[i].segments, residual_px=merged[i].residual_px,
+                            support=merged[i].support, evidence=choice.evidence[i])
             for i in keep)
+        offset = np.array([du, dv], np.int32)
+        frame_chains = chains if du == dv == 0 else tuple(c + offset for c in chains)
         top = None if choice.index is None else keep.index(choice.index)
-        detection = Detection(ellipses=ellipses, segments=chains, top=top,
+        detection = Detection(ellipses=ellipses, segments=frame_chains, top=top,
                               timings_ms=timings, reason=choice.reason)
         if choice.index is not None:
-            pose = estimate_pose(merged[choice.index].ellipse, self._intrinsics(shape),
-                                 self.config.radii_m, support_map(edges),
-                                 self.config.depth_range_m)
+            top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
+                                          crop)
+            pose = estimate_pose(_moved(top_ellipse, du, dv), self._intrinsics(shape),
+                                 self.config.radii_m, None, self.config.depth_range_m,
+                                 image=img if img.ndim == 3 else None)
             detection = replace(detection, pose=pose)
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection
+
+
+def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:
+    """``ellipse`` shifted by (du, dv) px (from ROI to frame coordinates)."""
+    if du == dv == 0:
+        return ellipse
+    return replace(ellipse, cx=ellipse.cx + du, cy=ellipse.cy + dv)
 
 
 def detect(image: NDArray, config: DetectorConfig | None = None) -> Detection:

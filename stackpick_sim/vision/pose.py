@@ -13,11 +13,15 @@ depth range (nearest to the range's middle if several do, nearest to the range i
 Only depth depends on it; the face-centre pixel and the tilt angles do not.
 
 **Two-fold ambiguity**: the cylinder's side wall is visible on the side its axis leans
-towards (the inward normal, projected). For each solution the two straight silhouette lines
-of the wall are predicted (the hull of the face rim and a rim WALL_PROBE_RADII radii further
-along the axis) and checked against the edge map; the solution whose lines have more edge
-support wins. When neither has wall evidence (a face seen square on, where both solutions
-nearly coincide) the smaller tilt is taken.
+towards (the inward normal, projected). Given the colour image, each solution's predicted wall
+band is checked for the face's hue (:mod:`stackpick_sim.vision.wall`): the true band shows the
+wall, the other the belt or another object. The solution with the clearly better band wins; a
+solution whose band is visible but not the face's colour loses. When neither predicts a
+visible band (a face seen nearly square on, where both solutions nearly coincide) the smaller
+tilt from the optical axis is taken: a face resting flat under a downward-looking camera.
+Without an image, the older test is used: the two straight silhouette lines of each
+solution's wall (the hull of the face rim and a rim WALL_PROBE_RADII radii further along the
+axis) are checked against the edge map.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, plane_basis, tilt_angles
+from stackpick_sim.vision.wall import WallEvidence, face_colour, wall_evidence
 
 #: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
 #: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.
@@ -40,8 +45,16 @@ WALL_RIM_POINTS = 48
 #: Samples along each predicted silhouette line, skipping this many px at each end, where the
 #: line meets the face outline (whose own edge would support either solution).
 WALL_END_SKIP_PX = 2.0
-#: Wall support difference below which the evidence is called a tie.
+#: Wall support difference below which the edge-line evidence is called a tie.
 WALL_TIE = 0.15
+#: A solution's colour band needs this many samples to count as visible (fewer: the band
+#: hides behind the face, as for a face seen square on).
+MIN_BAND_SAMPLES = 8
+#: Band shares (0-1) closer than this are a tie. Measured on the development seeds: the true
+#: band scores 0.5-1.0, the wrong one 0-0.3 (0.57 once, on a same-colour neighbour).
+BAND_TIE = 0.3
+#: A lone visible band showing the face's hue on less than this share is the wrong solution.
+LONE_BAND_MIN_SHARE = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -60,7 +73,7 @@ class Pose:
     ``theta_y_deg``: tilt angles (see :mod:`stackpick_sim.geometry`); ``depth_m``: z of the
     face centre; ``normal_cam``: inward face normal; ``centre_cam``: face centre, metres;
     ``radius_m``: the chosen radius; ``wall_support``: wall evidence of the chosen and the
-    rejected solution (0-1 each).
+    rejected solution (0-1 each: colour band share with an image, edge-line share without).
     """
 
     x: float
@@ -157,22 +170,46 @@ def choose_radius(depth_per_metre: float, radii: Sequence[float],
     return float(min(radii, key=cost))
 
 
+def choose_by_band(evidence: Sequence[WallEvidence]) -> int | None:
+    """Index (0 or 1) of the solution the two wall bands favour, or None when they cannot tell."""
+    visible = [e.samples >= MIN_BAND_SAMPLES for e in evidence]
+    if all(visible):
+        diff = evidence[0].share - evidence[1].share
+        return None if abs(diff) < BAND_TIE else (0 if diff > 0 else 1)
+    if any(visible):
+        lone = visible.index(True)
+        return lone if evidence[lone].share >= LONE_BAND_MIN_SHARE else 1 - lone
+    return None
+
+
 def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequence[float],
-                  support: NDArray[np.uint8],
-                  depth_range_m: tuple[float, float] | None = None) -> Pose:
+                  support: NDArray[np.uint8] | None = None,
+                  depth_range_m: tuple[float, float] | None = None, *,
+                  image: NDArray[np.uint8] | None = None) -> Pose:
     """Pose of the face imaged as ``ellipse``; see the module docstring for the choices.
 
-    ``support`` is the (H, W) 0/1 dilated edge map used for the wall evidence.
+    ``image`` is the (H, W, 3) RGB frame used for the wall colour test (preferred);
+    ``support`` the (H, W) 0/1 dilated edge map used for the edge-line wall test when no image
+    is given. With neither, the smaller tilt is taken.
     """
     unit = circle_poses(ellipse, intrinsics, 1.0)
     radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
-    scores = [wall_support(p, radius * 1.0, intrinsics,  support)
-              for p in (CirclePose(normal_cam=s.normal_cam, centre_cam=s.centre_cam * radius)
-                        for s in unit)]
     tilts = [math.acos(min(1.0, float(s.normal_cam[2]))) for s in unit]
-    if abs(scores[0] - scores[1]) >= WALL_TIE:
-        best = 0 if scores[0] > scores[1] else 1
-    else:
+    best: int | None = None
+    scores = [0.0, 0.0]
+    if image is not None:
+        face = face_colour(ellipse, image)
+        evidence = [wall_evidence(s.normal_cam, s.centre_cam, ellipse, intrinsics, image, face)
+                    for s in unit]
+        scores = [e.share for e in evidence]
+        best = choose_by_band(evidence)
+    elif support is not None:
+        scores = [wall_support(CirclePose(normal_cam=s.normal_cam,
+                                          centre_cam=s.centre_cam * radius),
+                               radius, intrinsics, support) for s in unit]
+        if abs(scores[0] - scores[1]) >= WALL_TIE:
+            best = 0 if scores[0] > scores[1] else 1
+    if best is None:
         best = 0 if tilts[0] <= tilts[1] else 1
     chosen = unit[best]
     centre = chosen.centre_cam * radius

@@ -25,6 +25,59 @@ TOLERANCES_PX: tuple[float, ...] = (2.5, 1.5, 1.2)
 MIN_NORMAL_COS = 0.87
 #: Fewest collected pixels for a refit (fewer keeps the previous ellipse).
 MIN_PIXELS = 20
+#: Collection tolerance (px) of the final sub-pixel refit of the top face.
+SUBPIXEL_TOLERANCE_PX = 1.2
+#: Largest sub-pixel shift (px) accepted along the gradient: the magnitude peak of a
+#: non-maximum-suppressed pixel lies within half a pixel of it.
+MAX_SHIFT_PX = 0.5
+
+
+def _bilinear(img: NDArray[np.int16], pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N,) bilinear samples of an (H, W) image at (N, 2) points (u, v), clamped inside."""
+    h, w = img.shape
+    u = np.clip(pts[:, 0], 0.0, w - 1.001)
+    v = np.clip(pts[:, 1], 0.0, h - 1.001)
+    u0, v0 = u.astype(np.int64), v.astype(np.int64)
+    fu, fv = u - u0, v - v0
+    f = img.astype(np.float64, copy=False)
+    top = f[v0, u0] * (1 - fu) + f[v0, u0 + 1] * fu
+    bottom = f[v0 + 1, u0] * (1 - fu) + f[v0 + 1, u0 + 1] * fu
+    return np.asarray(top * (1 - fv) + bottom * fv, np.float64)
+
+
+def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float64]
+             ) -> NDArray[np.float64]:
+    """(N, 2) edge pixels (u, v) moved to the gradient-magnitude peak along (N, 2) unit
+    gradient directions: a parabola through the magnitudes one pixel either side
+    (Devernay's sub-pixel Canny, with bilinear sampling)."""
+    mags = []
+    for step in (-1.0, 0.0, 1.0):
+        q = pts + step * dirs
+        mags.append(np.hypot(_bilinear(image.gx, q), _bilinear(image.gy, q)))
+    before, centre, after = mags
+    curvature = before - 2.0 * centre + after
+    ok = curvature < -1e-9
+    shift = np.zeros(pts.shape[0])
+    shift[ok] = 0.5 * (before[ok] - after[ok]) / curvature[ok]
+    shift = np.clip(shift, -MAX_SHIFT_PX, MAX_SHIFT_PX)
+    return pts + shift[:, None] * dirs
+
+
+def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
+                    grads: NDArray[np.float64], shape: tuple[int, int]) -> Ellipse:
+    """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
+    unit gradients (M, 2) along it (within SUBPIXEL_TOLERANCE_PX, gradient normal to it)."""
+    reach = ellipse.a + SUBPIXEL_TOLERANCE_PX + 1
+    near = ((np.abs(points[:, 0] - ellipse.cx) <= reach)
+            & (np.abs(points[:, 1] - ellipse.cy) <= reach))
+    pts, g = points[near], grads[near]
+    d = distances(ellipse_params([ellipse]), pts)[0]
+    cos = np.abs(np.einsum("ij,ij->i", _normals(ellipse, pts), g))
+    keep = (d < SUBPIXEL_TOLERANCE_PX) & (cos >= MIN_NORMAL_COS)
+    if np.count_nonzero(keep) < MIN_PIXELS:
+        return ellipse
+    fit = fit_ellipse(subpixel(image, pts[keep], g[keep]))
+    return fit if fit is not None and plausible(fit, shape) else ellipse
 
 
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

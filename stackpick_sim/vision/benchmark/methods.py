@@ -30,7 +30,6 @@ from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.scoring import MethodOutput
 from stackpick_sim.vision.detector import DEFAULT_RADII_M, DetectorConfig, TopObjectDetector
 from stackpick_sim.vision.edges import edge_image
-from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import estimate_pose
 
@@ -78,8 +77,8 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         top = None
         if choice.index is not None:
             top = ellipses[choice.index]
-            p = estimate_pose(top, frame.intrinsics, DEFAULT_RADII_M, support_map(grad.edges),
-                              frame.depth_range_m)
+            p = estimate_pose(top, frame.intrinsics, DEFAULT_RADII_M, None,
+                              frame.depth_range_m, image=rgb)
             pose = (p.x, p.y, p.theta_x_deg, p.theta_y_deg)
         t2 = time.perf_counter()
         return MethodOutput(ellipses=ellipses, top=top, pose=pose, total_ms=(t2 - t0) * 1e3,

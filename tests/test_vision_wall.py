@@ -1,0 +1,94 @@
+"""Tests of the wall colour evidence, the region of interest and the sub-pixel refit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
+from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.pose import choose_by_band, circle_poses
+from stackpick_sim.vision.refine import edge_points, refine_subpixel, subpixel
+from stackpick_sim.vision.roi import find_roi
+from stackpick_sim.vision.synthetic import draw_ellipses, render_cylinders
+from stackpick_sim.vision.wall import WallEvidence, wall_evidence
+
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+
+
+def _cylinder(tilt: tuple[float, float], colour: tuple[int, int, int] = (60, 100, 220)
+              ) -> tuple[np.ndarray, Ellipse, np.ndarray]:
+    normal = normal_from_tilt(*tilt)
+    centre = np.array([0.01, 0.008, 0.25])
+    render = render_cylinders([(centre, normal, 0.035, 0.03)], [colour], K)
+    image = np.clip(np.round(render), 0, 255).astype(np.uint8)
+    return image, project_circle(centre, normal, 0.035, K), normal
+
+
+@pytest.mark.parametrize("tilt", [(30.0, 0.0), (-20.0, 15.0), (0.0, -35.0)])
+def test_true_solution_band_shows_the_wall_colour(tilt: tuple[float, float]) -> None:
+    image, ellipse, normal = _cylinder(tilt)
+    sols = circle_poses(ellipse, K, 1.0)
+    true_i = int(np.argmax([float(s.normal_cam @ normal) for s in sols]))
+    ev = [wall_evidence(s.normal_cam, s.centre_cam, ellipse, K, image) for s in sols]
+    assert ev[true_i].samples > 20 and ev[true_i].share > 0.8
+    assert ev[1 - true_i].share < 0.2
+    assert choose_by_band(ev) == true_i
+
+
+def test_band_rule_tie_and_lone_band() -> None:
+    none = WallEvidence(samples=0, share=0.0)
+    assert choose_by_band([none, none]) is None
+    assert choose_by_band([WallEvidence(samples=40, share=0.9),
+                           WallEvidence(samples=40, share=0.8)]) is None
+    # A lone visible band that is not the face's colour speaks for the other solution.
+    assert choose_by_band([WallEvidence(samples=30, share=0.0), none]) == 1
+    assert choose_by_band([none, WallEvidence(samples=30, share=0.9)]) == 1
+
+
+def test_roi_holds_the_object_and_empty_belt_keeps_the_frame() -> None:
+    rng = np.random.default_rng(2)
+    belt = np.clip(rng.normal(35, 2, (240, 320, 3)), 0, 255).astype(np.uint8)
+    whole = find_roi(belt)
+    assert (whole.u0, whole.v0, whole.u1, whole.v1) == (0, 0, 320, 240)
+    disc = Ellipse(cx=220, cy=70, a=30, b=22, angle_deg=20)
+    image = draw_ellipses((240, 320), [disc], noise_sigma=2.0, rng=rng)
+    roi = find_roi(image)
+    u0, v0, u1, v1 = disc.bounds()
+    assert roi.u0 <= u0 - 2 and roi.v0 <= v0 - 2 and roi.u1 >= u1 + 2 and roi.v1 >= v1 + 2
+    assert (roi.u1 - roi.u0) * (roi.v1 - roi.v0) < 0.3 * 320 * 240
+
+
+def test_detection_in_roi_is_reported_in_frame_pixels() -> None:
+    image, ellipse, _ = _cylinder((0.0, 0.0))
+    det = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.035,)))
+    assert det and det.top_ellipse is not None
+    assert math.hypot(det.top_ellipse.cx - ellipse.cx, det.top_ellipse.cy - ellipse.cy) < 0.5
+    for chain in det.segments:
+        assert chain[:, 0].min() >= 0 and chain[:, 0].max() < 320
+
+
+def test_subpixel_moves_edge_pixels_onto_a_straight_step() -> None:
+    # A vertical step at u = 100.3 (area-sampled): edge pixels at u = 100 move right ~0.3 px.
+    img = np.full((40, 200), 40.0)
+    img[:, 101:] = 200.0
+    img[:, 100] = 40.0 + 160.0 * 0.2
+    grad = edge_image(np.round(img).astype(np.uint8))
+    pts = np.stack([np.full(20, 100.0), np.arange(10.0, 30.0)], axis=1)
+    moved = subpixel(grad, pts, np.tile([1.0, 0.0], (20, 1)))
+    assert np.all(np.abs(moved[:, 0] - 100.3) < 0.15)
+    assert np.allclose(moved[:, 1], pts[:, 1])
+
+
+def test_subpixel_refit_recovers_a_drawn_ellipse() -> None:
+    truth = Ellipse(cx=160.3, cy=118.7, a=35.2, b=30.6, angle_deg=25.0)
+    image = draw_ellipses((240, 320), [truth], noise_sigma=1.0, rng=np.random.default_rng(4))
+    grad = edge_image(image)
+    pts, dirs = edge_points(grad)
+    start = Ellipse(cx=160.0, cy=119.0, a=35.0, b=31.0, angle_deg=25.0)
+    fit = refine_subpixel(start, grad, pts, dirs, (240, 320))
+    assert abs(fit.cx - truth.cx) < 0.1 and abs(fit.cy - truth.cy) < 0.1
+    assert abs(fit.a - truth.a) < 0.15 and abs(fit.b - truth.b) < 0.15
