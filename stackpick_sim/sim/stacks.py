@@ -274,9 +274,12 @@ def _stable_on_running_belt(cell: Cell) -> bool:
     data = cell.data
     saved = [data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.qacc_warmstart.copy()]
     time_saved = data.time
+    belt = cell.cfg.conveyor
+    # Ride at most until the leading object nears the belt's end (a short belt, a fast belt).
+    lead = max(data.xpos[o.body_id][1] + o.radius + o.height for o in cell.objects)
+    duration = min(RUNNING_CHECK_TIME, (belt.length / 2 - lead) / belt.speed)
     try:
-        return _stays_put(cell, cell.cfg.conveyor.speed, RUNNING_CHECK_TIME, RUNNING_MAX_DRIFT,
-                          RUNNING_MAX_TURN_DEG)
+        return _stays_put(cell, belt.speed, duration, RUNNING_MAX_DRIFT, RUNNING_MAX_TURN_DEG)
     finally:
         data.time = time_saved
         for dst, src in zip((data.qpos, data.qvel, data.act, data.qacc_warmstart), saved,
