@@ -1,17 +1,23 @@
 # Two commands set everything up on a fresh machine:
 #   make demo   creates .venv, installs, runs a short seeded batch of pick episodes on the default
 #               scene and prints its summary
-#   make test   creates/updates .venv and runs the tests
+#   make test   creates/updates .venv, runs the CI regression gate (a seeded batch of pick
+#               episodes checked against tests/baselines/paper_ci.json) and the tests
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= out/demo
+# The CI regression gate: this batch, checked against the baseline that the same command
+# made (make ci-baseline regenerates it after an intended change of the success rate).
+CI_GATE_OUT  ?= out/ci_gate
+CI_BASELINE  := tests/baselines/paper_ci.json
+CI_GATE_ARGS := --scene paper --seeds 0:40 --workers 2 --quiet
 
 # Headless offscreen rendering through Mesa's EGL (no GPU, no display needed).
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test lint bench gl-check system-deps clean
+.PHONY: demo test ci-gate ci-baseline lint bench gl-check system-deps clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
@@ -28,8 +34,19 @@ gl-check: $(STAMP)
 demo: $(STAMP) gl-check
 	$(BIN)/stackpick run --scene paper --seeds 0:10 --out $(DEMO_OUT) --quiet
 
-test: $(STAMP) gl-check
+# The gate runs first so that pytest's summary stays the last line of the output.
+test: $(STAMP) gl-check ci-gate
 	$(BIN)/python -m pytest -q
+
+ci-gate: $(STAMP) gl-check
+	rm -rf $(CI_GATE_OUT)
+	$(BIN)/stackpick run $(CI_GATE_ARGS) --out $(CI_GATE_OUT)
+	$(BIN)/stackpick check $(CI_GATE_OUT) --baseline $(CI_BASELINE)
+
+ci-baseline: $(STAMP) gl-check
+	rm -rf $(CI_GATE_OUT)
+	$(BIN)/stackpick run $(CI_GATE_ARGS) --out $(CI_GATE_OUT)
+	cp $(CI_GATE_OUT)/summary.json $(CI_BASELINE)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

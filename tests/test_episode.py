@@ -55,6 +55,9 @@ def test_oracle_episode_succeeds_and_record_is_complete(oracle_record: dict) -> 
                                                 abs=1e-6)
     assert rec["detection"]["center_error_px"] < 1e-6  # the oracle is exact at detection
     assert rec["prediction_error_mm"] < 5.0  # within the suction lip's tolerance
+    # Frames come at the camera rate throughout; those after the grasp are not processed.
+    assert rec["frames"] >= round(rec["sim_time_s"] * 30) - 1
+    assert 0 < rec["frames_processed"] < rec["frames"]
     json.dumps(rec)  # JSON-serialisable
 
 

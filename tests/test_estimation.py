@@ -213,3 +213,20 @@ def test_config_validation_and_noise_conversion() -> None:
     with pytest.raises(ConfigError, match="unknown tracker frame 'world'; known: belt, image"):
         TrackerConfig(frame="world", accel_psd=1.0, measurement_std=1.0,  # type: ignore[arg-type]
                       max_speed=1.0)
+
+
+def test_restart_takes_the_new_motion_from_two_measurements() -> None:
+    tracker = ConstantVelocityTracker(BELT_CONFIG)
+    tracker.update(0.0, [0.0, 0.0])
+    tracker.update(FRAME_DT, [0.0, BELT_SPEED * FRAME_DT])
+    for _ in range(3):  # a run of gated-out measurements bumps the rejection count
+        tracker.update(2 * FRAME_DT, [0.02, 0.0])
+    assert tracker.consecutive_rejections > 0
+    # The object shifted: it now moves at 1.2 x the belt speed from x = 2 mm.
+    z0, z1 = np.array([0.002, 0.010]), np.array([0.002, 0.010 + 1.2 * BELT_SPEED * FRAME_DT])
+    r = np.eye(2) * 1e-8
+    result = tracker.restart(3 * FRAME_DT, z0, r, 4 * FRAME_DT, z1, r)
+    assert result and tracker.initialised and tracker.consecutive_rejections == 0
+    pred = tracker.predict_at(5 * FRAME_DT)
+    assert np.allclose(pred.velocity, [0.0, 1.2 * BELT_SPEED])
+    assert np.allclose(pred.position, z1 + np.array([0.0, 1.2 * BELT_SPEED * FRAME_DT]))

@@ -126,13 +126,17 @@ def test_desired_features_put_face_on_tool_axis() -> None:
     assert np.allclose(s_star, circle_pose_features(centre, cam_T_tool[:3, 2]))
     # Either sign of the normal gives the same features (inward normal convention).
     assert np.allclose(circle_pose_features(centre, -cam_T_tool[:3, 2]), s_star)
+    # A tool pressing 5 mm past the face: still the face centre on the tool axis.
+    behind = desired_circle_pose_features(cam_T_tool, -0.005)
+    centre = cam_T_tool[:3, :3] @ np.array([0.0, 0.0, -0.005]) + cam_T_tool[:3, 3]
+    assert np.allclose(behind, circle_pose_features(centre, cam_T_tool[:3, 2]))
 
 
 @pytest.mark.parametrize(("call", "match"), [
     (lambda: point_interaction(0.0, 0.0, -0.1), "depth must be >="),
     (lambda: circle_pose_features(np.array([0, 0, 0.3]), np.array([1.0, 0, 0])), "edge-on"),
     (lambda: velocity_twist_matrix(np.eye(3)), r"\(4, 4\)"),
-    (lambda: desired_circle_pose_features(np.eye(4), -0.1), "standoff must be >= 0"),
+    (lambda: desired_circle_pose_features(np.eye(4), -0.1), "in front of the camera"),
 ])
 def test_bad_inputs_raise_control_error(call, match: str) -> None:
     with pytest.raises(ControlError, match=match):

@@ -19,7 +19,7 @@ from stackpick_sim.glcheck import gl_failure_message
 
 #: Subcommand modules, in the order --help lists them.
 COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect", "run",
-                                     "replay")
+                                     "replay", "sweep", "report", "check")
 
 
 def build_parser() -> argparse.ArgumentParser:

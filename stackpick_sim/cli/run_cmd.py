@@ -3,14 +3,62 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 from stackpick_sim.cli.common import add_scene_args, parse_seeds
 from stackpick_sim.config.scene_config import DETECTORS, TRACKER_FRAMES
-from stackpick_sim.episodes.batch import RunSpec, run_batch
-from stackpick_sim.episodes.summary import summarize, summary_markdown
+from stackpick_sim.episodes.summary import summary_markdown
+from stackpick_sim.runs.progress import Progress
+from stackpick_sim.runs.runner import RunJob, default_workers, make_executor, run_dirs
+from stackpick_sim.runs.spec import RunSpec
+
+#: Default wall-clock limit of one episode (pile + pick), s: ~100x a typical episode.
+DEFAULT_EPISODE_TIMEOUT_S = 300.0
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
+    return value
+
+
+def add_execution_args(p: argparse.ArgumentParser) -> None:
+    """--workers, --backend, --address, --episode-timeout, --resume, --quiet, --verbose."""
+    p.add_argument("--workers", type=positive_int, default=None,
+                   help=f"local worker processes (default: all cores, {default_workers()} "
+                   "here); with --backend ray: the CPUs of a private local Ray instance")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local: worker processes on this machine; ray: a Ray cluster "
+                   "(pip install 'stackpick-sim[ray]')")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster to join: 'auto' (this machine's cluster) or "
+                   "'ray://HEAD:10001' (default: start a private local instance)")
+    p.add_argument("--episode-timeout", type=positive_float, default=DEFAULT_EPISODE_TIMEOUT_S,
+                   metavar="S", help="wall-clock limit of one episode; past it the worker is "
+                   "killed and the episode recorded as failed, reason 'timeout' (default: "
+                   f"{DEFAULT_EPISODE_TIMEOUT_S:g})")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the records already in --out and run only the missing seeds "
+                   "(repairs a torn last line)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--verbose", action="store_true", help="one line per finished episode")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,14 +66,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run", help="run pick episodes over seeds and summarise them",
         description="For each seed: build and settle the pile, then run one pick episode "
-        "(look, detect, track, approach, servo, descend, grasp, lift, verify). Writes "
-        "OUT/results.jsonl (one record per episode), OUT/summary.md and OUT/summary.json, "
-        "and OUT/episodes/SEED/{scene.xml,initial_qpos.npy,final_qpos.npy} for audit and "
-        "'stackpick replay'.")
+        "(look, detect, track, approach, servo, descend, grasp, lift, verify). Each record "
+        "is appended to OUT/results.jsonl (and fsync-ed) as its episode ends; at the end "
+        "the file is put in seed order and OUT/summary.md and OUT/summary.json are written. "
+        "OUT/episodes/SEED/{scene.xml,initial_qpos.npy,final_qpos.npy} are for audit and "
+        "'stackpick replay'; OUT/run.log has the tracebacks of failed workers.")
     add_scene_args(p)
     p.add_argument("--seeds", default="0:10", help="N, START:STOP (end exclusive) or N,N,... "
                    "(default: 0:10)")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (default: 1)")
     p.add_argument("--detector", choices=DETECTORS, default=None,
                    help="ours: the vision pipeline; oracle: ground-truth top object and pose "
                    "(default: the scene's episode.detector)")
@@ -33,37 +81,49 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="Kalman frame: belt (back-projected) or image (the paper's); default: "
                    "the scene's episode.tracker_frame")
     p.add_argument("--out", type=Path, required=True, help="output directory (created)")
-    p.add_argument("--quiet", action="store_true", help="no per-episode lines")
+    add_execution_args(p)
     p.set_defaults(func=run)
 
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
     """The scene and overrides to run, the --detector/--tracker shortcuts included."""
     overrides = list(args.overrides)
-    if args.detector is not None:
+    if getattr(args, "detector", None) is not None:
         overrides.append(f"episode.detector={args.detector}")
-    if args.tracker is not None:
+    if getattr(args, "tracker", None) is not None:
         overrides.append(f"episode.tracker_frame={args.tracker}")
     return RunSpec(scene=args.scene, overrides=tuple(overrides))
+
+
+def episode_line(rec: dict[str, Any]) -> str:
+    """One line about a finished episode (--verbose)."""
+    if "error" in rec:
+        return f"seed {rec['seed']}: scene error: {rec['error']}"
+    outcome = "ok" if rec["success"] else f"FAIL {rec['failure']}"
+    return (f"seed {rec['seed']:5d}: {outcome:22s} cycle {rec['cycle_time_s'] or 0:.2f} s  "
+            f"pred {rec['prediction_error_mm'] or float('nan'):.2f} mm  "
+            f"wall {rec['wall_s']:.2f} s")
+
+
+def executor_from_args(args: argparse.Namespace) -> Any:
+    """The executor named by --backend/--workers/--address/--episode-timeout."""
+    return make_executor(args.backend, workers=args.workers, address=args.address,
+                         episode_timeout=args.episode_timeout)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the batch, write the files, print the summary."""
     seeds = parse_seeds(args.seeds)
 
-    def progress(rec: dict[str, Any]) -> None:
-        if args.quiet:
-            return
-        if "error" in rec:
-            print(f"seed {rec['seed']}: scene error: {rec['error']}", file=sys.stderr)
-            return
-        outcome = "ok" if rec["success"] else f"FAIL {rec['failure']}"
-        print(f"seed {rec['seed']:5d}: {outcome:22s} cycle {rec['cycle_time_s'] or 0:.2f} s  "
-              f"pred {rec['prediction_error_mm'] or float('nan'):.2f} mm  "
-              f"wall {rec['wall_s']:.2f} s", flush=True)
+    def on_record(rec: dict[str, Any], bar: Progress) -> None:
+        if args.verbose:
+            bar.write(episode_line(rec))
 
-    records = run_batch(spec_from_args(args), seeds, workers=args.workers, out=args.out,
-                        progress=progress)
-    print(summary_markdown(summarize(records)))
+    job = RunJob(key="run", spec=spec_from_args(args), seeds=seeds, out=args.out)
+    stats = run_dirs([job], executor_from_args(args), resume=args.resume,
+                     show_progress=not args.quiet, on_record=on_record)
+    print(summary_markdown(stats.summaries["run"]))
+    print(f"ran {stats.ran} episodes ({stats.skipped} already recorded) in "
+          f"{stats.wall_s:.1f} s: {stats.episodes_per_s:.3f} episodes/s")
     print(f"wrote {args.out}/results.jsonl, summary.md, summary.json, episodes/")
     return 0

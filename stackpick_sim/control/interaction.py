@@ -99,14 +99,17 @@ def desired_circle_pose_features(cam_T_tool: FloatArray, standoff: float) -> Flo
 
     ``cam_T_tool`` (4, 4): tool (approach +z) frame in the camera frame, metres. ``standoff``
     (m) is the distance from the tool point to the face centre along the tool z axis at the
-    goal. Rotation about the face normal stays free (the face is a circle).
+    goal; it may be negative (the tool pressing past the face, during a grasp or the last
+    ticks of a descent) as long as the face centre stays in front of the camera. Rotation
+    about the face normal stays free (the face is a circle).
     """
     t = np.asarray(cam_T_tool, dtype=float)
     if t.shape != (4, 4):
         raise ControlError(f"cam_T_tool must be (4, 4); got shape {t.shape}")
-    if standoff < 0.0:
-        raise ControlError(f"standoff must be >= 0 m; got {standoff}")
     centre = t[:3, :3] @ np.array([0.0, 0.0, standoff]) + t[:3, 3]
+    if centre[2] < MIN_DEPTH_M:
+        raise ControlError(f"standoff {standoff} m puts the face centre {centre[2]:.4f} m in "
+                           f"front of the camera; it must be >= {MIN_DEPTH_M} m")
     return circle_pose_features(centre, t[:3, 2])
 
 

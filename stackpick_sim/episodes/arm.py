@@ -93,7 +93,8 @@ class ArmController:
         self.cam_T_tool = self.eih.cam_T_ee(data)
         """(4, 4) tool frame in the camera frame (fixed by the mount)."""
 
-    def _full_qpos(self) -> FloatArray:
+    def full_qpos(self) -> FloatArray:
+        """(nq,) the cell's configuration with the arm at its commanded joint angles."""
         q = self.cell.data.qpos.copy()
         q[self.eih.qpos_indices] = self.q_cmd
         return q
@@ -119,7 +120,7 @@ class ArmController:
         ``gain`` (1/s) is the share of the pose error corrected per second; the task runs
         on the commanded configuration (the reference trajectory).
         """
-        self._config.update(self._full_qpos())
+        self._config.update(self.full_qpos())
         self._task.gain = min(1.0, gain * dt)
         self._task.set_target(mink.SE3.from_matrix(world_T_target))
         v = mink.solve_ik(self._config, [self._task], dt, QP_SOLVER, damping=1e-9,
@@ -128,7 +129,7 @@ class ArmController:
 
     def command_world_T_tool(self) -> FloatArray:
         """(4, 4) tool pose at the commanded joint angles."""
-        self._config.update(self._full_qpos())
+        self._config.update(self.full_qpos())
         return np.asarray(self._config.get_transform_frame_to_world(TOOL_SITE, "site")
                           .as_matrix())
 
@@ -155,7 +156,7 @@ class ArmController:
         rate = target_feature_rate(interaction, r.T, target.velocity) - ds_star
         error = s - s_star
         qdot = servo_velocity(jac, error, self.servo, rate)
-        feasible = self.executor.feasible_velocity(self._full_qpos(), qdot, dt)
+        feasible = self.executor.feasible_velocity(self.full_qpos(), qdot, dt)
         tool = self.eih.world_T_ee(data)
         c_tool = invert_transform(tool) @ np.r_[target.centre, 1.0]
         cos = float(np.clip(tool[:3, 2] @ target.normal, -1.0, 1.0))

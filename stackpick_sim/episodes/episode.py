@@ -26,11 +26,11 @@ import numpy as np
 
 from stackpick_sim.control import ControlError
 from stackpick_sim.episodes.arm import ArmController, ServoErrors
+from stackpick_sim.episodes.hypotheses import RadiusHypotheses
 from stackpick_sim.episodes.outcome import lip_geoms, unstable
 from stackpick_sim.episodes.phases import PhaseLogic
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Observation, Sensor
-from stackpick_sim.episodes.target import RadiusHypotheses
 from stackpick_sim.exceptions import EstimationError, StackpickError
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.conveyor import Conveyor
@@ -155,6 +155,7 @@ def run_episode(scene: Scene, hooks: EpisodeHooks | None = None) -> EpisodeRecor
         camera.close()
     logic.finish()
     record.frames = sensor.frames
+    record.frames_processed = sensor.processed
     record.measurements_fused = episode.estimator.fused
     record.sim_time_s = float(data.time)
     record.wall_s = time.perf_counter() - wall0

@@ -68,6 +68,13 @@ def off_belt(cell: Cell, obj: ObjectInfo) -> bool:
     return bool(abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP)
 
 
+def axis_turn_deg(cell: Cell, obj: ObjectInfo, start_axis: FloatArray) -> float:
+    """Angle (deg) between ``obj``'s cylinder axis now and ``start_axis`` (3,), world frame."""
+    axis = cell.data.xmat[obj.body_id].reshape(3, 3)[:, 2]
+    cos = float(np.clip(axis @ start_axis, -1.0, 1.0))
+    return float(np.degrees(np.arccos(cos)))
+
+
 def match_object(truth: FrameTruth, pixel: FloatArray) -> str | None:
     """The object whose true face ellipse contains ``pixel`` (nearest centre wins), or None."""
     best: tuple[float, str] | None = None

@@ -11,30 +11,39 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
-from stackpick_sim.episodes.outcome import face_in_view, match_object, touching, view_pose
+from stackpick_sim.episodes.arm import ServoErrors
+from stackpick_sim.episodes.outcome import (
+    axis_turn_deg,
+    match_object,
+)
+from stackpick_sim.episodes.pick import ArmPhases
 from stackpick_sim.episodes.record import FAILURES, PHASES, PoseErrors
-from stackpick_sim.episodes.sensing import Candidate, Observation, oracle_candidate
+from stackpick_sim.episodes.sensing import (
+    Candidate,
+    Observation,
+    ellipse_inside,
+    oracle_candidate,
+)
+from stackpick_sim.episodes.target import EDGE_MARGIN_PX
 from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.exceptions import EpisodeError
-from stackpick_sim.geometry import tilt_angles
+from stackpick_sim.geometry import project_circle, tilt_angles
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
 
-#: The approach hands over to the servo within this distance (m) and angle (deg) of its goal.
-APPROACH_DONE = (0.01, 5.0)
-#: The servo must meet its tolerances on this many consecutive ticks.
-SERVO_SETTLE_TICKS = 3
 #: Longest time without a fused detection while the face should be in view, s (track,
 #: approach, servo; the descent may go blind).
 MAX_BLIND_S = 0.4
-#: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
-GRASP_PRELOAD = 0.002
+#: A target whose axis turned more than this since detection has toppled, deg (record only).
+TOPPLED_DEG = 10.0
+#: The track phase hands over as soon as the filter is initialised once this many frame
+#: periods have passed without a fused detection.
+TRACK_FADING_FRAMES = 1.5
 
 
-class PhaseLogic:
+class PhaseLogic(ArmPhases):
     """Per-tick decisions of one episode."""
 
     def __init__(self, episode: Episode) -> None:
@@ -49,9 +58,13 @@ class PhaseLogic:
         self._standoff = episode.scene.cell.cfg.episode.standoff
         self._lift_from: np.ndarray | None = None
         self._start_z: dict[str, float] = {}
+        self._start_axes: dict[str, np.ndarray] = {}
         self._grasped: list[str] = []
         self._look_T_cam = episode.scene.cell.world_T_cam()
         self._cycle_end: float | None = None
+        self._tilt_share = 1.0
+        self._at_floor = 0.0
+        self._last_lateral = 0.0
         self._now = 0.0
 
     # -- bookkeeping ---------------------------------------------------------------------
@@ -76,9 +89,18 @@ class PhaseLogic:
         rec.cycle_time_s = self._cycle_end
         if self.done:
             judge(self.ep, self._start_z, self._grasped)
+        if rec.failure is not None and rec.target_object in self._start_axes:
+            # Ground truth, for the record only: a pile that collapsed under its own weight
+            # on the running belt is a different story from a controller's miss.
+            obj = next(o for o in self.ep.scene.cell.objects if o.name == rec.target_object)
+            turn = axis_turn_deg(self.ep.scene.cell, obj, self._start_axes[obj.name])
+            if turn > TOPPLED_DEG:
+                rec.failure_detail += (f"; the target toppled: its axis turned {turn:.0f} deg "
+                                       "since detection")
 
     def before_capture(self, t: float) -> None:
-        """Ground truth of frames the first detection may come from (needs segmentation)."""
+        """Decide whether the frame is worth processing; ground truth of detection frames."""
+        self.ep.sensor.process = self._frame_needed()
         if self.phase in ("look", "detect"):
             start = time.perf_counter()
             assert self.ep.camera is not None
@@ -90,6 +112,29 @@ class PhaseLogic:
                 self._oracle_first[t] = {o.name: oracle_candidate(cell, o, cam)
                                          for o in cell.objects if o.name in truth.top_objects}
             self.ep.wall["truth"] += time.perf_counter() - start
+
+    def _frame_needed(self) -> bool:
+        """Whether the controller can use a frame captured now (else it is not processed).
+
+        Until the descent, always. During the descent only while the tracked face is
+        predicted wholly in the image (the tracker drops faces cut by the border); after
+        the grasp, never: lift and verify are blind.
+        """
+        if self.phase in ("grasp", "lift", "verify"):
+            return False
+        if self.phase != "descend":
+            return True
+        ep = self.ep
+        cell = ep.scene.cell
+        world_T_cam = ep.arm.eih.world_T_cam(cell.data)
+        state = ep.estimator.state(self._now, world_T_cam)
+        r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
+        try:
+            e = project_circle(r.T @ (state.centre - p), r.T @ state.normal,
+                               ep.estimator.radius or 0.0, cell.intrinsics)
+        except ValueError:
+            return False
+        return ellipse_inside(e, cell.intrinsics, EDGE_MARGIN_PX)
 
     # -- the machine -----------------------------------------------------------------------
     def tick(self, t: float, dt: float, observations: list[Observation]) -> ServoErrors | None:
@@ -154,6 +199,8 @@ class PhaseLogic:
         rec.top_objects = truth.top_objects
         rec.target_object = match_object(truth, cand.pixel)
         self._start_z = {o.name: float(cell.data.xpos[o.body_id][2]) for o in cell.objects}
+        self._start_axes = {o.name: cell.data.xmat[o.body_id].reshape(3, 3)[:, 2].copy()
+                            for o in cell.objects}
         if rec.target_object is not None:
             t_obj = next(o for o in truth.objects if o.name == rec.target_object)
             assert cand.normal_cam is not None
@@ -193,98 +240,11 @@ class PhaseLogic:
         est = self.ep.estimator
         if not self._check_track(t):
             return
-        if est.initialised and est.fused >= self.ep.scene.cell.cfg.episode.track_frames:
+        # Go early when the face has stopped being seen (it is leaving the still look view
+        # across the border): two detections already give its position and velocity.
+        fading = (est.last_fused_time is not None
+                  and t - est.last_fused_time > TRACK_FADING_FRAMES * self.ep.sensor.period)
+        if est.initialised and (est.fused >= self.ep.scene.cell.cfg.episode.track_frames
+                                or fading):
+            self._plan_reach(t)
             self._enter("approach", t)
-
-    def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:
-        ep = self.ep
-        cfg = ep.scene.cell.cfg.episode
-        if not self._check_track(t):
-            return
-        lead = 1.0 / cfg.approach_gain
-        now_T_tool = ep.arm.command_world_T_tool()
-        cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
-        goal = approach_pose(ep.estimator.state(t + lead, cam), cfg.standoff, now_T_tool)
-        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain, dt), dt)
-        here = approach_pose(ep.estimator.state(t, cam), cfg.standoff, now_T_tool)
-        pos, ang = pose_error(ep.arm.eih.world_T_ee(ep.scene.cell.data), here)
-        if pos < APPROACH_DONE[0] and ang < APPROACH_DONE[1]:
-            self._enter("servo", t)
-
-    def _servo_step(self, t: float, dt: float, standoff: float,
-                    rate: float) -> ServoErrors:
-        ep = self.ep
-        cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
-        qdot, err = ep.arm.servo_rate(ep.estimator.state(t, cam), standoff, rate, dt)
-        ep.arm.apply(qdot, dt)
-        return err
-
-    def _servo(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
-        cfg = self.ep.scene.cell.cfg.episode
-        if not self._check_track(t):
-            return None
-        err = self._servo_step(t, dt, cfg.standoff, 0.0)
-        ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
-              and err.tilt_deg < cfg.servo_tilt_tol_deg)
-        self._settled = self._settled + 1 if ok else 0
-        if self._settled >= SERVO_SETTLE_TICKS:
-            self._standoff = cfg.standoff
-            self._enter("descend", t)
-        return err
-
-    def _descend(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
-        ep = self.ep
-        cfg = ep.scene.cell.cfg.episode
-        touched = touching(ep.scene.cell, ep.lips)
-        if touched:
-            self._pick_moment(t)
-            ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
-            self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
-            self._enter("grasp", t)
-            return self._servo_step(t, dt, self._standoff, 0.0)
-        if self._standoff <= -cfg.overtravel:
-            self.fail("missed_grasp", "the descent passed the predicted face without contact")
-            return None
-        self._standoff -= cfg.descend_speed * dt
-        return self._servo_step(t, dt, self._standoff, -cfg.descend_speed)
-
-    def _pick_moment(self, t: float) -> None:
-        ep, rec = self.ep, self.ep.record
-        cell = ep.scene.cell
-        if rec.target_object is None:
-            return
-        obj = next(o for o in cell.objects if o.name == rec.target_object)
-        k = cell.intrinsics
-        actual, centre_w = face_in_view(cell, obj, self._look_T_cam, k)
-        state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
-        estimated = view_pose(state.centre, state.normal, self._look_T_cam, k)
-        rec.pick_estimate = PoseErrors(estimated=estimated, actual=actual)
-        rec.prediction_error_px = rec.pick_estimate.center_error_px
-        rec.prediction_error_mm = 1e3 * float(np.linalg.norm(state.centre - centre_w))
-
-    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
-        cfg = self.ep.scene.cell.cfg.episode
-        err = self._servo_step(t, dt, self._standoff, 0.0)
-        if t - self.phase_start >= cfg.grasp_dwell:
-            self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
-            self._lift_from = self.ep.arm.command_world_T_tool()
-            self._enter("lift", t)
-        return err
-
-    def _lift(self, t: float, dt: float, obs: list[Observation]) -> None:
-        ep = self.ep
-        cfg = ep.scene.cell.cfg.episode
-        assert self._lift_from is not None
-        rise = min(cfg.lift_speed * (t - self.phase_start), cfg.lift_height)
-        goal = self._lift_from.copy()
-        goal[2, 3] += rise
-        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain * 2, dt), dt)
-        tool_z = ep.arm.eih.world_T_ee(ep.scene.cell.data)[2, 3]
-        if tool_z >= self._lift_from[2, 3] + cfg.lift_height - 0.003:
-            self._cycle_end = t
-            self._enter("verify", t)
-
-    def _verify(self, t: float, dt: float, obs: list[Observation]) -> None:
-        self.ep.arm.hold()
-        if t - self.phase_start >= self.ep.scene.cell.cfg.episode.verify_time:
-            self.done = True

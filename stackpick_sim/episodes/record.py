@@ -76,12 +76,22 @@ class EpisodeRecord:
     """|predicted - actual| face centre at the pick moment, projected into the look view, px."""
     prediction_error_mm: float | None = None
     """|predicted - actual| face centre at the pick moment, 3-D, mm."""
+    servo_tilt_share: float | None = None
+    """Share of the face's tilt the tool axis took at the servo standoff (1: along the face
+    normal; less when the arm could not reach it there; the descent turns it to 1)."""
+    servo_joint_margin_rad: float | None = None
+    """Smallest joint distance from a range end the reach check found at that pose, rad."""
+    servo_self_clearance_m: float | None = None
+    """Smallest gap between the forearm and the flange-side bodies at that pose, m."""
     cycle_time_s: float | None = None
     """Sim time from the first image to the end of the lift, s."""
     phases: dict[str, float] = field(default_factory=dict)
     """Sim time spent in each phase entered, s."""
     frames: int = 0
-    """Camera frames captured."""
+    """Camera frames captured (at ``camera.fps``)."""
+    frames_processed: int = 0
+    """Frames rendered and detected; the others came when the controller could not use
+    them (after the grasp, or during the descent with the face predicted out of view)."""
     measurements_fused: int = 0
     sim_time_s: float = 0.0
     scene_build_wall_s: float = 0.0

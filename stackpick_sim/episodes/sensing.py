@@ -145,6 +145,11 @@ class Sensor:
         """Predicted depth of the tracked face, m (narrows the detector's depth range)."""
         self.reference_normal_cam: FloatArray | None = None
         self.frames = 0
+        self.processed = 0
+        """Frames rendered and run through the detector (or the oracle)."""
+        self.process = True
+        """Whether the next frame is processed; the phase logic clears it for frames the
+        controller would not use (after the servo, or with the tracked face out of view)."""
         self.wall = {"render": 0.0, "vision": 0.0}
         radii = sorted({t.radius for t in cell.cfg.object_types.values()}, reverse=True)
         self._radii = tuple(radii)
@@ -159,6 +164,16 @@ class Sensor:
         self._next_capture = self._frame_index * self.period
         self.frames += 1
         image = None
+        if not self.process:
+            if self.keep_images:  # replay: a clean picture, the noise stream left untouched
+                assert self._camera is not None, "rendering needs a WristCamera"
+                image = self._camera.render()
+            self._pending.append(Observation(
+                capture_time=t, available_time=t + self.latency, world_T_cam=world_T_cam.copy(),
+                candidates=(), detection=None, image=image,
+                reason="not processed: the controller does not use this frame"))
+            return
+        self.processed += 1
         if self.detector == "ours" or self.keep_images:
             assert self._camera is not None, "rendering needs a WristCamera"
             start = time.perf_counter()

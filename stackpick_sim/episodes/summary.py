@@ -21,6 +21,9 @@ from stackpick_sim.episodes.record import FAILURES
 Z_95 = 1.959963984540054
 #: Rows of the paper's tables.
 TABLE_ROWS = 3
+#: Failure reasons the runner adds to the episode's own (stackpick_sim.runs.tasks): the
+#: worker raised or died. (A worker past --episode-timeout is recorded as ``timeout``.)
+RUNNER_FAILURES: tuple[str, ...] = ("error",)
 
 
 def wilson_interval(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
@@ -50,7 +53,7 @@ def summarize(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     lo, hi = wilson_interval(wins, n)
     failures = Counter(r["failure"] for r in episodes if r["failure"])
     ok = [r for r in episodes if r["success"]]
-    breakdown_keys = sorted({k for r in episodes for k in r.get("wall_breakdown_s", {})})
+    breakdown_keys = sorted({k for r in episodes for k in r.get("wall_breakdown_s") or {}})
     first = [r for r in episodes if r.get("detection", {}).get("estimated") is not None]
     picks = [r for r in episodes if r.get("pick_estimate")]
     return {
@@ -64,7 +67,8 @@ def summarize(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "successes": wins,
         "success_rate": wins / n if n else None,
         "success_ci95": [lo, hi],
-        "failures": {reason: failures.get(reason, 0) for reason in FAILURES},
+        "failures": {reason: failures.get(reason, 0)
+                     for reason in (*FAILURES, *RUNNER_FAILURES)},
         "detection": {key: _stats([r["detection"][key] for r in episodes])
                       for key in ("center_error_px", "theta_x_error_deg", "theta_y_error_deg")},
         "prediction_error_px": _stats([r["prediction_error_px"] for r in episodes]),
@@ -72,7 +76,8 @@ def summarize(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "cycle_time_s": _stats([r["cycle_time_s"] for r in ok]),
         "wall_s": _stats([r["wall_s"] for r in episodes]),
         "scene_build_wall_s": _stats([r["scene_build_wall_s"] for r in episodes]),
-        "wall_breakdown_s": {k: _stats([r["wall_breakdown_s"].get(k) for r in episodes])
+        "wall_breakdown_s": {k: _stats([(r.get("wall_breakdown_s") or {}).get(k)
+                                        for r in episodes])
                              for k in breakdown_keys},
         "table1": [{"seed": r["seed"], **r["detection"]} for r in first[:TABLE_ROWS]],
         "table2": [{"seed": r["seed"], **r["pick_estimate"]} for r in picks[:TABLE_ROWS]],

@@ -203,6 +203,19 @@ class ConstantVelocityTracker:
         self.consecutive_rejections = 0
         return UpdateResult(True, "fused", d2)
 
+    def restart(self, t0: float, z0: FloatArray, r0: FloatArray, t1: float, z1: FloatArray,
+                r1: FloatArray) -> UpdateResult:
+        """Forget the state and start again from two (2,) measurements at ``t0 < t1`` s.
+
+        For a target that changed its motion (an object shifting in its pile): a run of
+        gated-out but mutually consistent measurements is the target, not clutter.
+        """
+        self._time = None
+        self._first = None
+        self.consecutive_rejections = 0
+        self._initialise(t0, np.asarray(z0, dtype=float), np.asarray(r0, dtype=float))
+        return self._initialise(t1, np.asarray(z1, dtype=float), np.asarray(r1, dtype=float))
+
     def predict_at(self, t: float) -> Prediction:
         """Position, velocity and covariance extrapolated to ``t`` s (Eq. 4); no state change.
 

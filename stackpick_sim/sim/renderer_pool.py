@@ -4,8 +4,8 @@ Every seed builds its own cell (its own ``MjModel``: the number and kinds of cyl
 differ), and a ``mujoco.Renderer`` is tied to the model it was made for. Building one costs
 about 0.3 s on this project's 2-core machines (measured: the ``MjrContext`` uploads the
 model's textures and builtin geoms, about 0.13 s; the 10000-geom ``MjvScene`` 0.03-0.08 s;
-the first frame compiles shaders, about 0.05 s), twice per episode (colour and
-segmentation), against about 0.02 s per frame afterwards.
+the first frame compiles shaders, about 0.05 s), once or twice per episode (colour, and
+segmentation where ground truth needs it), against about 0.02 s per frame afterwards.
 
 What a rendering context holds from the model is its *render assets*: textures, materials
 with textures, meshes, height fields, skins, flexes, plane geoms, the offscreen buffer's

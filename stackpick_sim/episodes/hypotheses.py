@@ -1,0 +1,77 @@
+"""Radius hypotheses: one tracked-face estimator per cylinder size, the consistent one acts.
+
+See :class:`RadiusHypotheses`; each hypothesis is a
+:class:`~stackpick_sim.episodes.target.TargetEstimator`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.episodes.sensing import Candidate, Observation
+from stackpick_sim.episodes.target import NIS_SWITCH_MARGIN, TargetEstimator, TargetState
+from stackpick_sim.geometry import CameraIntrinsics
+
+FloatArray = NDArray[np.float64]
+
+
+class RadiusHypotheses:
+    """One :class:`TargetEstimator` per candidate face radius; the most consistent one acts.
+
+    A single image fixes a face's pose only up to scale: the face radius and its depth are
+    tied. With two cylinder sizes the detector may choose the wrong radius, putting the face
+    at the wrong height. Each hypothesis back-projects the same pixels onto its own plane;
+    once the camera moves, only the right height keeps the track on a straight line
+    (parallax), so the hypothesis with the smallest summed innovation (NIS) is used. The
+    same interface as TargetEstimator.
+    """
+
+    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
+                 radii: tuple[float, ...]) -> None:
+        self._radii = radii
+        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in radii]
+        self.active = self.hypotheses[0]
+
+    def start(self, obs: Observation, cand: Candidate) -> None:
+        """Start every hypothesis on the first detection; the detector's radius acts first."""
+        for h, r in zip(self.hypotheses, self._radii, strict=True):
+            h.start(obs, cand, r)
+        self.active = min(self.hypotheses, key=lambda h: abs((h.radius or 0) - cand.radius))
+
+    def offer(self, obs: Observation) -> bool:
+        """Fuse ``obs`` into every hypothesis; switch to the most consistent one."""
+        used = [h.offer(obs) for h in self.hypotheses]
+        best = min(self.hypotheses, key=lambda h: (h.nis, h is not self.active))
+        if best.nis + NIS_SWITCH_MARGIN < self.active.nis:
+            self.active = best
+        return used[self.hypotheses.index(self.active)]
+
+    def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
+        """The active hypothesis' prediction at ``t`` s."""
+        return self.active.state(t, world_T_cam_now)
+
+    @property
+    def initialised(self) -> bool:
+        return self.active.initialised
+
+    @property
+    def lost(self) -> bool:
+        return all(h.lost for h in self.hypotheses)
+
+    @property
+    def normal(self) -> FloatArray:
+        return self.active.normal
+
+    @property
+    def radius(self) -> float | None:
+        return self.active.radius
+
+    @property
+    def fused(self) -> int:
+        return self.active.fused
+
+    @property
+    def last_fused_time(self) -> float | None:
+        return self.active.last_fused_time

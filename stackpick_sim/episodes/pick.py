@@ -1,0 +1,213 @@
+"""The arm's phases of a pick: approach, servo, descend, grasp, lift, verify.
+
+A mixin of :class:`stackpick_sim.episodes.phases.PhaseLogic` (which holds the state and the
+look/detect/track phases). The tool approaches along a *commanded* axis: the face normal,
+or, where the arm cannot reach that at the servo standoff, a share of its tilt that grows
+to the full normal during the descent (:mod:`stackpick_sim.control.reach`). The descent is
+blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
+turns the tool upright as it rises.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.control.reach import (
+    ReachChecker,
+    descent_tilt_share,
+    tilted_axis,
+    tool_pose_on_axis,
+)
+from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
+from stackpick_sim.episodes.outcome import face_in_view, touching, view_pose
+from stackpick_sim.episodes.record import PoseErrors
+from stackpick_sim.episodes.sensing import Observation
+from stackpick_sim.episodes.target import TargetState
+
+if TYPE_CHECKING:
+    from stackpick_sim.episodes.episode import Episode
+
+#: The approach hands over to the servo within this distance (m) and angle (deg) of its goal.
+APPROACH_DONE = (0.01, 5.0)
+#: The servo must meet its tolerances on this many consecutive ticks.
+SERVO_SETTLE_TICKS = 3
+#: The reach check looks at the face this far ahead of the approach's start, s: about the
+#: approach and servo time (median 0.45 s on paper scenes), when the descent begins.
+REACH_LEAD_S = 0.5
+#: The descent ends in a miss once the tool is within this of its deepest command, m, or
+#: has been commanded there this long, s (the arm lags the command by up to ~60 ms at
+#: 0.35 m/s on paper scenes).
+DESCENT_ARRIVED = 0.001
+DESCENT_WAIT = 0.15
+#: The descent pauses while the face centre is farther than ``DESCENT_HOLD_LATERAL +
+#: DESCENT_HOLD_SLOPE * standoff`` (m) from the tool axis: twice the servo's lateral
+#: tolerance at the face, well inside the cup lip's 11 mm radius; farther up the servo has
+#: time to take out more (12.5 mm at the 0.19 m standoff). Placeholders.
+DESCENT_HOLD_LATERAL = 0.003
+DESCENT_HOLD_SLOPE = 0.05
+#: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
+GRASP_PRELOAD = 0.002
+
+
+class ArmPhases:
+    """Approach to verify; the attributes below are PhaseLogic's (set in its __init__)."""
+
+    ep: Episode
+    phase_start: float
+    done: bool
+    _standoff: float
+    _tilt_share: float
+    _at_floor: float
+    _last_lateral: float
+    _settled: int
+    _lift_from: NDArray[np.float64] | None
+    _grasped: list[str]
+    _cycle_end: float | None
+    _look_T_cam: NDArray[np.float64]
+
+    def fail(self, reason: str, detail: str) -> None:
+        raise NotImplementedError
+
+    def _enter(self, phase: str, t: float) -> None:
+        raise NotImplementedError
+
+    def _check_track(self, t: float) -> bool:
+        raise NotImplementedError
+
+    def _plan_reach(self, t: float) -> None:
+        """Share of the face tilt the tool takes at the servo standoff (control/reach.py)."""
+        ep = self.ep
+        cell = ep.scene.cell
+        state = ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data))
+        share, margin, clearance = ReachChecker(cell.model).tilt_share(
+            ep.arm.full_qpos(), state.centre, state.normal, self._standoff,
+            ep.arm.command_world_T_tool())
+        self._tilt_share = share
+        ep.record.servo_tilt_share = share
+        if math.isfinite(margin):
+            ep.record.servo_joint_margin_rad = round(margin, 4)
+            ep.record.servo_self_clearance_m = round(clearance, 4)
+
+    def _commanded(self, state: TargetState, standoff: float) -> TargetState:
+        """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
+        if self._tilt_share >= 1.0:
+            return state
+        share = descent_tilt_share(self._tilt_share, standoff,
+                                   self.ep.scene.cell.cfg.episode.standoff)
+        return replace(state, normal=tilted_axis(state.normal, share))
+
+    def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:
+        ep = self.ep
+        cfg = ep.scene.cell.cfg.episode
+        if not self._check_track(t):
+            return
+        lead = 1.0 / cfg.approach_gain
+        now_T_tool = ep.arm.command_world_T_tool()
+        cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
+        goal = approach_pose(self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
+                             cfg.standoff, now_T_tool)
+        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain, dt), dt)
+        here = approach_pose(self._commanded(ep.estimator.state(t, cam), cfg.standoff),
+                             cfg.standoff, now_T_tool)
+        pos, ang = pose_error(ep.arm.eih.world_T_ee(ep.scene.cell.data), here)
+        if pos < APPROACH_DONE[0] and ang < APPROACH_DONE[1]:
+            self._enter("servo", t)
+
+    def _servo_step(self, t: float, dt: float, standoff: float,
+                    rate: float) -> ServoErrors:
+        ep = self.ep
+        cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
+        target = self._commanded(ep.estimator.state(t, cam), standoff)
+        qdot, err = ep.arm.servo_rate(target, standoff, rate, dt)
+        ep.arm.apply(qdot, dt)
+        return err
+
+    def _servo(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+        cfg = self.ep.scene.cell.cfg.episode
+        if not self._check_track(t):
+            return None
+        err = self._servo_step(t, dt, cfg.standoff, 0.0)
+        ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
+              and err.tilt_deg < cfg.servo_tilt_tol_deg)
+        self._settled = self._settled + 1 if ok else 0
+        if self._settled >= SERVO_SETTLE_TICKS:
+            self._standoff = cfg.standoff
+            self._enter("descend", t)
+        return err
+
+    def _descend(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+        ep = self.ep
+        cfg = ep.scene.cell.cfg.episode
+        touched = touching(ep.scene.cell, ep.lips)
+        if touched:
+            self._pick_moment(t)
+            ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
+            self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
+            self._enter("grasp", t)
+            return self._servo_step(t, dt, self._standoff, 0.0)
+        floor = -cfg.overtravel
+        if self._standoff <= floor:
+            self._at_floor += dt
+        # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
+        # through its J5 = 0 singularity): going on would bring the cup down beside the face.
+        aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
+        speed = cfg.descend_speed if aligned and self._standoff > floor else 0.0
+        self._standoff = max(self._standoff - speed * dt, floor)
+        err = self._servo_step(t, dt, self._standoff, -speed)
+        self._last_lateral = err.lateral
+        # The arm follows the commanded descent some millimetres late: a miss is the tool
+        # itself past the predicted face, or the command resting at its floor for a while.
+        if err.depth + self._standoff <= floor + DESCENT_ARRIVED or self._at_floor > DESCENT_WAIT:
+            self.fail("missed_grasp", "the descent passed the predicted face without contact")
+            return None
+        return err
+
+    def _pick_moment(self, t: float) -> None:
+        ep, rec = self.ep, self.ep.record
+        cell = ep.scene.cell
+        if rec.target_object is None:
+            return
+        obj = next(o for o in cell.objects if o.name == rec.target_object)
+        k = cell.intrinsics
+        actual, centre_w = face_in_view(cell, obj, self._look_T_cam, k)
+        state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
+        estimated = view_pose(state.centre, state.normal, self._look_T_cam, k)
+        rec.pick_estimate = PoseErrors(estimated=estimated, actual=actual)
+        rec.prediction_error_px = rec.pick_estimate.center_error_px
+        rec.prediction_error_mm = 1e3 * float(np.linalg.norm(state.centre - centre_w))
+
+    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+        cfg = self.ep.scene.cell.cfg.episode
+        err = self._servo_step(t, dt, self._standoff, 0.0)
+        if t - self.phase_start >= cfg.grasp_dwell:
+            self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
+            self._lift_from = self.ep.arm.command_world_T_tool()
+            self._enter("lift", t)
+        return err
+
+    def _lift(self, t: float, dt: float, obs: list[Observation]) -> None:
+        ep = self.ep
+        cfg = ep.scene.cell.cfg.episode
+        assert self._lift_from is not None
+        rise = min(cfg.lift_speed * (t - self.phase_start), cfg.lift_height)
+        # Straight up, the tool turning upright on the way: a tool tilted with a face that
+        # faces away from the robot would otherwise fold the wrist into itself as the arm
+        # reaches up (J4 link against J6 link, control/reach.py).
+        axis = tilted_axis(self._lift_from[:3, 2], 1.0 - rise / cfg.lift_height)
+        goal = tool_pose_on_axis(self._lift_from[:3, 3] + np.array([0.0, 0.0, rise]), axis,
+                                 0.0, self._lift_from)
+        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain * 2, dt), dt)
+        tool_z = ep.arm.eih.world_T_ee(ep.scene.cell.data)[2, 3]
+        if tool_z >= self._lift_from[2, 3] + cfg.lift_height - 0.003:
+            self._cycle_end = t
+            self._enter("verify", t)
+
+    def _verify(self, t: float, dt: float, obs: list[Observation]) -> None:
+        self.ep.arm.hold()
+        if t - self.phase_start >= self.ep.scene.cell.cfg.episode.verify_time:
+            self.done = True

@@ -1,0 +1,34 @@
+"""Runs at scale: local or Ray workers, a durable journal with resume, a lock per directory,
+parameter sweeps, reports and the CI regression check."""
+
+# The episode modules first: stackpick_sim.episodes imports stackpick_sim.runs.spec.
+import stackpick_sim.episodes  # noqa: F401  isort: skip
+from stackpick_sim.runs.journal import Journal, JournalError, read_records
+from stackpick_sim.runs.local import InlineExecutor, LocalExecutor
+from stackpick_sim.runs.lock import LockError, RunLock
+from stackpick_sim.runs.rundir import RunDir
+from stackpick_sim.runs.runner import BACKENDS, RunJob, RunStats, make_executor, run_dirs
+from stackpick_sim.runs.spec import RunSpec, episode_dir
+from stackpick_sim.runs.tasks import EpisodeTask, TaskResult, failure_record, run_task
+
+__all__ = [
+    "BACKENDS",
+    "EpisodeTask",
+    "InlineExecutor",
+    "Journal",
+    "JournalError",
+    "LocalExecutor",
+    "LockError",
+    "RunDir",
+    "RunJob",
+    "RunLock",
+    "RunSpec",
+    "RunStats",
+    "TaskResult",
+    "episode_dir",
+    "failure_record",
+    "make_executor",
+    "read_records",
+    "run_dirs",
+    "run_task",
+]

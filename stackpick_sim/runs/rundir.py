@@ -1,0 +1,98 @@
+"""A run directory: its lock, ``run.json``, journal, log, audit files and summaries.
+
+Layout::
+
+    DIR/run.json                 scene name/path and overrides (what resume and replay use)
+    DIR/results.jsonl            one EpisodeRecord.as_dict() per line (the journal)
+    DIR/run.log                  run starts and ends, repairs, tracebacks of failed workers
+    DIR/summary.json, summary.md (stackpick_sim.episodes.summary), written at the end
+    DIR/episodes/<seed>/scene.xml, initial_qpos.npy, final_qpos.npy (audit, replay)
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from stackpick_sim.episodes.summary import summarize, summary_markdown
+from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.runs.journal import Journal
+from stackpick_sim.runs.lock import RunLock
+from stackpick_sim.runs.spec import RUN_FILE, RunSpec, episode_dir
+from stackpick_sim.runs.tasks import TaskResult
+
+#: The log file of a run directory.
+LOG_FILE = "run.log"
+
+
+def write_summaries(out: Path, records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Write summary.json and summary.md for ``records``; returns the summary."""
+    summary = summarize(records)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out / "summary.md").write_text(summary_markdown(summary))
+    return summary
+
+
+class RunDir:
+    """One locked run directory, open for results (close it with :meth:`finish`/:meth:`close`)."""
+
+    def __init__(self, path: Path, spec: RunSpec, *, resume: bool) -> None:
+        self.path = path
+        self.spec = spec
+        self.lock = RunLock(path)
+        try:
+            self._check_spec(resume)
+            self.journal = Journal(path, resume=resume)
+        except BaseException:
+            self.lock.release()
+            raise
+        (path / RUN_FILE).write_text(json.dumps(spec.as_dict(), indent=1))
+        if self.journal.repair_note:
+            self.log(f"repaired: {self.journal.repair_note}")
+
+    def _check_spec(self, resume: bool) -> None:
+        path = self.path / RUN_FILE
+        if not (resume and path.is_file()):
+            return
+        done = RunSpec.from_dir(self.path)
+        if done != self.spec:
+            raise StackpickError(
+                f"{self.path} was run with scene {done.scene!r} and overrides "
+                f"{list(done.overrides)}; --resume must use the same, got scene "
+                f"{self.spec.scene!r} and overrides {list(self.spec.overrides)}")
+
+    def missing(self, seeds: list[int]) -> list[int]:
+        """The seeds of ``seeds`` without a record yet, in order, once each."""
+        return [s for s in sorted(set(seeds)) if s not in self.journal]
+
+    def log(self, text: str) -> None:
+        """Append a time-stamped entry to run.log."""
+        stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+        with (self.path / LOG_FILE).open("a", encoding="utf-8") as fh:
+            fh.write(f"{stamp} {text.rstrip()}\n")
+
+    def add(self, result: TaskResult) -> None:
+        """Write the audit files of ``result``, then its record (the commit point)."""
+        if result.audit:
+            d = episode_dir(self.path, result.task.seed)
+            d.mkdir(parents=True, exist_ok=True)
+            for name, data in result.audit.items():
+                (d / name).write_bytes(data)
+        if result.log:
+            self.log(f"seed {result.task.seed} on {result.worker}:\n{result.log}")
+        self.journal.append(result.record)
+
+    def finish(self) -> dict[str, Any]:
+        """Put results.jsonl in seed order, write the summaries, release the lock."""
+        try:
+            self.journal.compact()
+            return write_summaries(self.path, self.journal.ordered())
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Close the journal and release the lock (idempotent)."""
+        self.journal.close()
+        self.lock.release()

@@ -1,0 +1,131 @@
+"""The pick's robustness pieces: the reach check and commanded tool axis, the tracked face's
+association, re-acquisition after a changed motion, and frames the controller does not use."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from stackpick_sim.config.loader import load_scene
+from stackpick_sim.control.reach import (
+    JOINT_MARGIN,
+    SELF_CLEARANCE,
+    ReachChecker,
+    descent_tilt_share,
+    tilted_axis,
+)
+from stackpick_sim.episodes.sensing import Candidate, Observation
+from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator
+from stackpick_sim.geometry import CameraIntrinsics, project_circle
+from stackpick_sim.sim import robot
+from stackpick_sim.sim.ik import tool_down_pose
+
+DOWN = np.array([0.0, 0.0, -1.0])
+#: A face 0.4 m out from the robot's base at belt-pile height (the look point's x), m.
+FACE = np.array([0.40, 0.0, 0.20])
+FRAME_DT = 1.0 / 30.0
+BELT_SPEED = 0.1
+
+
+def _inward_normal(tilt_deg: float, azimuth_deg: float) -> np.ndarray:
+    """Unit inward normal of a face whose top turns ``tilt_deg`` towards ``azimuth_deg``
+    (0: away from the robot, +x)."""
+    t, a = math.radians(tilt_deg), math.radians(azimuth_deg)
+    return -np.array([math.sin(t) * math.cos(a), math.sin(t) * math.sin(a), math.cos(t)])
+
+
+def test_tilted_axis_interpolates_between_down_and_the_normal() -> None:
+    n = _inward_normal(40.0, 30.0)
+    assert np.allclose(tilted_axis(n, 0.0), DOWN)
+    assert np.allclose(tilted_axis(n, 1.0), n)
+    half = tilted_axis(n, 0.5)
+    assert math.degrees(math.acos(half @ DOWN)) == pytest.approx(20.0)
+    assert abs(np.cross(DOWN, n) @ half) < 1e-9  # in the plane of the two
+    assert descent_tilt_share(0.4, 0.19, 0.19) == pytest.approx(0.4)
+    assert descent_tilt_share(0.4, 0.0, 0.19) == pytest.approx(1.0)
+    assert descent_tilt_share(0.4, -0.002, 0.19) == pytest.approx(1.0)
+
+
+@pytest.fixture(scope="module")
+def vs060() -> tuple[mujoco.MjModel, np.ndarray]:
+    model = robot.robot_spec().compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(robot.HOME_KEY).id)
+    return model, data.qpos.copy()
+
+
+def test_reach_check_takes_less_tilt_when_the_arm_cannot_follow_the_face(vs060) -> None:
+    model, q_home = vs060
+    checker = ReachChecker(model)
+    tool = tool_down_pose(FACE + np.array([0.0, 0.0, 0.19]))
+    flat = checker.tilt_share(q_home, FACE, DOWN, 0.19, tool)
+    assert flat[0] == 1.0 and flat[1] >= JOINT_MARGIN and flat[2] >= SELF_CLEARANCE
+    # 30 deg away from the robot: at the 0.19 m standoff the arm is out of reach (or J5
+    # folds into the wrist); a smaller share of the tilt keeps both margins.
+    share, margin, clearance = checker.tilt_share(q_home, FACE, _inward_normal(30.0, 0.0),
+                                                  0.19, tool)
+    assert 0.0 <= share < 1.0
+    assert margin >= JOINT_MARGIN and clearance >= SELF_CLEARANCE
+    # The same tilt along the belt is reachable in full.
+    assert checker.tilt_share(q_home, FACE, _inward_normal(30.0, 90.0), 0.19, tool)[0] == 1.0
+
+
+# -- the tracked face --------------------------------------------------------------------
+CFG = load_scene("paper", ["episode.detector=oracle"])
+K = CameraIntrinsics.from_fovy(CFG.camera.fovy_deg, CFG.camera.width, CFG.camera.height)
+RADIUS = 0.035
+
+
+def _look_pose() -> np.ndarray:
+    """(4, 4) camera 0.2 m above FACE looking down, image +u along world +y (OpenCV axes)."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    pose[:3, 3] = FACE + np.array([0.0, 0.0, 0.2])
+    return pose
+
+
+def _observation(t: float, centres: list[np.ndarray]) -> Observation:
+    """An exact detection of flat faces of RADIUS at the given world centres."""
+    cam = _look_pose()
+    r, p = cam[:3, :3], cam[:3, 3]
+    cands = []
+    for c in centres:
+        c_cam, n_cam = r.T @ (c - p), r.T @ DOWN
+        cands.append(Candidate(pixel=K.project(c_cam)[0], normal_cam=n_cam, centre_cam=c_cam,
+                               radius=RADIUS, is_top=True,
+                               ellipse=project_circle(c_cam, n_cam, RADIUS, K)))
+    return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                       candidates=tuple(cands), detection=None, image=None)
+
+
+def _on_belt(t: float, start: np.ndarray = FACE, speed: float = BELT_SPEED) -> np.ndarray:
+    return start + np.array([0.0, speed * t, 0.0])
+
+
+def test_far_neighbour_is_not_a_rejection_and_a_changed_motion_is_reacquired() -> None:
+    est = TargetEstimator(CFG, K, oracle=True)
+    est.start(_observation(0.0, [_on_belt(0.0)]), _observation(0.0, [_on_belt(0.0)])
+              .candidates[0])
+    for i in range(1, 4):
+        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    assert est.initialised
+    # Only a neighbour in view, 30 mm off the track: not fused, not counted as a rejection.
+    t = 4 * FRAME_DT
+    neighbour = _on_belt(t) + np.array([2.5 * ASSOCIATION_MAX["belt"], 0.0, 0.0])
+    assert not est.offer(_observation(t, [neighbour]))
+    assert est.tracker.consecutive_rejections == 0
+    # The object shifts by 3 mm and speeds up by 30 %: gated out at first, then re-acquired.
+    shifted = _on_belt(t) + np.array([0.003, 0.0, 0.0])
+    fused = [est.offer(_observation(t + i * FRAME_DT,
+                                    [_on_belt(i * FRAME_DT, shifted, 1.3 * BELT_SPEED)]))
+             for i in range(1, 6)]
+    assert est.reacquired == 1
+    assert fused[-1]
+    t_end = t + 7 * FRAME_DT
+    state = est.state(t_end, _look_pose())
+    truth = _on_belt(7 * FRAME_DT, shifted, 1.3 * BELT_SPEED)
+    assert np.linalg.norm(state.centre[:2] - truth[:2]) < 1e-3
+    assert state.velocity[1] == pytest.approx(1.3 * BELT_SPEED, rel=0.05)
