@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, tilt_angles
 from stackpick_sim.sim.cell import Cell, ObjectInfo
-from stackpick_sim.sim.ground_truth import OFF_BELT_DROP, FrameTruth, top_face
+from stackpick_sim.sim.ground_truth import FrameTruth, top_face
 from stackpick_sim.sim.robot import CUP_BODY
 
 FloatArray = NDArray[np.float64]
@@ -59,13 +59,6 @@ def unstable(cell: Cell) -> str | None:
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
         return f"non-finite state at t={data.time:.3f} s"
     return None
-
-
-def off_belt(cell: Cell, obj: ObjectInfo) -> bool:
-    """Whether ``obj`` has left the belt sideways or fallen below its surface."""
-    belt = cell.cfg.conveyor
-    pos = cell.data.xpos[obj.body_id]
-    return bool(abs(pos[0] - belt.x) > belt.width / 2 or pos[2] < belt.top_z - OFF_BELT_DROP)
 
 
 def axis_turn_deg(cell: Cell, obj: ObjectInfo, start_axis: FloatArray) -> float:

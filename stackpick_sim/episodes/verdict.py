@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from stackpick_sim.episodes.outcome import off_belt, touching
+from stackpick_sim.episodes.outcome import touching
 from stackpick_sim.episodes.record import MIN_LIFT_M
 
 if TYPE_CHECKING:
@@ -29,7 +29,7 @@ def judge(ep: Episode, start_z: dict[str, float], grasped: list[str]) -> None:
     removed = set(ep.conveyor.removed)
     rec.knocked_off = [o.name for o in cell.objects
                        if o.name not in removed and o.name not in {h.name for h in held}
-                       and off_belt(cell, o)]
+                       and cell.fell_off_belt(o)]
     if held:
         # With two objects at the cup (rare), the higher one is what the cup carries.
         obj = max(held, key=lambda o: float(cell.data.xpos[o.body_id][2]))

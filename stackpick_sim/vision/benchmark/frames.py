@@ -127,18 +127,11 @@ def iter_dataset(directory: Path, seeds: Sequence[int] | None,
 
 def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFrame]:
     """Frames rendered by the simulator for each seed (seeds whose pile fails are skipped)."""
-    from stackpick_sim.sim.camera import WristCamera  # heavy (MuJoCo); only when generating
-    from stackpick_sim.sim.snapshot import look_frame
-    from stackpick_sim.sim.stacks import generate_scene
+    from stackpick_sim.sim.snapshot import seeded_look_frame  # heavy (MuJoCo): only here
 
     for seed in seeds:
         try:
-            scene = generate_scene(cfg, seed)
+            _, image, truth = seeded_look_frame(cfg, seed)
         except SceneGenerationError:
             continue
-        camera = WristCamera(scene.cell)
-        try:
-            image, truth = look_frame(scene, camera)
-        finally:
-            camera.close()
         yield frame_from_record(seed, image, truth.as_dict(), cfg.conveyor.top_z)
