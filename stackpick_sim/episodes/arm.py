@@ -32,6 +32,7 @@ from stackpick_sim.control import (
     servo_velocity,
     target_feature_rate,
 )
+from stackpick_sim.control.reach import tool_pose_on_axis
 from stackpick_sim.episodes.target import TargetState
 from stackpick_sim.sim.cell import Cell
 from stackpick_sim.sim.robot import ARM_JOINTS, CAMERA, TOOL_SITE, VELOCITY_LIMITS
@@ -173,15 +174,7 @@ def approach_pose(target: TargetState, standoff: float, world_T_tool: FloatArray
     Tool +z (approach) along the inward normal; tool +x is the current +x made
     perpendicular to it, so the tool turns as little as possible about the approach axis.
     """
-    z = target.normal / np.linalg.norm(target.normal)
-    x = world_T_tool[:3, 0] - (world_T_tool[:3, 0] @ z) * z
-    if np.linalg.norm(x) < 1e-6:
-        x = world_T_tool[:3, 1] - (world_T_tool[:3, 1] @ z) * z
-    x /= np.linalg.norm(x)
-    out = np.eye(4)
-    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    out[:3, 3] = target.centre - standoff * z
-    return out
+    return tool_pose_on_axis(target.centre, target.normal, standoff, world_T_tool)
 
 
 def pose_error(a: FloatArray, b: FloatArray) -> tuple[float, float]:
