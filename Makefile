@@ -1,8 +1,8 @@
 # Two commands set everything up on a fresh machine:
 #   make demo   creates .venv, installs, runs a short seeded batch of pick episodes on the default
 #               scene and prints its summary
-#   make test   creates/updates .venv, runs the CI regression gate (a seeded batch of pick
-#               episodes checked against tests/baselines/paper_ci.json) and the tests
+#   make test   creates/updates .venv, runs ruff and mypy, the CI regression gate (a seeded
+#               batch of pick episodes checked against tests/baselines/paper_ci.json) and the tests
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -34,8 +34,8 @@ gl-check: $(STAMP)
 demo: $(STAMP) gl-check
 	$(BIN)/stackpick run --scene paper --seeds 0:10 --out $(DEMO_OUT) --quiet
 
-# The gate runs first so that pytest's summary stays the last line of the output.
-test: $(STAMP) gl-check ci-gate
+# Lint and the gate run first so that pytest's summary stays the last line of the output.
+test: $(STAMP) gl-check lint ci-gate
 	$(BIN)/python -m pytest -q
 
 ci-gate: $(STAMP) gl-check
