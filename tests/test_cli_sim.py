@@ -39,3 +39,18 @@ def test_dataset_writes_one_image_and_json_per_seed(tmp_path: Path) -> None:
     index = json.loads((tmp_path / "index.json").read_text())
     assert [s["seed"] for s in index["seeds"]] == [0, 1, 2]
     assert index["scene"]["camera"]["noise_std"] == 2.0
+
+
+@pytest.mark.parametrize("make_out", ["missing_parent", "a_file"])
+def test_unwritable_output_is_one_line_and_exit_2(make_out: str, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    if make_out == "a_file":
+        out = tmp_path / "taken"
+        out.write_text("not a directory")
+    else:
+        blocker = tmp_path / "file"
+        blocker.write_text("")
+        out = blocker / "sub"  # a directory cannot be made inside a file
+    assert main(["dataset", "--seeds", "0", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error:" in err and str(out.name) in err

@@ -48,12 +48,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except StackpickError as exc:
         print(f"stackpick {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"stackpick {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # output piped into e.g. `head`, which stopped reading
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as exc:  # an unwritable --out, a file where a directory should be, ...
+        where = f" {exc.filename!r}" if exc.filename else ""
+        print(f"stackpick {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"stackpick {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -34,9 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Render the scene and write its files; prints a one-line summary per object."""
     cfg = scene_from_args(args)
-    scene, image, truth = seeded_look_frame(cfg, args.seed)
     out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)  # before the work: an unwritable --out fails fast
+    scene, image, truth = seeded_look_frame(cfg, args.seed)
     cv2.imwrite(str(out / "frame.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     cv2.imwrite(str(out / "overlay.png"), truth_overlay(image, truth))
     record = {"scene": cfg.name, "seed": args.seed, "attempts": scene.attempts, **truth.as_dict()}
