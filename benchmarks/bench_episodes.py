@@ -19,6 +19,7 @@ import cProfile
 import io
 import pstats
 import time
+from collections import Counter
 
 import numpy as np
 
@@ -26,6 +27,7 @@ import stackpick_sim  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
 from stackpick_sim.cli.common import parse_seeds
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes import EpisodeRecord, run_episode
+from stackpick_sim.episodes.summary import wilson_interval
 from stackpick_sim.sim.stacks import generate_scene
 
 
@@ -41,8 +43,10 @@ def _report(frame: str, records: list[EpisodeRecord], step_s: float, timestep: f
     walls = np.array([r.wall_s for r in records])
     sims = np.array([max(r.sim_time_s, timestep) for r in records])
     ratio = walls / (sims / timestep * step_s)
-    print(f"\n[{frame}] success {ok}/{len(records)}; failures "
-          f"{sorted({r.failure for r in records if r.failure})}")
+    lo, hi = wilson_interval(ok, len(records))
+    failures = Counter(r.failure for r in records if r.failure)
+    print(f"\n[{frame}] success {ok}/{len(records)} (95 % Wilson CI {100 * lo:.1f}-"
+          f"{100 * hi:.1f} %); failures {dict(sorted(failures.items()))}")
     print("  prediction error at pick, px:",
           _quantiles([r.prediction_error_px for r in records
                       if r.prediction_error_px is not None]))

@@ -114,7 +114,7 @@ def test_far_neighbour_is_not_a_rejection_and_a_changed_motion_is_reacquired() -
     assert est.initialised
     # Only a neighbour in view, 30 mm off the track: not fused, not counted as a rejection.
     t = 4 * FRAME_DT
-    neighbour = _on_belt(t) + np.array([2.5 * ASSOCIATION_MAX["belt"], 0.0, 0.0])
+    neighbour = _on_belt(t) + np.array([2.5 * ASSOCIATION_MAX, 0.0, 0.0])
     assert not est.offer(_observation(t, [neighbour]))
     assert est.tracker.consecutive_rejections == 0
     # The object shifts by 3 mm and speeds up by 30 %: gated out at first, then re-acquired.

@@ -6,9 +6,14 @@ Two variants of the paper's constant-velocity filter (Eq. 5-7), chosen by
 * ``belt`` (default): each detection's face-centre pixel is back-projected, with the camera
   pose of its capture (forward kinematics), onto the horizontal plane at the face's height;
   the filter runs on world (x, y) in metres. The arm's own motion drops out (paper Fig. 9).
-* ``image``: the paper's variant: the filter runs on the pixel itself. The camera's motion
-  enters as unmodelled acceleration; to act on the estimate it is back-projected with the
-  *current* camera pose.
+* ``image``: the paper's variant: the filter runs on the pixel itself, in the image of one
+  camera pose (that of the last measurement). Before each update the state is predicted
+  in that image and carried into the new frame's image through the face plane's
+  homography (:func:`transfer_via_plane`), so the arm's own motion does not enter the
+  state as acceleration (uncompensated, every detection of a moving camera was gated
+  out). To act on it the estimate is back-projected with the pose it is expressed in.
+  Gates are the belt frame's distances on the face plane, measured in px through the
+  local scale (m/px) at the frame's pose.
 
 Noise (documented in :mod:`stackpick_sim.estimation.kalman`): the belt's speed is redrawn
 every ``conveyor.jitter_period`` s with std ``conveyor.speed_jitter``; a speed jumping by
@@ -28,12 +33,14 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.estimation import (
     ConstantVelocityTracker,
+    EstimationError,
     TrackerConfig,
     backproject_to_plane,
     belt_accel_psd,
     plane_backprojection_jacobian,
+    project_to_pixels,
+    transfer_via_plane,
 )
-from stackpick_sim.exceptions import EstimationError
 from stackpick_sim.geometry import CameraIntrinsics, project_circle
 
 FloatArray = NDArray[np.float64]
@@ -57,34 +64,31 @@ FACE_Z_WINDOW = 9
 #: on the belt or settle in its pile, which the configured jitter does not cover.
 #: Placeholder, not identified.
 MIN_SPEED_JITTER = 5e-4
-#: Image-frame filter's acceleration density, px^2/s^3: it must absorb the camera's motion,
-#: ~5 m/s^2 at ~0.2 m depth and f ~ 290 px is ~7000 px/s^2 over ~30 ms frames: placeholder.
-IMAGE_ACCEL_PSD = 1.5e6
-#: Fastest plausible image speed of a face, px/s (camera and belt together).
-IMAGE_MAX_SPEED = 4000.0
+#: Fastest plausible image speed of a face, px/s, for the image frame's two-point start
+#: (the camera's motion is compensated; 1 m/s at the closest ~0.05 m depth, f ~ 290 px).
+IMAGE_MAX_SPEED = 6000.0
 #: A radius hypothesis takes over when its summed NIS is this much below the active one's
 #: (two measurements at the edge of a 2-dof 1-sigma ellipse): hysteresis against flapping.
 NIS_SWITCH_MARGIN = 4.0
 #: Faces whose ellipse comes this close to the image border are not used, px.
 EDGE_MARGIN_PX = 2.0
 #: Before the filter has a velocity, a detection is associated with the track only within
-#: this distance of where the nominal belt speed puts the first one (m, belt frame; px,
-#: image frame): a few times the detector's centre noise.
-INIT_GATE = {"belt": 0.004, "image": 6.0}
+#: this distance of where the nominal belt speed puts the first one (m on the face plane):
+#: a few times the detector's centre noise.
+INIT_GATE = 0.004
 #: After this many gated-out measurements in a row, the last three are checked for a changed
 #: motion (the object shifted in its pile: paper seed 38, +20 mm/s in 0.1 s): if the third
-#: lies within REACQUIRE_TOLERANCE (m; px for the image frame) of the line through the
-#: other two, and they are near the prediction (REACQUIRE_GATE, same units), the filter
-#: restarts from the last two. Three collinear detections of one face, not clutter.
+#: lies within REACQUIRE_TOLERANCE (m) of the line through the other two, and they are
+#: near the prediction (REACQUIRE_GATE, m), the filter restarts from the last two. Three
+#: collinear detections of one face, not clutter.
 REACQUIRE_AFTER = 3
-REACQUIRE_TOLERANCE = {"belt": 0.001, "image": 3.0}
-REACQUIRE_GATE = {"belt": 0.008, "image": 25.0}
-#: A candidate farther than this from the predicted face centre is another object's face
-#: (m, belt frame; px, image frame): it is not offered to the filter's gate at all, so it
-#: does not count towards a lost track (the tracked face may be cut by the image border
-#: while a neighbour is in view). Half the small face radius; in the image frame, the
-#: camera motion the image filter does not model makes its predictions looser (25 px).
-ASSOCIATION_MAX = {"belt": 0.0125, "image": 25.0}
+REACQUIRE_TOLERANCE = 0.001
+REACQUIRE_GATE = 0.008
+#: A candidate farther than this (m on the face plane) from the predicted face centre is
+#: another object's face: it is not offered to the filter's gate at all, so it does not
+#: count towards a lost track (the tracked face may be cut by the image border while a
+#: neighbour is in view). Half the small face radius.
+ASSOCIATION_MAX = 0.0125
 #: Two face normals within this angle (deg) agree; the normal estimate is the mean of the
 #: largest agreeing group, so an occasional flip of the pose's two-fold ambiguity is outvoted.
 NORMAL_AGREEMENT_DEG = 10.0
@@ -108,17 +112,19 @@ class TargetEstimator:
         self.pixel_std = ORACLE_PIXEL_STD if oracle else VISION_PIXEL_STD
         self._belt_v = np.array([0.0, cfg.conveyor.speed])
         jitter = max(cfg.conveyor.speed_jitter, MIN_SPEED_JITTER)
-        if self.frame == "belt":
-            focal = 0.5 * (intrinsics.fx + intrinsics.fy)
-            q = belt_accel_psd(jitter, cfg.conveyor.jitter_period)
-            config = TrackerConfig.belt(depth=cfg.camera.look_height, focal_px=focal,
-                                        pixel_std=self.pixel_std, accel_psd=q)
-        else:
-            config = TrackerConfig.image(accel_psd=IMAGE_ACCEL_PSD, pixel_std=self.pixel_std,
-                                         max_speed=IMAGE_MAX_SPEED)
-        self.tracker = ConstantVelocityTracker(config)
+        self._accel_psd = belt_accel_psd(jitter, cfg.conveyor.jitter_period)
         focal = 0.5 * (intrinsics.fx + intrinsics.fy)
-        self._wobble_px = FACE_WOBBLE_STD * focal / cfg.camera.look_height
+        if self.frame == "belt":
+            config = TrackerConfig.belt(depth=cfg.camera.look_height, focal_px=focal,
+                                        pixel_std=self.pixel_std, accel_psd=self._accel_psd)
+        else:  # q in px^2/s^3 at the look depth; each step rescales it to its own depth
+            scale = focal / cfg.camera.look_height
+            config = TrackerConfig.image(accel_psd=self._accel_psd * scale**2,
+                                         pixel_std=self.pixel_std, max_speed=IMAGE_MAX_SPEED)
+        self.tracker = ConstantVelocityTracker(config)
+        self._ref_T_cam: FloatArray | None = None
+        """Image frame: the camera pose whose image the filter's pixels are in."""
+        self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
         self._zs: list[float] = []
         self._normal = np.array([0.0, 0.0, -1.0])
@@ -128,7 +134,7 @@ class TargetEstimator:
         self.fused = 0
         self.reacquired = 0
         """How many times the filter restarted on a changed motion."""
-        self._rejected: list[tuple[float, FloatArray, FloatArray]] = []
+        self._rejected: list[tuple[float, FloatArray, FloatArray, FloatArray]] = []
         self.last_fused_time: float | None = None
         self.nis = 0.0
         """Sum of the measurements' normalised innovations squared (capped at the gate)."""
@@ -172,7 +178,10 @@ class TargetEstimator:
         """Associate the nearest candidate of ``obs`` with the track and fuse it; True if used."""
         if not obs.candidates:
             return False
-        predicted = self._predicted_measurement(obs.capture_time)
+        try:
+            predicted = self._predicted_measurement(obs)
+        except EstimationError:
+            return False
         shift = self._centre_shift(obs) if self.correct_centres else None
         scored = []
         for cand in obs.candidates:
@@ -189,9 +198,10 @@ class TargetEstimator:
         if not scored:
             return False
         distance, best = min(scored, key=lambda s: s[0])
-        if not self.tracker.initialised and distance > INIT_GATE[self.frame]:
+        distance *= self._metres_per_unit(obs.world_T_cam, predicted)
+        if not self.tracker.initialised and distance > INIT_GATE:
             return False
-        if distance > ASSOCIATION_MAX[self.frame]:
+        if distance > ASSOCIATION_MAX:
             return False  # another object's face: neither a measurement nor a rejection
         return self._fuse(obs, best)
 
@@ -220,21 +230,63 @@ class TargetEstimator:
         if self.frame == "belt":
             centre = np.array([pred.position[0], pred.position[1], z])
             velocity = np.array([pred.velocity[0], pred.velocity[1], 0.0])
-        else:
+        else:  # the pixels are those of the reference pose, not of the camera now
+            assert self._ref_T_cam is not None
             plane = np.array([0.0, 0.0, z])
-            centre = backproject_to_plane(pred.position.reshape(1, 2), self.k, world_T_cam_now,
+            centre = backproject_to_plane(pred.position.reshape(1, 2), self.k, self._ref_T_cam,
                                           plane)[0]
-            g = plane_backprojection_jacobian(pred.position, self.k, world_T_cam_now, plane)
+            g = plane_backprojection_jacobian(pred.position, self.k, self._ref_T_cam, plane)
             velocity = g @ pred.velocity
         return TargetState(centre=centre, velocity=velocity, normal=self.normal)
 
-    def _predicted_measurement(self, t: float) -> FloatArray:
+    def _plane(self) -> FloatArray:
+        return np.array([0.0, 0.0, self.face_z])
+
+    def _metres_per_unit(self, world_T_cam: FloatArray, z: FloatArray) -> float:
+        """Size of one measurement unit on the face plane, m: 1 (belt), m/px (image)."""
+        if self.frame == "belt":
+            return 1.0
+        try:
+            g = plane_backprojection_jacobian(z, self.k, world_T_cam, self._plane())[:2]
+        except EstimationError:
+            return float("inf")
+        return float(np.sqrt(abs(np.linalg.det(g))))
+
+    def _to_view(self, z: FloatArray, from_T_cam: FloatArray,
+                 to_T_cam: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Image frame: pixel ``z`` of pose ``from_T_cam`` in the image of ``to_T_cam``."""
+        return transfer_via_plane(z, self.k, from_T_cam, to_T_cam, self._plane())
+
+    def _predicted_measurement(self, obs: Observation) -> FloatArray:
+        t = obs.capture_time
         if self.tracker.initialised:
-            return np.asarray(self.tracker.predict_at(t).position)
+            pos = np.asarray(self.tracker.predict_at(t).position)
+            if self.frame == "image":
+                assert self._ref_T_cam is not None
+                pos = self._to_view(pos, self._ref_T_cam, obs.world_T_cam)[0]
+            return pos
         if self._last is None:
             raise EstimationError("no measurement yet to associate with")
         t0, z0 = self._last
-        return z0 + (self._belt_v * (t - t0) if self.frame == "belt" else 0.0)
+        if self.frame == "belt":
+            return z0 + self._belt_v * (t - t0)
+        assert self._first is not None
+        point = backproject_to_plane(z0.reshape(1, 2), self.k, self._first[3], self._plane())
+        point[0, :2] += self._belt_v * (t - t0)
+        return np.asarray(project_to_pixels(point, self.k, obs.world_T_cam)[0])
+
+    def _into_view(self, obs: Observation) -> None:
+        """Image frame: predict the filter to ``obs``'s capture and carry it into its image."""
+        if not self.tracker.initialised or self._ref_T_cam is None:
+            return
+        pos = self.tracker.predict_at(obs.capture_time).position
+        s = self._metres_per_unit(self._ref_T_cam, pos)
+        if not self.tracker.advance(obs.capture_time, self._accel_psd / s**2):
+            return
+        pos, jac = self._to_view(self.tracker.predict_at(obs.capture_time).position,
+                                 self._ref_T_cam, obs.world_T_cam)
+        self.tracker.transform(pos, jac)
+        self._ref_T_cam = obs.world_T_cam
 
     def _measurement(self, obs: Observation, pixel: FloatArray) -> FloatArray:
         if self.frame == "image":
@@ -253,12 +305,28 @@ class TargetEstimator:
                                               np.array([0.0, 0.0, self.face_z]))[:2]
             r = self.pixel_std**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
         else:
-            r = np.eye(2) * (self.pixel_std**2 + self._wobble_px**2)
-        result = self.tracker.update(obs.capture_time, z, r)
+            px_per_m = np.linalg.inv(plane_backprojection_jacobian(
+                cand.pixel, self.k, obs.world_T_cam, self._plane())[:2])
+            r = self.pixel_std**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
+            self._into_view(obs)
+        if self.frame == "image" and not self.tracker.initialised and self._first is not None:
+            # The two-point start differences pixels: both must be of this frame's pose.
+            t0, z0, r0, pose0 = self._first
+            z0v, jac = self._to_view(z0, pose0, obs.world_T_cam)
+            result = self.tracker.restart(t0, z0v, jac @ r0 @ jac.T, obs.capture_time, z, r)
+        else:
+            result = self.tracker.update(obs.capture_time, z, r)
+        if self.frame == "image":
+            if result.reason.startswith("initialised"):
+                self._ref_T_cam = obs.world_T_cam
+                self._first = None
+            elif not result.reason.startswith("initialising: need"):
+                self._first = (obs.capture_time, z, r, obs.world_T_cam)
         self.nis += min(result.mahalanobis_sq, self.tracker.config.gate_chi2)
         accepted = bool(result) or result.reason.startswith("initialising: first")
         if result.reason.startswith("gated"):
-            self._rejected = [*self._rejected[-(REACQUIRE_AFTER - 1):], (obs.capture_time, z, r)]
+            self._rejected = [*self._rejected[-(REACQUIRE_AFTER - 1):],
+                              (obs.capture_time, z, r, obs.world_T_cam)]
             accepted = self._reacquire()
         else:
             self._rejected = []
@@ -274,11 +342,19 @@ class TargetEstimator:
         """Restart the filter on a consistent run of gated-out measurements; True if done."""
         if len(self._rejected) < REACQUIRE_AFTER:
             return False
-        (t0, z0, _), (t1, z1, r1), (t2, z2, r2) = self._rejected[-3:]
+        (t0, z0, _, p0), (t1, z1, r1, p1), (t2, z2, r2, p2) = self._rejected[-3:]
+        if self.frame == "image":  # all three in the newest frame's image
+            try:
+                z0 = self._to_view(z0, p0, p2)[0]
+                z1, jac = self._to_view(z1, p1, p2)
+            except EstimationError:
+                return False
+            r1 = jac @ r1 @ jac.T
         line = z1 + (z1 - z0) * (t2 - t1) / max(t1 - t0, 1e-9)
-        predicted = self.tracker.predict_at(t2).position
-        if (np.linalg.norm(z2 - line) > REACQUIRE_TOLERANCE[self.frame]
-                or np.linalg.norm(z2 - predicted) > REACQUIRE_GATE[self.frame]):
+        predicted = self.tracker.predict_at(t2).position  # already in p2's image
+        unit = self._metres_per_unit(p2, z2)
+        if (np.linalg.norm(z2 - line) * unit > REACQUIRE_TOLERANCE
+                or np.linalg.norm(z2 - predicted) * unit > REACQUIRE_GATE):
             return False
         self.tracker.restart(t1, z1, r1, t2, z2, r2)
         self._rejected = []

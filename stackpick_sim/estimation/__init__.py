@@ -7,6 +7,7 @@ from stackpick_sim.estimation.backproject import (
     pixel_rays,
     plane_backprojection_jacobian,
     project_to_pixels,
+    transfer_via_plane,
 )
 from stackpick_sim.estimation.kalman import (
     ConstantVelocityTracker,
@@ -32,5 +33,6 @@ __all__ = [
     "plane_backprojection_jacobian",
     "process_noise",
     "project_to_pixels",
+    "transfer_via_plane",
     "transition",
 ]

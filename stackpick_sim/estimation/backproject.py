@@ -103,6 +103,29 @@ def plane_backprojection_jacobian(pixel: FloatArray, intrinsics: CameraIntrinsic
     return np.asarray(dx_dd @ dd_duv)
 
 
+def transfer_via_plane(pixel: FloatArray, intrinsics: CameraIntrinsics, from_T_cam: FloatArray,
+                       to_T_cam: FloatArray, plane_point: FloatArray,
+                       plane_normal: FloatArray = WORLD_UP) -> tuple[FloatArray, FloatArray]:
+    """A pixel of camera pose ``from_T_cam`` seen from ``to_T_cam``, through a world plane.
+
+    The plane-induced homography between two views: back-project ``pixel`` (2,) onto the
+    plane, project the point into the other view. Returns the (2,) pixel and the (2, 2)
+    Jacobian d(pixel in ``to``)/d(pixel in ``from``) there (chain rule through
+    :func:`plane_backprojection_jacobian`). Raises EstimationError as the back-projection
+    and projection do.
+    """
+    point = backproject_to_plane(np.reshape(pixel, (1, 2)), intrinsics, from_T_cam,
+                                 plane_point, plane_normal)
+    g = plane_backprojection_jacobian(pixel, intrinsics, from_T_cam, plane_point, plane_normal)
+    t = _check_pose(to_T_cam)
+    c = (point[0] - t[:3, 3]) @ t[:3, :3]
+    if c[2] <= 0.0:
+        raise EstimationError(f"the plane point is behind the target camera (z = {c[2]:.3g} m)")
+    dproj = np.array([[intrinsics.fx / c[2], 0.0, -intrinsics.fx * c[0] / c[2] ** 2],
+                      [0.0, intrinsics.fy / c[2], -intrinsics.fy * c[1] / c[2] ** 2]])
+    return intrinsics.project(c)[0], np.asarray(dproj @ t[:3, :3].T @ g)
+
+
 def _check_pose(world_T_cam: FloatArray) -> FloatArray:
     t = np.asarray(world_T_cam, dtype=float)
     if t.shape != (4, 4):

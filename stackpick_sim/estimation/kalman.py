@@ -7,8 +7,10 @@ State ``s = [x, y, x', y']`` and measurement ``z = [x, y]`` (Eq. 5) in one of tw
   pose of their capture time (:mod:`stackpick_sim.estimation.backproject`), so the arm's own
   motion, which the paper's Fig. 9 shows mixed into the image motion, drops out and the
   object really does move at constant velocity.
-* ``"image"``: x, y in pixels, the paper's variant. Camera motion enters the state as
-  unmodelled acceleration, so its process noise must also cover the camera's.
+* ``"image"``: x, y in pixels, the paper's variant. The pixels are those of one camera pose;
+  when the camera moves, :meth:`ConstantVelocityTracker.transform` carries the state into
+  the new pose's image (the caller supplies the map, e.g. through the face plane), so the
+  camera's motion does not enter the state as acceleration.
 
 Noise model (continuous white-noise acceleration, Bar-Shalom et al. 2001, sec. 6.2.2):
 over an interval ``dt`` each axis gets ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]``, with
@@ -202,6 +204,39 @@ class ConstantVelocityTracker:
         self._kf.update(zv.reshape(2, 1), R=rv)
         self.consecutive_rejections = 0
         return UpdateResult(True, "fused", d2)
+
+    def advance(self, t: float, accel_psd: float | None = None) -> bool:
+        """Predict the state forward to ``t`` s without a measurement; False if ``t`` is older.
+
+        ``accel_psd`` overrides the config's q for this step (units^2/s^3), e.g. an image
+        frame whose pixel scale changes with the camera's depth.
+        """
+        if self._time is None:
+            raise EstimationError("advance needs an initialised tracker (two measurements)")
+        dt = t - self._time
+        if dt < 0.0:
+            return False
+        q = self.config.accel_psd if accel_psd is None else accel_psd
+        self._kf.predict(F=transition(dt), Q=process_noise(dt, q))
+        self._time = t
+        return True
+
+    def transform(self, position: FloatArray, jacobian: FloatArray) -> None:
+        """Re-express the state in another frame, e.g. the image of a moved camera.
+
+        ``position`` (2,) is the current position mapped into the new frame and
+        ``jacobian`` (2, 2) that map's derivative there: velocity and covariance are
+        carried through it (first order, as an extended Kalman filter does).
+        """
+        if self._time is None:
+            raise EstimationError("transform needs an initialised tracker (two measurements)")
+        j = np.asarray(jacobian, dtype=float).reshape(2, 2)
+        t = np.zeros((4, 4))
+        t[:2, :2] = t[2:, 2:] = j
+        x = self._kf.x.reshape(4)
+        self._kf.x = np.concatenate([np.asarray(position, dtype=float).reshape(2),
+                                     j @ x[2:]]).reshape(4, 1)
+        self._kf.P = t @ self._kf.P @ t.T
 
     def restart(self, t0: float, z0: FloatArray, r0: FloatArray, t1: float, z1: FloatArray,
                 r1: FloatArray) -> UpdateResult:
