@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from stackpick_sim.geometry import Ellipse, mask_iou
-from stackpick_sim.vision.contrast import contrast_support
+from stackpick_sim.vision.contrast import contrast_support, refit_on_contrast
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.refine import edge_points, refine
@@ -52,3 +52,22 @@ def test_refine_recovers_ellipse_from_offset_start() -> None:
     refined = refine(start, points, grads, SHAPE)
     assert abs(refined.cx - UPPER.cx) < 0.5 and abs(refined.cy - UPPER.cy) < 0.5
     assert mask_iou(refined, UPPER, SHAPE) > 0.97
+
+
+def test_contrast_refit_finds_a_faint_boundary_canny_misses() -> None:
+    # Upper disc only 8 grey levels brighter than the lower one: its arc over the lower disc
+    # is too faint for the edge map, but the contrast refit fits the whole outline.
+    grad = edge_image(faint_pair(step=8.0, noise=1.0, seed=2))
+    start = Ellipse(cx=UPPER.cx + 2.0, cy=UPPER.cy - 1.5, a=UPPER.a - 2.0, b=UPPER.b + 1.5,
+                    angle_deg=UPPER.angle_deg + 5)
+    fit = refit_on_contrast(start, grad)
+    assert fit is not None
+    assert abs(fit.cx - UPPER.cx) < 0.5 and abs(fit.cy - UPPER.cy) < 0.5
+    assert mask_iou(fit, UPPER, SHAPE) > 0.97
+    assert mask_iou(start, UPPER, SHAPE) < 0.95
+
+
+def test_contrast_refit_on_a_flat_image_is_none() -> None:
+    rng = np.random.default_rng(4)
+    flat = np.clip(np.round(100.0 + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    assert refit_on_contrast(UPPER, edge_image(flat)) is None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -165,3 +166,36 @@ def test_synthetic_ground_truth_is_consistent() -> None:
     for o in scene.objects:
         assert tilt_angles(o.normal_cam) == (o.theta_x_deg, o.theta_y_deg)
         assert 0.0 <= o.visible_fraction <= 1.0
+
+
+def _gapped_outline(ellipse: Ellipse, gap_deg: tuple[int, int]) -> np.ndarray:
+    """(H, W) 0/1 edge map of ``ellipse``'s outline without the arc between ``gap_deg``."""
+    edges = np.zeros(SHAPE, np.uint8)
+    cv2.ellipse(edges, (round(ellipse.cx), round(ellipse.cy)),
+                (round(ellipse.a), round(ellipse.b)), ellipse.angle_deg, gap_deg[1],
+                gap_deg[0] + 360, 1, 1)
+    return edges
+
+
+@pytest.mark.parametrize("into_face", [False, True])
+def test_gap_end_is_a_t_junction_only_when_the_contour_enters_the_face(into_face: bool
+                                                                       ) -> None:
+    # A gap in a face's outline whose end touches a contour lying wholly outside the face
+    # (the object's own wall line, or an outline under it) is no T-junction; a contour
+    # running on into the face is (it lies on top).
+    face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=0)
+    edges = _gapped_outline(face, (60, 110))
+    end = face.points(360)[60]  # the gap's end at 60 deg (x along the major axis)
+    radial = end - np.array([face.cx, face.cy])
+    outward = radial / np.linalg.norm(radial)
+    if into_face:  # crosses the outline at the gap end
+        start, stop = end + 12 * outward, end - 12 * outward
+    else:  # runs past the gap end 2.5 px outside, along the outline
+        along = np.array([-outward[1], outward[0]])
+        start, stop = end + 2.5 * outward - 10 * along, end + 2.5 * outward + 10 * along
+    cv2.line(edges, (round(start[0]), round(start[1])), (round(stop[0]), round(stop[1])), 1, 1)
+    evidence = select_top([face], edges).evidence[0]
+    if into_face:
+        assert evidence.occluded_ends >= 1
+    else:
+        assert evidence.occluded_ends == 0 and evidence.longest_gap_px >= 8

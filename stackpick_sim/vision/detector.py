@@ -1,5 +1,8 @@
 """The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
 
+When no ellipse passes the top rule, those that failed on support or interior edges alone
+are refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run.
+
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
 input that is not an image at all (wrong dtype, shape, NaN), one
@@ -16,11 +19,12 @@ from numpy.typing import NDArray
 
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
-from stackpick_sim.vision.edges import MIN_SIDE_PX, as_rgb_or_gray, edge_image
-from stackpick_sim.vision.fitting import fit_or_split
-from stackpick_sim.vision.merging import merge_segments
-from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.edges import MIN_SIDE_PX, EdgeImage, as_rgb_or_gray, edge_image
+from stackpick_sim.vision.fitting import fit_or_split, plausible
+from stackpick_sim.vision.merging import MergedEllipse, merge_segments
+from stackpick_sim.vision.occlusion import OcclusionEvidence, select_top
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import edge_points, refine, refine_subpixel
 from stackpick_sim.vision.roi import Roi, find_roi
@@ -110,9 +114,17 @@ class TopObjectDetector:
         points, grads = edge_points(grad)
         merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
         t = lap("refine", t)
-        choice = select_top([m.ellipse for m in merged], grad)
-        t = lap("top", t)
         du, dv = roi.offset
+        k = self._intrinsics(shape)
+        k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
+        choice = select_top([m.ellipse for m in merged], grad, k_crop)
+        if choice.index is None:
+            # Only then: a refit that passes next to a passing face is more often a lower,
+            # nearly whole face than the top (development seeds 31, 176).
+            merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
+            if retried:
+                choice = select_top([m.ellipse for m in merged], grad, k_crop)
+        t = lap("top", t)
         keep = [i for i, ev in enumerate(choice.evidence)
                 if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index]
         ellipses = tuple(
@@ -128,13 +140,36 @@ class TopObjectDetector:
         if choice.index is not None:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
-            pose = estimate_pose(_moved(top_ellipse, du, dv), self._intrinsics(shape),
+            pose = estimate_pose(_moved(top_ellipse, du, dv), k,
                                  self.config.radii_m, None, self.config.depth_range_m,
                                  image=img if img.ndim == 3 else None)
             detection = replace(detection, pose=pose)
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection
+
+
+def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
+                       grad: EdgeImage, shape: tuple[int, int]
+                       ) -> tuple[list[MergedEllipse], bool]:
+    """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
+    each ellipse that failed the top rule on support or interior edges only (no T-junction,
+    support at least MIN_REPORTED_SUPPORT); keep a refit where it passes the rule. Returns
+    the ellipses and whether any changed."""
+    todo = [i for i, ev in enumerate(evidence)
+            if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
+    refits = {i: r for i in todo
+              if (r := refit_on_contrast(merged[i].ellipse, grad)) is not None
+              and plausible(r, shape)}
+    if not refits:
+        return merged, False
+    checked = select_top(list(refits.values()), grad).evidence
+    passed = {i: r for (i, r), ev in zip(refits.items(), checked, strict=True)
+              if not ev.occluded}
+    if not passed:
+        return merged, False
+    return [replace(m, ellipse=passed[i]) if i in passed else m
+            for i, m in enumerate(merged)], True
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

@@ -14,6 +14,12 @@ its face is >= 98% visible":
 * interior edges: no other contour crosses the face. This also rejects the ellipse of a
   cylinder's far rim, whose inside holds its own face's near rim.
 
+A gap end counts as a T only when the other contour runs on into this face (an occluder
+does; the object's own wall lines and the outlines of objects under it stay outside). Given
+the camera intrinsics, the rule is also applied to side walls: a candidate whose predicted
+wall runs under another candidate's face lies under it (:mod:`stackpick_sim.vision.
+wall_cover`).
+
 Among the unoccluded candidates the best-supported one wins (ties within SUPPORT_TIE go to
 the larger ellipse, which is nearer the camera for equal radii). The rule needs only a list
 of ellipses and an edge map, so it applies to any detector's ellipses.
@@ -28,11 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import Ellipse
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import contrast_support
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, boundary_samples, support_map
+from stackpick_sim.vision.wall_cover import under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
 #: top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions and at low
@@ -44,6 +51,12 @@ TOP_MIN_SUPPORT = 0.9
 MIN_GAP_PX = 8
 #: Another contour within this distance (px) of a gap end makes the end a T-junction.
 JUNCTION_RADIUS_PX = 3
+#: An occluding contour runs on into the face it covers: besides passing within
+#: JUNCTION_RADIUS_PX of the gap end, it must have pixels inside the outline (by more than
+#: MERGE_TOLERANCE_PX) within this distance (px) of the end. A tilted cylinder's own wall
+#: lines (its silhouette and shading edges, which touch the faint face-to-wall rim) and the
+#: outlines of objects lying under it stay outside its face (dev seeds 96, 122).
+CROSSING_REACH_PX = 6.0
 #: Edge pixels farther than this inside the outline (px) count as interior edges.
 INTERIOR_MARGIN_PX = 2.5
 #: Interior edge pixels allowed, as a share of the perimeter (isolated noise edges).
@@ -128,6 +141,7 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
     near &= np.abs(edge_points[:, 1] - ellipse.cy) <= ellipse.a + JUNCTION_RADIUS_PX + 1
     local = edge_points[near]
     off_curve = local[distances(params, local)[0] > MERGE_TOLERANCE_PX]
+    inner = off_curve[_inside(ellipse, off_curve, MERGE_TOLERANCE_PX)]
     occluded_ends, longest = 0, 0
     n = samples.shape[0]
     for start, length in _gaps(ok):
@@ -135,25 +149,42 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
         if length < MIN_GAP_PX or length == n:
             continue
         for end in ((start - 1) % n, (start + length) % n):
-            d = np.hypot(*(off_curve - samples[end]).T) if off_curve.size else np.empty(0)
-            if d.size and float(d.min()) <= JUNCTION_RADIUS_PX:
+            if _near(off_curve, samples[end], JUNCTION_RADIUS_PX) and _near(
+                    inner, samples[end], CROSSING_REACH_PX):
                 occluded_ends += 1
-    t = math.radians(ellipse.angle_deg)
-    du, dv = local[:, 0] - ellipse.cx, local[:, 1] - ellipse.cy
-    x = (math.cos(t) * du + math.sin(t) * dv) / max(ellipse.a - INTERIOR_MARGIN_PX, 1e-6)
-    y = (-math.sin(t) * du + math.cos(t) * dv) / max(ellipse.b - INTERIOR_MARGIN_PX, 1e-6)
-    interior = int(np.count_nonzero(x * x + y * y < 1.0))
+    interior = int(np.count_nonzero(_inside(ellipse, local, INTERIOR_MARGIN_PX)))
     return OcclusionEvidence(support=float(ok.mean()), longest_gap_px=longest,
                              occluded_ends=occluded_ends, interior_edge_px=interior,
                              perimeter_px=n)
 
 
-def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage) -> TopChoice:
+def _inside(ellipse: Ellipse, points: NDArray[np.float64], margin_px: float
+            ) -> NDArray[np.bool_]:
+    """(M,) bool: which points (M, 2) (u, v) lie more than ``margin_px`` inside the outline
+    (the ellipse with both semi-axes shrunk by the margin)."""
+    t = math.radians(ellipse.angle_deg)
+    du, dv = points[:, 0] - ellipse.cx, points[:, 1] - ellipse.cy
+    x = (math.cos(t) * du + math.sin(t) * dv) / max(ellipse.a - margin_px, 1e-6)
+    y = (-math.sin(t) * du + math.cos(t) * dv) / max(ellipse.b - margin_px, 1e-6)
+    return np.asarray(x * x + y * y < 1.0, np.bool_)
+
+
+def _near(points: NDArray[np.float64], centre: NDArray[np.float64], radius_px: float) -> bool:
+    """True when any of the points (M, 2) lies within ``radius_px`` of ``centre`` (2,)."""
+    if points.shape[0] == 0:
+        return False
+    return bool(np.any(np.hypot(*(points - centre).T) <= radius_px))
+
+
+def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
+               intrinsics: CameraIntrinsics | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
     or, better, the whole :class:`~stackpick_sim.vision.edges.EdgeImage` (then faint but
-    consistent edges count as support too). Returns the chosen index (best-supported
+    consistent edges count as support too). With ``intrinsics`` (K in the edge map's pixel
+    frame), a candidate whose side wall runs under another candidate's face loses to it
+    (:mod:`stackpick_sim.vision.wall_cover`). Returns the chosen index (best-supported
     unoccluded ellipse) or None with the reason.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
@@ -169,6 +200,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage) -> TopCh
     if not candidates:
         return TopChoice(index=None, evidence=evidence,
                          reason=f"all {len(ellipses)} ellipses occluded")
+    if intrinsics is not None and len(candidates) > 1:
+        under = under_another([ellipses[i] for i in candidates], intrinsics)
+        free = [i for i, u in zip(candidates, under, strict=True) if not u]
+        candidates = free or candidates
     best_support = max(evidence[i].support for i in candidates)
     tied = [i for i in candidates if evidence[i].support >= best_support - SUPPORT_TIE]
     index = max(tied, key=lambda i: ellipses[i].area)

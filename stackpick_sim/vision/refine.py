@@ -70,13 +70,10 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
     reach = ellipse.a + SUBPIXEL_TOLERANCE_PX + 1
     near = ((np.abs(points[:, 0] - ellipse.cx) <= reach)
             & (np.abs(points[:, 1] - ellipse.cy) <= reach))
-    pts, g = points[near], grads[near]
-    d = distances(ellipse_params([ellipse]), pts)[0]
-    cos = np.abs(np.einsum("ij,ij->i", _normals(ellipse, pts), g))
-    keep = (d < SUBPIXEL_TOLERANCE_PX) & (cos >= MIN_NORMAL_COS)
-    if np.count_nonzero(keep) < MIN_PIXELS:
+    pts, g = _along(ellipse, points[near], grads[near], SUBPIXEL_TOLERANCE_PX)
+    if pts.shape[0] < MIN_PIXELS:
         return ellipse
-    fit = fit_ellipse(subpixel(image, pts[keep], g[keep]))
+    fit = fit_ellipse(subpixel(image, pts, g))
     return fit if fit is not None and plausible(fit, shape) else ellipse
 
 
@@ -99,6 +96,17 @@ def _normals(ellipse: Ellipse, pts: NDArray[np.float64]) -> NDArray[np.float64]:
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
+def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64],
+           tol_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The edge pixels (M, 2) within ``tol_px`` of ``ellipse`` whose unit gradients (M, 2)
+    lie within the MIN_NORMAL_COS cone of its normal, and their gradients."""
+    near = distances(ellipse_params([ellipse]), pts)[0] < tol_px
+    pts, grads = pts[near], grads[near]
+    cos = np.abs(np.einsum("ij,ij->i", _normals(ellipse, pts), grads))
+    keep = cos >= MIN_NORMAL_COS
+    return pts[keep], grads[keep]
+
+
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
            shape: tuple[int, int]) -> Ellipse:
     """Refit ``ellipse`` on the edge pixels (M, 2) with gradients (M, 2) along it."""
@@ -108,12 +116,10 @@ def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.floa
     pts, g = points[near], grads[near]
     current = ellipse
     for tol in TOLERANCES_PX:
-        d = distances(ellipse_params([current]), pts)[0]
-        cos = np.abs(np.einsum("ij,ij->i", _normals(current, pts), g))
-        keep = (d < tol) & (cos >= MIN_NORMAL_COS)
-        if np.count_nonzero(keep) < MIN_PIXELS:
+        kept, _ = _along(current, pts, g, tol)
+        if kept.shape[0] < MIN_PIXELS:
             break
-        fit = fit_ellipse(pts[keep])
+        fit = fit_ellipse(kept)
         if fit is None or not plausible(fit, shape):
             break
         current = fit

@@ -72,18 +72,19 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float6
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
-                ellipse: Ellipse, intrinsics: CameraIntrinsics) -> NDArray[np.float64]:
+                ellipse: Ellipse, intrinsics: CameraIntrinsics,
+                depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS) -> NDArray[np.float64]:
     """(N, 2) pixels (u, v) of the predicted wall band outside ``ellipse``.
 
     ``normal_cam`` (3,) is the inward unit face normal and ``centre_cam`` (3,) the centre of a
     unit-radius face, camera frame (a unit-radius :class:`~stackpick_sim.vision.pose.
-    CirclePose`).
+    CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
     u, v = plane_basis(normal_cam)
     t = np.linspace(0.0, 2.0 * np.pi, WALL_RIM_POINTS, endpoint=False)
     rim = centre_cam + np.outer(np.cos(t), u) + np.outer(np.sin(t), v)
-    depth = np.repeat(np.asarray(WALL_DEPTH_FRACTIONS), WALL_RIM_POINTS)[:, None]
-    pts = intrinsics.project(np.tile(rim, (len(WALL_DEPTH_FRACTIONS), 1)) + depth * normal_cam)
+    depth = np.repeat(np.asarray(depths), WALL_RIM_POINTS)[:, None]
+    pts = intrinsics.project(np.tile(rim, (len(depths), 1)) + depth * normal_cam)
     th = math.radians(ellipse.angle_deg)
     du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
     x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
