@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.config.scene_config import SceneConfig
@@ -44,12 +45,22 @@ def parse_seeds(text: str) -> list[int]:
                           "0 <= START < STOP, or N,N,... (non-negative integers)") from None
 
 
-def seed_arg(text: str) -> int:
-    """argparse type for one non-negative seed."""
-    try:
-        seed = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if seed < 0:
-        raise argparse.ArgumentTypeError(f"seed must be >= 0, got {seed}")
-    return seed
+def bounded_int(minimum: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum``, or a clear usage error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+#: argparse type for one seed (a non-negative integer).
+seed_arg = bounded_int(0)
+#: argparse type for a count (an integer >= 1).
+positive_int = bounded_int(1)

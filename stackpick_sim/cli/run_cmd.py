@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from stackpick_sim.cli.common import add_scene_args, parse_seeds
+from stackpick_sim.cli.common import add_scene_args, parse_seeds, positive_int
 from stackpick_sim.config.scene_config import DETECTORS, TRACKER_FRAMES
 from stackpick_sim.episodes.summary import summary_markdown
 from stackpick_sim.runs.progress import Progress
@@ -15,17 +15,6 @@ from stackpick_sim.runs.spec import RunSpec
 
 #: Default wall-clock limit of one episode (pile + pick), s: ~100x a typical episode.
 DEFAULT_EPISODE_TIMEOUT_S = 300.0
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
 
 
 def positive_float(text: str) -> float:

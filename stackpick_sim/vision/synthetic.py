@@ -52,7 +52,8 @@ class CylinderKind:
     height_m: float
 
 
-#: The paper scene's two kinds (large: height drawn from 0.05-0.06 m; small).
+#: Two kinds of taller cylinders for synthetic tests (the radii of the paper scene's kinds; the
+#: simulator's cylinders are squatter: scenes/paper.toml). Taller walls test the wall cues harder.
 PAPER_KINDS: tuple[CylinderKind, ...] = (
     CylinderKind(radius_m=0.035, height_m=0.055),
     CylinderKind(radius_m=0.025, height_m=0.04),
