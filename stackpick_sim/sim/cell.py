@@ -83,6 +83,11 @@ class ObjectInfo:
     """Start of its 6 free-joint dofs."""
 
 
+def look_point(cfg: SceneConfig) -> NDArray[np.float64]:
+    """(3,) world point on the belt's centre line straight below the camera at the look pose, m."""
+    return np.array([cfg.conveyor.x, 0.0, cfg.conveyor.top_z])
+
+
 @dataclass(kw_only=True)
 class Cell:
     """A compiled cell: model, data and every id the hot loops need."""
@@ -107,7 +112,7 @@ class Cell:
     @property
     def look_point(self) -> NDArray[np.float64]:
         """World point on the belt surface straight below the camera at the look pose, m."""
-        return np.array([self.cfg.conveyor.x, 0.0, self.cfg.conveyor.top_z])
+        return look_point(self.cfg)
 
     def set_belt_speed(self, speed: float) -> None:
         """Set the belt surface speed along world +y, m/s."""
@@ -274,7 +279,7 @@ def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
             geom_id=model.geom(f"obj{i}_geom").id, qpos_adr=int(model.jnt_qposadr[jnt]),
             dof_adr=int(model.jnt_dofadr[jnt])))
     arm_joints = [model.joint(name) for name in robot.ARM_JOINTS]
-    look = (cfg.conveyor.x, 0.0, cfg.conveyor.top_z)
+    look = tuple(float(v) for v in look_point(cfg))
     # The look pose depends only on the robot and the look geometry, not on the objects.
     look_q = np.array(_look_q_cached(robot.robot_xml(), look, cfg.camera.look_height))
     cell = Cell(
