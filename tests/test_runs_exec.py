@@ -17,7 +17,10 @@ from runs_fakes import CRASH_SEED, HANG_SEED, RAISE_SEED, fake_record, fake_task
 
 from stackpick_sim.episodes.batch import RunSpec, run_batch
 from stackpick_sim.episodes.record import WALL_CLOCK_KEYS
+from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs import LocalExecutor, RunJob, read_records, run_dirs
+from stackpick_sim.runs.local import InlineExecutor
+from stackpick_sim.runs.tasks import EpisodeTask, TaskResult
 
 SPEC = RunSpec(scene="paper", overrides=("episode.detector=oracle",))
 #: Episode time-out of the hang test, s: long enough for a worker to start on a busy machine.
@@ -94,3 +97,49 @@ def test_bad_worker_count_and_timeout_say_what_is_allowed() -> None:
         LocalExecutor(0)
     with pytest.raises(Exception, match="--episode-timeout must be > 0 s; got -1"):
         LocalExecutor(1, episode_timeout=-1)
+
+
+#: A finished episode whose own phase ran past its sim-time limit: not to be run again.
+PHASE_TIMEOUT_SEED = 4
+
+
+def _flaky_then_fixed(broken: bool):
+    def task_fn(task: EpisodeTask) -> TaskResult:
+        if task.seed == RAISE_SEED and broken:
+            raise RuntimeError("scripted failure")
+        if task.seed == PHASE_TIMEOUT_SEED:
+            rec = fake_record(task.seed)
+            rec.update(success=False, failure="timeout", failed_phase="descend")
+            return TaskResult(task=task, record=rec)
+        return TaskResult(task=task, record=fake_record(task.seed))
+    return task_fn
+
+
+def test_retry_unfinished_runs_only_crashed_episodes_again(tmp_path: Path) -> None:
+    seeds = [1, 3, PHASE_TIMEOUT_SEED, RAISE_SEED]
+    job = RunJob(key="k", spec=SPEC, seeds=seeds, out=tmp_path)
+    run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(True)), show_progress=False)
+    first, _, _ = read_records(tmp_path / "results.jsonl")
+    assert first[RAISE_SEED]["failure"] == "error"
+    # a plain resume keeps the error record ...
+    stats = run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(False)), resume=True,
+                     show_progress=False)
+    assert stats.ran == 0
+    # ... --retry-unfinished runs that seed again, and only that one
+    stats = run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(False)), resume=True,
+                     retry_unfinished=True, show_progress=False)
+    records, _, _ = read_records(tmp_path / "results.jsonl")
+    assert stats.ran == 1 and stats.skipped == 3
+    assert sorted(records) == seeds
+    assert records[RAISE_SEED] == fake_record(RAISE_SEED)
+    assert records[PHASE_TIMEOUT_SEED]["failure"] == "timeout"
+    assert {s: records[s] for s in (1, 3)} == {s: first[s] for s in (1, 3)}
+    assert f"retry: dropped 1 unfinished episodes to run again: seeds {RAISE_SEED}" in \
+        (tmp_path / "run.log").read_text()
+
+
+def test_retry_unfinished_needs_resume(tmp_path: Path) -> None:
+    job = RunJob(key="k", spec=SPEC, seeds=[1], out=tmp_path)
+    with pytest.raises(StackpickError, match="--retry-unfinished needs --resume"):
+        run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(False)),
+                 retry_unfinished=True, show_progress=False)

@@ -29,7 +29,8 @@ def positive_float(text: str) -> float:
 
 
 def add_execution_args(p: argparse.ArgumentParser) -> None:
-    """--workers, --backend, --address, --episode-timeout, --resume, --quiet, --verbose."""
+    """--workers, --backend, --address, --episode-timeout, --resume, --retry-unfinished,
+    --quiet, --verbose."""
     p.add_argument("--workers", type=positive_int, default=None,
                    help=f"local worker processes (default: all cores, {default_workers()} "
                    "here); with --backend ray: the CPUs of a private local Ray instance")
@@ -46,6 +47,10 @@ def add_execution_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true",
                    help="keep the records already in --out and run only the missing seeds "
                    "(repairs a torn last line)")
+    p.add_argument("--retry-unfinished", action="store_true",
+                   help="with --resume: also run again the recorded episodes that did not "
+                   "finish (reason 'error' or 'timeout' from a worker crash, out of memory or "
+                   "--episode-timeout; not episodes that failed a phase)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--verbose", action="store_true", help="one line per finished episode")
 
@@ -110,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
 
     job = RunJob(key="run", spec=spec_from_args(args), seeds=seeds, out=args.out)
     stats = run_dirs([job], executor_from_args(args), resume=args.resume,
-                     show_progress=not args.quiet, on_record=on_record)
+                     retry_unfinished=args.retry_unfinished, show_progress=not args.quiet,
+                     on_record=on_record)
     print(summary_markdown(stats.summaries["run"]))
     print(f"ran {stats.ran} episodes ({stats.skipped} already recorded) in "
           f"{stats.wall_s:.1f} s: {stats.episodes_per_s:.3f} episodes/s")

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         jobs = sweep_jobs(args.out, base.scene, base.overrides, params, seeds,
                           resume=args.resume)
         stats = run_dirs(jobs, executor_from_args(args), resume=args.resume,
-                         show_progress=not args.quiet)
+                         retry_unfinished=args.retry_unfinished, show_progress=not args.quiet)
         desc = json.loads((args.out / "sweep.json").read_text())
         rows = cell_rows(desc, stats.summaries)
         (args.out / "sweep_summary.json").write_text(json.dumps(rows, indent=1))

@@ -107,8 +107,18 @@ class Journal:
         """The records in seed order."""
         return [self.records[s] for s in sorted(self.records)]
 
+    def discard(self, seeds: set[int]) -> None:
+        """Forget the records of ``seeds`` (rewriting the file atomically), so that they are
+        run again; the journal stays open for appending."""
+        if not seeds & self.records.keys():
+            return
+        for seed in seeds:
+            self.records.pop(seed, None)
+        self.compact()
+        self._fh = self.path.open("a", encoding="utf-8")
+
     def compact(self) -> None:
-        """Rewrite the file in seed order, atomically."""
+        """Rewrite the file in seed order, atomically (and close it)."""
         self.close()
         tmp = self.path.with_suffix(".jsonl.tmp")
         with tmp.open("w", encoding="utf-8") as fh:

@@ -21,7 +21,7 @@ from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.journal import Journal
 from stackpick_sim.runs.lock import RunLock
 from stackpick_sim.runs.spec import RUN_FILE, RunSpec, episode_dir
-from stackpick_sim.runs.tasks import TaskResult
+from stackpick_sim.runs.tasks import TaskResult, harness_failure
 
 #: The log file of a run directory.
 LOG_FILE = "run.log"
@@ -62,6 +62,18 @@ class RunDir:
                 f"{self.path} was run with scene {done.scene!r} and overrides "
                 f"{list(done.overrides)}; --resume must use the same, got scene "
                 f"{self.spec.scene!r} and overrides {list(self.spec.overrides)}")
+
+    def discard_unfinished(self, seeds: list[int]) -> list[int]:
+        """Drop the records of ``seeds`` whose episode did not finish (a worker crash, the
+        wall-clock limit), so that they run again; returns those seeds."""
+        wanted = set(seeds)
+        redo = sorted(s for s, r in self.journal.records.items()
+                      if s in wanted and harness_failure(r))
+        if redo:
+            self.journal.discard(set(redo))
+            self.log(f"retry: dropped {len(redo)} unfinished episodes to run again: "
+                     f"seeds {', '.join(map(str, redo))}")
+        return redo
 
     def missing(self, seeds: list[int]) -> list[int]:
         """The seeds of ``seeds`` without a record yet, in order, once each."""

@@ -87,15 +87,24 @@ class RunStats:
 
 
 def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False,
-             show_progress: bool = True,
+             retry_unfinished: bool = False, show_progress: bool = True,
              on_record: Callable[[dict[str, Any], Progress], None] | None = None) -> RunStats:
-    """Run every job through ``executor`` (closed at the end); see the module docstring."""
+    """Run every job through ``executor`` (closed at the end); see the module docstring.
+
+    With ``retry_unfinished`` (needs ``resume``), recorded episodes that did not finish
+    (reason ``error`` or ``timeout`` from a worker crash or the wall-clock limit) run again.
+    """
     dirs: dict[str, RunDir] = {}
     try:
+        if retry_unfinished and not resume:
+            raise StackpickError("--retry-unfinished needs --resume (it runs again recorded "
+                                 "episodes that did not finish)")
         for job in jobs:
             load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
         for job in jobs:
             dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
+            if retry_unfinished:
+                dirs[job.key].discard_unfinished(list(job.seeds))
         tasks = [EpisodeTask(spec=job.spec, seed=s, key=job.key)
                  for job in jobs for s in dirs[job.key].missing(list(job.seeds))]
         done = [r for d in dirs.values() for r in d.journal.records.values()]

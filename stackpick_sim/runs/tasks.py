@@ -34,6 +34,14 @@ ERROR_REASON = "error"
 TIMEOUT_REASON = "timeout"
 
 
+def harness_failure(record: dict[str, Any]) -> bool:
+    """Whether ``record`` says its episode did not finish (worker crash or wall-clock limit),
+    as opposed to a finished episode that failed: those have the phase they failed in (an
+    episode's own ``timeout`` is a phase that ran past its sim-time limit)."""
+    return (record.get("failure") in (ERROR_REASON, TIMEOUT_REASON)
+            and record.get("failed_phase") is None)
+
+
 @dataclass(frozen=True, kw_only=True)
 class EpisodeTask:
     """Run ``spec`` on ``seed``; ``key`` names the run directory it belongs to (sweeps)."""
