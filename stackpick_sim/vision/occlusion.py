@@ -35,10 +35,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import contrast_support
+from stackpick_sim.vision.contrast import contrast_support, outline
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params
-from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, boundary_samples, support_map
+from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.wall_cover import under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
@@ -127,9 +127,9 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
     With ``gradients`` the circumference's support is read from the consistent edge contrast
     (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
     """
-    samples = boundary_samples(ellipse)
+    samples, normals = outline(ellipse)  # the same points as boundary_samples(ellipse)
     if gradients is not None:
-        ok = contrast_support(ellipse, gradients)
+        ok = contrast_support(ellipse, gradients, (samples, normals))
     else:
         pix = np.rint(samples).astype(np.int64)
         h, w = support.shape

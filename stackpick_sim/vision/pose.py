@@ -34,8 +34,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, plane_basis, tilt_angles
-from stackpick_sim.vision.wall import WallEvidence, face_colour, wall_evidence
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
+from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidence
 
 #: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
 #: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.

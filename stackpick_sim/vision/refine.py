@@ -10,12 +10,14 @@ by the shrinking tolerance.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_ellipse, plausible
+from stackpick_sim.vision.fitting import fit_ellipse, plausible
 
 #: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
 #: ~2 px off on its far side, the last matches the merge tolerance.
@@ -85,25 +87,25 @@ def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float
     return np.stack([uu, vv], axis=1).astype(np.float64), g
 
 
-def _normals(ellipse: Ellipse, pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(N, 2) unit normals of the ellipse's implicit form at (N, 2) points."""
-    t = np.radians(ellipse.angle_deg)
-    c, s = np.cos(t), np.sin(t)
-    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
-    x, y = c * du + s * dv, -s * du + c * dv
-    gx, gy = x / ellipse.a**2, y / ellipse.b**2
-    n = np.stack([c * gx - s * gy, s * gx + c * gy], axis=1)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
-
 def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64],
            tol_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The edge pixels (M, 2) within ``tol_px`` of ``ellipse`` whose unit gradients (M, 2)
-    lie within the MIN_NORMAL_COS cone of its normal, and their gradients."""
-    near = distances(ellipse_params([ellipse]), pts)[0] < tol_px
-    pts, grads = pts[near], grads[near]
-    cos = np.abs(np.einsum("ij,ij->i", _normals(ellipse, pts), grads))
-    keep = cos >= MIN_NORMAL_COS
+    lie within the MIN_NORMAL_COS cone of its normal, and their gradients.
+
+    Distance (Sampson, as :func:`~stackpick_sim.vision.fitting.distances`) and normal come
+    from one evaluation of the implicit form's gradient.
+    """
+    t = math.radians(ellipse.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
+    x = (c * du + s * dv) / ellipse.a
+    y = (-s * du + c * dv) / ellipse.b
+    gx, gy = x / ellipse.a, y / ellipse.b
+    norm = np.sqrt(gx * gx + gy * gy)
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
+    # |unit normal . gradient|, the normal rotated back to the image frame.
+    cos = np.abs((c * gx - s * gy) * grads[:, 0] + (s * gx + c * gy) * grads[:, 1])
+    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
     return pts[keep], grads[keep]
 
 
