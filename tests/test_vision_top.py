@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -199,3 +200,30 @@ def test_gap_end_is_a_t_junction_only_when_the_contour_enters_the_face(into_face
         assert evidence.occluded_ends >= 1
     else:
         assert evidence.occluded_ends == 0 and evidence.longest_gap_px >= 8
+
+
+def test_size_gate_drops_ellipses_too_small_for_any_face_in_the_depth_range() -> None:
+    # Two separate discs: one of the size a 0.03 m face has at 0.3 m, one far smaller.
+    face = Ellipse(cx=200, cy=120, a=K.fy * 0.03 / 0.3, b=25, angle_deg=20)
+    small = Ellipse(cx=80, cy=120, a=12, b=9, angle_deg=0)
+    image = draw_ellipses(SHAPE, [face, small], noise_sigma=1.0, rng=np.random.default_rng(5))
+    free = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.03,)))
+    assert any(abs(d.ellipse.a - small.a) < 1.5 for d in free.ellipses)
+    gated = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.03,),
+                                         depth_range_m=(0.25, 0.35)))
+    assert [round(d.ellipse.cx) for d in gated.ellipses] == [200]
+    lo, hi = detector_module.TopObjectDetector(
+        DetectorConfig(intrinsics=K, radii_m=(0.03,), depth_range_m=(0.25, 0.35)))._axis_range(K)
+    assert lo == pytest.approx(detector_module.SIZE_GATE_SLACK[0] * K.fy * 0.03 / 0.35)
+    assert hi == pytest.approx(detector_module.SIZE_GATE_SLACK[1] * K.fy * 0.03 / 0.25)
+
+
+def test_one_face_fitted_twice_is_reported_once() -> None:
+    face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=30)
+    near = replace(face, cx=face.cx + 0.8, a=face.a - 0.5)
+    other = Ellipse(cx=160, cy=120, a=25, b=18, angle_deg=30)  # concentric, not the same
+    assert detector_module._same_outline(face, near)
+    assert not detector_module._same_outline(face, other)
+    evidence = select_top([face, near, other], np.zeros(SHAPE, np.uint8))
+    kept = detector_module._distinct([0, 1, 2], [face, near, other], evidence)
+    assert len(kept) == 2 and 2 in kept

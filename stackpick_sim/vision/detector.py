@@ -1,7 +1,9 @@
 """The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
 
-When no ellipse passes the top rule, those that failed on support or interior edges alone
-are refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run.
+Given a depth range, refined ellipses too small or too large for any face radius in it are
+dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, those that failed on support
+or interior edges alone are refitted on the edge contrast (faint same-colour boundaries) and
+the rule is re-run. One face fitted twice is reported once (DUPLICATE_SHARE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -11,6 +13,7 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 
@@ -22,9 +25,13 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import MIN_SIDE_PX, EdgeImage, as_rgb_or_gray, edge_image
-from stackpick_sim.vision.fitting import fit_or_split, plausible
-from stackpick_sim.vision.merging import MergedEllipse, merge_segments
-from stackpick_sim.vision.occlusion import OcclusionEvidence, select_top
+from stackpick_sim.vision.fitting import distances, ellipse_params, fit_or_split, plausible
+from stackpick_sim.vision.merging import (
+    MergedEllipse,
+    boundary_samples,
+    merge_segments,
+)
+from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import edge_points, refine, refine_subpixel
 from stackpick_sim.vision.roi import Roi, find_roi
@@ -37,6 +44,17 @@ DEFAULT_FOVY_DEG = 45.0
 #: least half visible keeps about its visible share, and the scoring counts faces >= 50%
 #: visible. Placeholder from the development seeds 0-99, not tuned further.
 MIN_REPORTED_SUPPORT = 0.6
+#: Size gate (with a depth range): a face of radius r at depth z images with a semi-major
+#: axis of at least f r / z px (perspective only enlarges it: up to 4% on the paper scene's
+#: frames). Ellipses smaller than this share of the smallest such axis for the farthest depth,
+#: or larger than this multiple of the largest for the nearest, are not faces of the pile
+#: (arcs of rims, walls and shading fitted together). The slack covers fits on partial arcs.
+SIZE_GATE_SLACK = (0.9, 1.25)
+#: Two reported ellipses are one face fitted twice when each outline lies within this
+#: distance (px) of the other along DUPLICATE_SHARE of it: the edge refit's first collection
+#: tolerance (refine.TOLERANCES_PX), within which it pulls a fit onto the face's edge.
+DUPLICATE_TOLERANCE_PX = 2.5
+DUPLICATE_SHARE = 0.9
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 
@@ -74,6 +92,17 @@ class TopObjectDetector:
         if self.config.intrinsics is not None:
             return self.config.intrinsics
         return CameraIntrinsics.from_fovy(DEFAULT_FOVY_DEG, shape[1], shape[0])
+
+    def _axis_range(self, k: CameraIntrinsics) -> tuple[float, float] | None:
+        """(min, max) semi-major axis (px) of a face given the depth range, or None without
+        one (see SIZE_GATE_SLACK)."""
+        if self.config.depth_range_m is None:
+            return None
+        near, far = self.config.depth_range_m
+        radii = self.config.radii_m
+        lo = SIZE_GATE_SLACK[0] * min(k.fx, k.fy) * min(radii) / far
+        hi = SIZE_GATE_SLACK[1] * max(k.fx, k.fy) * max(radii) / near
+        return lo, hi
 
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
@@ -113,9 +142,13 @@ class TopObjectDetector:
         t = lap("merging", t)
         points, grads = edge_points(grad)
         merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
+        k = self._intrinsics(shape)
+        gate = self._axis_range(k)
+        if gate is not None:
+            # After the refit: a fit on a few short arcs can be far smaller than its face.
+            merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
         t = lap("refine", t)
         du, dv = roi.offset
-        k = self._intrinsics(shape)
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
         choice = select_top([m.ellipse for m in merged], grad, k_crop)
         if choice.index is None:
@@ -125,8 +158,9 @@ class TopObjectDetector:
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop)
         t = lap("top", t)
-        keep = [i for i, ev in enumerate(choice.evidence)
-                if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index]
+        keep = _distinct([i for i, ev in enumerate(choice.evidence)
+                          if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
+                         [m.ellipse for m in merged], choice)
         ellipses = tuple(
             DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
                             segments=merged[i].segments, residual_px=merged[i].residual_px,
@@ -170,6 +204,30 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
         return merged, False
     return [replace(m, ellipse=passed[i]) if i in passed else m
             for i, m in enumerate(merged)], True
+
+
+def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
+    """``indices`` without duplicates, in their order: an ellipse whose outline lies within
+    DUPLICATE_TOLERANCE_PX of an ellipse already kept, along at least DUPLICATE_SHARE of it
+    (and the other way round), is the same face fitted twice (two arcs the merge kept apart
+    refine to one outline). The top face is kept first, then the better supported."""
+    order = sorted(indices, key=lambda i: (i != choice.index, -choice.evidence[i].support))
+    kept: list[int] = []
+    for i in order:
+        if not any(_same_outline(ellipses[i], ellipses[j]) for j in kept):
+            kept.append(i)
+    return sorted(kept)
+
+
+def _same_outline(e1: Ellipse, e2: Ellipse) -> bool:
+    """Whether each outline lies on the other (see :func:`_distinct`)."""
+    if math.hypot(e1.cx - e2.cx, e1.cy - e2.cy) > max(e1.b, e2.b):
+        return False
+    for one, other in ((e1, e2), (e2, e1)):
+        d = distances(ellipse_params([other]), boundary_samples(one))[0]
+        if float(np.mean(d < DUPLICATE_TOLERANCE_PX)) < DUPLICATE_SHARE:
+            return False
+    return True
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:
