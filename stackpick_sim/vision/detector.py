@@ -24,7 +24,13 @@ from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
-from stackpick_sim.vision.edges import MIN_SIDE_PX, EdgeImage, as_rgb_or_gray, edge_image
+from stackpick_sim.vision.edges import (
+    MIN_SIDE_PX,
+    EdgeImage,
+    as_rgb_or_gray,
+    edge_image,
+    unblurred_gradients,
+)
 from stackpick_sim.vision.fitting import distances, ellipse_params, fit_or_split, plausible
 from stackpick_sim.vision.merging import (
     MergedEllipse,
@@ -33,7 +39,13 @@ from stackpick_sim.vision.merging import (
 )
 from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
 from stackpick_sim.vision.pose import estimate_pose
-from stackpick_sim.vision.refine import edge_points, refine, refine_subpixel
+from stackpick_sim.vision.refine import (
+    PROFILE_REACH_PX,
+    edge_points,
+    refine,
+    refine_on_profile,
+    refine_subpixel,
+)
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 
@@ -55,6 +67,9 @@ SIZE_GATE_SLACK = (0.9, 1.25)
 #: tolerance (refine.TOLERANCES_PX), within which it pulls a fit onto the face's edge.
 DUPLICATE_TOLERANCE_PX = 2.5
 DUPLICATE_SHARE = 0.9
+#: Margin (px) beyond the profile search of the window whose unblurred gradients the top
+#: face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour.
+PROFILE_WINDOW_MARGIN_PX = 3
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 
@@ -174,6 +189,7 @@ class TopObjectDetector:
         if choice.index is not None:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
+            top_ellipse = _profile_refit(top_ellipse, work, grad)
             pose = estimate_pose(_moved(top_ellipse, du, dv), k,
                                  self.config.radii_m, None, self.config.depth_range_m,
                                  image=img if img.ndim == 3 else None)
@@ -228,6 +244,23 @@ def _same_outline(e1: Ellipse, e2: Ellipse) -> bool:
         if float(np.mean(d < DUPLICATE_TOLERANCE_PX)) < DUPLICATE_SHARE:
             return False
     return True
+
+
+def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -> Ellipse:
+    """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
+    gradients of the window of ``work`` around it (the window keeps the cost per face)."""
+    u0, v0, u1, v1 = ellipse.bounds()
+    margin = PROFILE_REACH_PX + PROFILE_WINDOW_MARGIN_PX
+    h, w = work.shape[:2]
+    c0, r0 = max(0, math.floor(u0 - margin)), max(0, math.floor(v0 - margin))
+    c1, r1 = min(w, math.ceil(u1 + margin) + 1), min(h, math.ceil(v1 + margin) + 1)
+    if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
+        return ellipse
+    window = np.ascontiguousarray(work[r0:r1, c0:c1])
+    box = replace(grad, edges=grad.edges[r0:r1, c0:c1])
+    raw = unblurred_gradients(window, box)
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
+    return _moved(fit, c0, r0)
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

@@ -14,8 +14,10 @@ Only depth depends on it; the face-centre pixel and the tilt angles do not.
 
 **Two-fold ambiguity**: the cylinder's side wall is visible on the side its axis leans
 towards (the inward normal, projected). Given the colour image, each solution's predicted wall
-band is checked for the face's hue (:mod:`stackpick_sim.vision.wall`): the true band shows the
-wall, the other the belt or another object. The solution with the clearly better band wins; a
+band is checked for the face's hue at a wall's brightness (:mod:`stackpick_sim.vision.wall`:
+under the ring light a wall is at most ~tan(tilt) as bright as its face): the true band shows
+the wall, the other the belt or another object, often a lower face of the same colour, which
+is as bright as the face. The solution with the clearly better band wins; a
 solution whose band is visible but not the face's colour loses. When neither predicts a
 visible band (a face seen nearly square on, where both solutions nearly coincide) the smaller
 tilt from the optical axis is taken: a face resting flat under a downward-looking camera.
