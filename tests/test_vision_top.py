@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from stackpick_sim.exceptions import ImageError
+from stackpick_sim.exceptions import ConfigError, ImageError
 from stackpick_sim.geometry import (
     CameraIntrinsics,
     Ellipse,
@@ -227,3 +227,29 @@ def test_one_face_fitted_twice_is_reported_once() -> None:
     evidence = select_top([face, near, other], np.zeros(SHAPE, np.uint8))
     kept = detector_module._distinct([0, 1, 2], [face, near, other], evidence)
     assert len(kept) == 2 and 2 in kept
+
+
+def test_kind_colours_must_match_the_radii() -> None:
+    with pytest.raises(ConfigError):
+        DetectorConfig(radii_m=(0.035, 0.025), kind_colours=((0.8, 0.6, 0.2),))
+    with pytest.raises(ConfigError):
+        DetectorConfig(radii_m=(0.035,), kind_colours=((1.5, 0.6, 0.2),))
+    DetectorConfig(radii_m=(0.035, 0.025), kind_colours=((0.8, 0.6, 0.2), (0.3, 0.6, 0.8)))
+
+
+def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
+    big = Ellipse(cx=100, cy=120, a=40, b=38, angle_deg=0)  # radius 0.035 m: ~0.25 m deep
+    small = Ellipse(cx=230, cy=120, a=34, b=33, angle_deg=0)  # radius 0.025 m: ~0.21 m deep
+    image = draw_ellipses(SHAPE, [big, small], noise_sigma=1.0, rng=np.random.default_rng(2))
+    edges = detect_edges(image)
+    assert select_top([big, small], edges, K).index == 0  # no radii: the larger ellipse
+
+    def radius_of(e: Ellipse) -> float:
+        return 0.035 if e.cx < 160 else 0.025
+
+    assert select_top([big, small], edges, K, radius_of).index == 1
+
+    def same_radius(e: Ellipse) -> float:
+        return 0.03  # depths then differ by < DEPTH_TIE_M: the old rule decides
+
+    assert select_top([big, small], edges, K, same_radius).index == 0

@@ -109,13 +109,19 @@ REFIT_ROUNDS = 2
 REFIT_MIN_SHARE = 0.5
 
 
-def refit_on_contrast(ellipse: Ellipse, image: EdgeImage) -> Ellipse | None:
+def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False
+                      ) -> Ellipse | None:
     """Refit ``ellipse`` on the strongest consistent edge within REFIT_REACH_PX across each
     outline sample, or None when too little of the outline shows one.
 
     Unlike the edge-map refit (:func:`~stackpick_sim.vision.refine.refine`) this sees edges
     too faint for Canny's global threshold, such as the boundary between two faces of one
     colour, so a face fitted mostly on its strong arcs can find its faint arcs too.
+
+    With ``innermost`` each sample takes the innermost local peak of the contrast that
+    passes the threshold instead of the strongest: a top face over a lower face of its own
+    colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
+    on both outlines is too large.
     """
     current = ellipse
     h, w = image.gx.shape
@@ -131,8 +137,15 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage) -> Ellipse | None:
         kernel = np.ones(k) / k
         smooth = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
                            for j in range(offsets.size)], axis=1)
-        best = np.argmax(np.abs(smooth), axis=1)
-        strength = np.abs(smooth[np.arange(best.size), best]) / SOBEL_GAIN
+        mag = np.abs(smooth) / SOBEL_GAIN
+        best = np.argmax(mag, axis=1)
+        if innermost:
+            # Local peaks (not below either neighbour across the outline) that pass.
+            padded_mag = np.pad(mag, ((0, 0), (1, 1)))
+            peak = ((mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:])
+                    & (mag >= contrast_threshold(image)))
+            best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
+        strength = mag[np.arange(best.size), best]
         ok = strength >= contrast_threshold(image)
         if np.count_nonzero(ok) < REFIT_MIN_SHARE * ok.size:
             return None

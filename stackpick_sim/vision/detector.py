@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,6 +49,7 @@ from stackpick_sim.vision.refine import (
 )
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
+from stackpick_sim.vision.wall import face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
@@ -81,12 +83,16 @@ class DetectorConfig:
     ``intrinsics``: camera K (default: a centred pinhole of DEFAULT_FOVY_DEG for the image's
     size). ``radii_m``: candidate face radii. ``depth_range_m``: expected (min, max) depth of
     a top face, metres, used to choose among the radii (the caller knows the camera's height
-    above the belt); None takes the first radius.
+    above the belt); None takes the first radius. ``kind_colours``: optional RGB colour
+    (components 0-1) of the objects of each radius, parallel to ``radii_m``: a face's radius
+    is then read from its colour (nearest chromaticity), which gives each candidate's depth
+    for the top rule (the nearest wins) and the pose its radius.
     """
 
     intrinsics: CameraIntrinsics | None = None
     radii_m: tuple[float, ...] = DEFAULT_RADII_M
     depth_range_m: tuple[float, float] | None = None
+    kind_colours: tuple[tuple[float, float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -95,6 +101,12 @@ class DetectorConfig:
             lo, hi = self.depth_range_m
             if not 0 < lo <= hi:
                 raise ConfigError(f"depth_range_m must be 0 < min <= max, got {self.depth_range_m}")
+        if self.kind_colours is not None and (
+                len(self.kind_colours) != len(self.radii_m)
+                or any(len(c) != 3 or not all(0.0 <= x <= 1.0 for x in c)
+                       for c in self.kind_colours)):
+            raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
+                              f"radius in radii_m, got {self.kind_colours}")
 
 
 class TopObjectDetector:
@@ -118,6 +130,26 @@ class TopObjectDetector:
         lo = SIZE_GATE_SLACK[0] * min(k.fx, k.fy) * min(radii) / far
         hi = SIZE_GATE_SLACK[1] * max(k.fx, k.fy) * max(radii) / near
         return lo, hi
+
+    def _radius_by_colour(self, image: NDArray[np.uint8]
+                          ) -> Callable[[Ellipse], float | None] | None:
+        """Ellipse -> radius of the object kind whose colour its face has (in the (H, W, 3)
+        RGB ``image`` the ellipse is given in), or None without kind colours or colour."""
+        colours = self.config.kind_colours
+        if colours is None or image.ndim != 3:
+            return None
+        kinds = np.asarray(colours, np.float64)
+        chroma = kinds / np.maximum(kinds.sum(axis=1, keepdims=True), 1e-9)
+        radii = self.config.radii_m
+
+        def radius_of(ellipse: Ellipse) -> float | None:
+            face = face_colour(ellipse, image)
+            if float(face.sum()) <= 0.0:
+                return None
+            d = np.abs(chroma - face / float(face.sum())).sum(axis=1)
+            return float(radii[int(np.argmin(d))])
+
+        return radius_of
 
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
@@ -165,13 +197,14 @@ class TopObjectDetector:
         t = lap("refine", t)
         du, dv = roi.offset
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
-        choice = select_top([m.ellipse for m in merged], grad, k_crop)
+        radius_of = self._radius_by_colour(work)
+        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop)
+                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -190,8 +223,10 @@ class TopObjectDetector:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
             top_ellipse = _profile_refit(top_ellipse, work, grad)
+            radius = None if radius_of is None else radius_of(top_ellipse)
             pose = estimate_pose(_moved(top_ellipse, du, dv), k,
-                                 self.config.radii_m, None, self.config.depth_range_m,
+                                 self.config.radii_m if radius is None else (radius,), None,
+                                 self.config.depth_range_m,
                                  image=img if img.ndim == 3 else None)
             detection = replace(detection, pose=pose)
         t = lap("pose", t)
@@ -204,18 +239,21 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
                        ) -> tuple[list[MergedEllipse], bool]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
-    support at least MIN_REPORTED_SUPPORT); keep a refit where it passes the rule. Returns
-    the ellipses and whether any changed."""
+    support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
+    consistent edge; keep a refit where it passes the rule. Returns the ellipses and whether
+    any changed."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
-    refits = {i: r for i in todo
-              if (r := refit_on_contrast(merged[i].ellipse, grad)) is not None
-              and plausible(r, shape)}
-    if not refits:
+    tries = [(i, r) for innermost in (False, True) for i in todo
+             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
+             and plausible(r, shape)]
+    if not tries:
         return merged, False
-    checked = select_top(list(refits.values()), grad).evidence
-    passed = {i: r for (i, r), ev in zip(refits.items(), checked, strict=True)
-              if not ev.occluded}
+    checked = select_top([r for _, r in tries], grad).evidence
+    passed: dict[int, Ellipse] = {}
+    for (i, r), ev in zip(tries, checked, strict=True):
+        if not ev.occluded and i not in passed:  # the strongest-edge refit first
+            passed[i] = r
     if not passed:
         return merged, False
     return [replace(m, ellipse=passed[i]) if i in passed else m

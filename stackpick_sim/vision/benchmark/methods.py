@@ -46,9 +46,13 @@ class Method:
 
 
 def run_ours(frame: BenchFrame) -> MethodOutput:
-    """Our detector on one frame, with the frame's intrinsics and depth range."""
-    det = TopObjectDetector(DetectorConfig(intrinsics=frame.intrinsics,
-                                           depth_range_m=frame.depth_range_m))
+    """Our detector on one frame, with the frame's intrinsics, depth range and object kinds
+    (radii and colours) when known."""
+    kinds = frame.kinds
+    det = TopObjectDetector(DetectorConfig(
+        intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
+        radii_m=tuple(r for r, _ in kinds) if kinds else DEFAULT_RADII_M,
+        kind_colours=tuple(c for _, c in kinds) if kinds else None))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
