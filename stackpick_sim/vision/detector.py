@@ -131,26 +131,6 @@ class TopObjectDetector:
         hi = SIZE_GATE_SLACK[1] * max(k.fx, k.fy) * max(radii) / near
         return lo, hi
 
-    def _radius_by_colour(self, image: NDArray[np.uint8]
-                          ) -> Callable[[Ellipse], float | None] | None:
-        """Ellipse -> radius of the object kind whose colour its face has (in the (H, W, 3)
-        RGB ``image`` the ellipse is given in), or None without kind colours or colour."""
-        colours = self.config.kind_colours
-        if colours is None or image.ndim != 3:
-            return None
-        kinds = np.asarray(colours, np.float64)
-        chroma = kinds / np.maximum(kinds.sum(axis=1, keepdims=True), 1e-9)
-        radii = self.config.radii_m
-
-        def radius_of(ellipse: Ellipse) -> float | None:
-            face = face_colour(ellipse, image)
-            if float(face.sum()) <= 0.0:
-                return None
-            d = np.abs(chroma - face / float(face.sum())).sum(axis=1)
-            return float(radii[int(np.argmin(d))])
-
-        return radius_of
-
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
         t0 = time.perf_counter()
@@ -197,7 +177,8 @@ class TopObjectDetector:
         t = lap("refine", t)
         du, dv = roi.offset
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
-        radius_of = self._radius_by_colour(work)
+        radius_of = (None if self.config.kind_colours is None else
+                     radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
@@ -232,6 +213,27 @@ class TopObjectDetector:
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection
+
+
+def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
+                     colours: tuple[tuple[float, float, float], ...]
+                     ) -> Callable[[Ellipse], float | None] | None:
+    """Ellipse -> radius (of ``radii``) of the object kind whose colour (``colours``, RGB 0-1,
+    parallel to ``radii``) is nearest in chromaticity to the face's colour in the (H, W, 3)
+    RGB ``image`` the ellipse is given in; None for a gray image."""
+    if image.ndim != 3:
+        return None
+    kinds = np.asarray(colours, np.float64)
+    chroma = kinds / np.maximum(kinds.sum(axis=1, keepdims=True), 1e-9)
+
+    def radius_of(ellipse: Ellipse) -> float | None:
+        face = face_colour(ellipse, image)
+        if float(face.sum()) <= 0.0:
+            return None
+        d = np.abs(chroma - face / float(face.sum())).sum(axis=1)
+        return float(radii[int(np.argmin(d))])
+
+    return radius_of
 
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
