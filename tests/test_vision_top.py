@@ -253,3 +253,22 @@ def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
         return 0.03  # depths then differ by < DEPTH_TIE_M: the old rule decides
 
     assert select_top([big, small], edges, K, same_radius).index == 0
+
+
+def test_far_rim_of_a_tilted_cylinder_is_not_reported_as_a_face() -> None:
+    face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=0)  # minor axis vertical
+    rim = replace(face, cy=face.cy + 0.5 * face.a)  # shifted along the minor axis
+    sideways = replace(face, cx=face.cx + 0.5 * face.a)  # along the major axis: not a rim
+    other = Ellipse(cx=160, cy=140, a=25, b=20, angle_deg=0)  # another size: not a rim
+    assert detector_module._far_rim(rim, face)
+    assert not detector_module._far_rim(sideways, face)
+    assert not detector_module._far_rim(other, face)
+    assert not detector_module._far_rim(face, face)  # no offset
+    ellipses = [face, rim, sideways]
+    choice = select_top(ellipses, np.zeros(SHAPE, np.uint8))
+    evidence = tuple(replace(ev, support=s) for ev, s in zip(choice.evidence, (1.0, 0.6, 0.7),
+                                                             strict=True))
+    kept = detector_module._distinct([0, 1, 2], ellipses, replace(choice, evidence=evidence))
+    assert kept == [0, 2]
+    top_rim = replace(choice, index=1, evidence=evidence)  # the top is never dropped
+    assert 1 in detector_module._distinct([0, 1, 2], ellipses, top_rim)

@@ -3,7 +3,8 @@
 Given a depth range, refined ellipses too small or too large for any face radius in it are
 dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, those that failed on support
 or interior edges alone are refitted on the edge contrast (faint same-colour boundaries) and
-the rule is re-run. One face fitted twice is reported once (DUPLICATE_SHARE).
+the rule is re-run. One face fitted twice is reported once (DUPLICATE_SHARE), and a
+cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -69,6 +70,17 @@ SIZE_GATE_SLACK = (0.9, 1.25)
 #: tolerance (refine.TOLERANCES_PX), within which it pulls a fit onto the face's edge.
 DUPLICATE_TOLERANCE_PX = 2.5
 DUPLICATE_SHARE = 0.9
+#: A reported ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
+#: behind its face), not a face, when it has a better-supported face's size within this
+#: share...
+RIM_SIZE_TOLERANCE = 0.1
+#: ...and is shifted from it along that face's minor axis (the image of the cylinder's axis,
+#: within RIM_ANGLE_DEG) by this range of shares of its semi-major axis: a height h rim of a
+#: face of radius r tilted by t lies (h / r) sin t semi-axes away; the paper scene's h <= r and
+#: t <= 45 deg give <= 0.71, the upper end adds perspective and fit error, the lower end keeps
+#: near-concentric ellipses (two faces stacked in line, square on) out of the test.
+RIM_OFFSET_RANGE = (0.15, 0.9)
+RIM_ANGLE_DEG = 20.0
 #: Margin (px) beyond the profile search of the window whose unblurred gradients the top
 #: face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour.
 PROFILE_WINDOW_MARGIN_PX = 3
@@ -266,13 +278,34 @@ def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) ->
     """``indices`` without duplicates, in their order: an ellipse whose outline lies within
     DUPLICATE_TOLERANCE_PX of an ellipse already kept, along at least DUPLICATE_SHARE of it
     (and the other way round), is the same face fitted twice (two arcs the merge kept apart
-    refine to one outline). The top face is kept first, then the better supported."""
+    refine to one outline). The top face is kept first, then the better supported. Far rims of
+    better-supported faces (:func:`_far_rim`) are dropped too."""
     order = sorted(indices, key=lambda i: (i != choice.index, -choice.evidence[i].support))
     kept: list[int] = []
     for i in order:
         if not any(_same_outline(ellipses[i], ellipses[j]) for j in kept):
             kept.append(i)
-    return sorted(kept)
+    # Far rims: only of better-supported faces, never the top.
+    return sorted(i for i in kept if i == choice.index or not any(
+        choice.evidence[j].support > choice.evidence[i].support
+        and _far_rim(ellipses[i], ellipses[j]) for j in kept if j != i))
+
+
+def _far_rim(rim: Ellipse, face: Ellipse) -> bool:
+    """Whether ``rim`` is the far rim of the cylinder whose face is ``face``: the same size
+    (within RIM_SIZE_TOLERANCE), shifted along the face's minor axis (the projected cylinder
+    axis, within RIM_ANGLE_DEG) by RIM_OFFSET_RANGE of its semi-major axis."""
+    if (abs(rim.a - face.a) > RIM_SIZE_TOLERANCE * face.a
+            or abs(rim.b - face.b) > RIM_SIZE_TOLERANCE * face.b):
+        return False
+    du, dv = rim.cx - face.cx, rim.cy - face.cy
+    offset = math.hypot(du, dv)
+    lo, hi = RIM_OFFSET_RANGE
+    if not lo * face.a <= offset <= hi * face.a:
+        return False
+    minor = math.radians(face.angle_deg + 90.0)
+    along = abs(du * math.cos(minor) + dv * math.sin(minor)) / offset
+    return along >= math.cos(math.radians(RIM_ANGLE_DEG))
 
 
 def _same_outline(e1: Ellipse, e2: Ellipse) -> bool:
