@@ -28,6 +28,7 @@ axis) are checked against the edge map.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -96,7 +97,24 @@ class Pose:
 
 def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
                  ) -> tuple[CirclePose, CirclePose]:
-    """The two circle poses (radius ``radius`` m) whose image is ``ellipse``."""
+    """The two circle poses (radius ``radius`` m) whose image is ``ellipse``.
+
+    Everything but the scale is independent of the radius, so the unit-radius solutions are
+    computed once per (ellipse, intrinsics) (cached: the top rule and the pose ask for the
+    same ellipses several times) and scaled; their arrays are read-only.
+    """
+    unit = _unit_circle_poses(ellipse, intrinsics)
+    if radius == 1.0:
+        return unit
+    return (CirclePose(normal_cam=unit[0].normal_cam, centre_cam=unit[0].centre_cam * radius),
+            CirclePose(normal_cam=unit[1].normal_cam, centre_cam=unit[1].centre_cam * radius))
+
+
+@functools.lru_cache(maxsize=256)
+def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
+                       ) -> tuple[CirclePose, CirclePose]:
+    """:func:`circle_poses` for a unit radius, uncached."""
+    radius = 1.0
     k = intrinsics.K
     conic = ellipse.conic()
     q = k.T @ conic @ k
@@ -121,7 +139,10 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
         u, _ = plane_basis(n)
         s2 = -float(x0 @ q @ x0) / float(u @ q @ u)
         scale = radius / math.sqrt(max(s2, 1e-300))
-        out.append(CirclePose(normal_cam=n, centre_cam=x0 * scale))
+        centre = x0 * scale
+        n.setflags(write=False)
+        centre.setflags(write=False)
+        out.append(CirclePose(normal_cam=n, centre_cam=centre))
     return out[0], out[1]
 
 
