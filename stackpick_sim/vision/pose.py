@@ -101,19 +101,19 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 
     Everything but the scale is independent of the radius, so the unit-radius solutions are
     computed once per (ellipse, intrinsics) (cached: the top rule and the pose ask for the
-    same ellipses several times) and scaled; their arrays are read-only.
+    same ellipses several times) and scaled; callers get their own arrays.
     """
     unit = _unit_circle_poses(ellipse, intrinsics)
-    if radius == 1.0:
-        return unit
-    return (CirclePose(normal_cam=unit[0].normal_cam, centre_cam=unit[0].centre_cam * radius),
-            CirclePose(normal_cam=unit[1].normal_cam, centre_cam=unit[1].centre_cam * radius))
+    return (CirclePose(normal_cam=unit[0].normal_cam.copy(),
+                       centre_cam=unit[0].centre_cam * radius),
+            CirclePose(normal_cam=unit[1].normal_cam.copy(),
+                       centre_cam=unit[1].centre_cam * radius))
 
 
 @functools.lru_cache(maxsize=256)
 def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                        ) -> tuple[CirclePose, CirclePose]:
-    """:func:`circle_poses` for a unit radius, uncached."""
+    """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
     radius = 1.0
     k = intrinsics.K
     conic = ellipse.conic()
