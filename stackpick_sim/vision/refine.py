@@ -39,20 +39,23 @@ SUBPIXEL_TOLERANCE_PX = 1.2
 MAX_SHIFT_PX = 0.5
 
 
-def _bilinear(img: NDArray[np.int16], pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(N,) bilinear samples of an (H, W) image at (N, 2) points (u, v), clamped inside."""
-    h, w = img.shape
+def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bilinear samples (N,) of two (H, W) images of one shape at (N, 2) points (u, v),
+    clamped inside; the weights and indices are computed once for both."""
+    h, w = gx.shape
     u = np.clip(pts[:, 0], 0.0, w - 1.001)
     v = np.clip(pts[:, 1], 0.0, h - 1.001)
     u0, v0 = u.astype(np.int64), v.astype(np.int64)
     fu, fv = u - u0, v - v0
-    flat = img.ravel()
     i00 = v0 * w + u0
-    f00, f01 = flat[i00].astype(np.float64), flat[i00 + 1].astype(np.float64)
-    f10, f11 = flat[i00 + w].astype(np.float64), flat[i00 + w + 1].astype(np.float64)
-    top = f00 * (1 - fu) + f01 * fu
-    bottom = f10 * (1 - fu) + f11 * fu
-    return np.asarray(top * (1 - fv) + bottom * fv, np.float64)
+    idx = np.stack([i00, i00 + 1, i00 + w, i00 + w + 1])
+    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
+    out = []
+    for img in (gx, gy):
+        f = img.ravel()[idx].astype(np.float64)
+        out.append(np.asarray((f * wts).sum(axis=0), np.float64))
+    return out[0], out[1]
 
 
 def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float64]
@@ -63,7 +66,7 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     mags = []
     for step in (-1.0, 0.0, 1.0):
         q = pts + step * dirs
-        mags.append(np.hypot(_bilinear(image.gx, q), _bilinear(image.gy, q)))
+        mags.append(np.hypot(*_bilinear_pair(image.gx, image.gy, q)))
     before, centre, after = mags
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
@@ -172,8 +175,8 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
         q = pts[:, None, :] + steps[None, :, None] * normals[:, None, :]  # (n, k, 2)
         flat = q.reshape(-1, 2)
         nn = np.repeat(normals, steps.size, axis=0)
-        g = np.abs(_bilinear(image.gx, flat) * nn[:, 0]
-                   + _bilinear(image.gy, flat) * nn[:, 1]).reshape(q.shape[:2])
+        bx, by = _bilinear_pair(image.gx, image.gy, flat)
+        g = np.abs(bx * nn[:, 0] + by * nn[:, 1]).reshape(q.shape[:2])
         best = np.argmax(g[:, 1:-1], axis=1) + 1
         rows = np.arange(best.size)
         before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
