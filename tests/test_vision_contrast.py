@@ -71,3 +71,19 @@ def test_contrast_refit_on_a_flat_image_is_none() -> None:
     rng = np.random.default_rng(4)
     flat = np.clip(np.round(100.0 + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
     assert refit_on_contrast(UPPER, edge_image(flat)) is None
+
+
+def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one() -> None:
+    from stackpick_sim.vision.synthetic import draw_ellipses
+
+    outer = Ellipse(cx=160.0, cy=120.0, a=42.5, b=36.5, angle_deg=20.0)
+    inner = Ellipse(cx=160.0, cy=120.0, a=40.0, b=34.0, angle_deg=20.0)
+    # Outer disc 200 on a 40 belt (strong edge), inner disc 145 on it (weaker edge 2.5 px in).
+    image = draw_ellipses((240, 320), [outer, inner], noise_sigma=1.0,
+                          rng=np.random.default_rng(9))
+    grad = edge_image(image)
+    strongest = refit_on_contrast(outer, grad)
+    innermost = refit_on_contrast(outer, grad, innermost=True)
+    assert strongest is not None and innermost is not None
+    assert abs(strongest.a - outer.a) < 0.7 and abs(strongest.b - outer.b) < 0.7
+    assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7

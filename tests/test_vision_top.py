@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
 
-from stackpick_sim.exceptions import ImageError
+from stackpick_sim.exceptions import ConfigError, ImageError
 from stackpick_sim.geometry import (
     CameraIntrinsics,
     Ellipse,
@@ -199,3 +200,75 @@ def test_gap_end_is_a_t_junction_only_when_the_contour_enters_the_face(into_face
         assert evidence.occluded_ends >= 1
     else:
         assert evidence.occluded_ends == 0 and evidence.longest_gap_px >= 8
+
+
+def test_size_gate_drops_ellipses_too_small_for_any_face_in_the_depth_range() -> None:
+    # Two separate discs: one of the size a 0.03 m face has at 0.3 m, one far smaller.
+    face = Ellipse(cx=200, cy=120, a=K.fy * 0.03 / 0.3, b=25, angle_deg=20)
+    small = Ellipse(cx=80, cy=120, a=12, b=9, angle_deg=0)
+    image = draw_ellipses(SHAPE, [face, small], noise_sigma=1.0, rng=np.random.default_rng(5))
+    free = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.03,)))
+    assert any(abs(d.ellipse.a - small.a) < 1.5 for d in free.ellipses)
+    gated = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.03,),
+                                         depth_range_m=(0.25, 0.35)))
+    assert [round(d.ellipse.cx) for d in gated.ellipses] == [200]
+    lo, hi = detector_module.TopObjectDetector(
+        DetectorConfig(intrinsics=K, radii_m=(0.03,), depth_range_m=(0.25, 0.35)))._axis_range(K)
+    assert lo == pytest.approx(detector_module.SIZE_GATE_SLACK[0] * K.fy * 0.03 / 0.35)
+    assert hi == pytest.approx(detector_module.SIZE_GATE_SLACK[1] * K.fy * 0.03 / 0.25)
+
+
+def test_one_face_fitted_twice_is_reported_once() -> None:
+    face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=30)
+    near = replace(face, cx=face.cx + 0.8, a=face.a - 0.5)
+    other = Ellipse(cx=160, cy=120, a=25, b=18, angle_deg=30)  # concentric, not the same
+    assert detector_module._same_outline(face, near)
+    assert not detector_module._same_outline(face, other)
+    evidence = select_top([face, near, other], np.zeros(SHAPE, np.uint8))
+    kept = detector_module._distinct([0, 1, 2], [face, near, other], evidence)
+    assert len(kept) == 2 and 2 in kept
+
+
+def test_kind_colours_must_match_the_radii() -> None:
+    with pytest.raises(ConfigError):
+        DetectorConfig(radii_m=(0.035, 0.025), kind_colours=((0.8, 0.6, 0.2),))
+    with pytest.raises(ConfigError):
+        DetectorConfig(radii_m=(0.035,), kind_colours=((1.5, 0.6, 0.2),))
+    DetectorConfig(radii_m=(0.035, 0.025), kind_colours=((0.8, 0.6, 0.2), (0.3, 0.6, 0.8)))
+
+
+def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
+    big = Ellipse(cx=100, cy=120, a=40, b=38, angle_deg=0)  # radius 0.035 m: ~0.25 m deep
+    small = Ellipse(cx=230, cy=120, a=34, b=33, angle_deg=0)  # radius 0.025 m: ~0.21 m deep
+    image = draw_ellipses(SHAPE, [big, small], noise_sigma=1.0, rng=np.random.default_rng(2))
+    edges = detect_edges(image)
+    assert select_top([big, small], edges, K).index == 0  # no radii: the larger ellipse
+
+    def radius_of(e: Ellipse) -> float:
+        return 0.035 if e.cx < 160 else 0.025
+
+    assert select_top([big, small], edges, K, radius_of).index == 1
+
+    def same_radius(e: Ellipse) -> float:
+        return 0.03  # depths then differ by < DEPTH_TIE_M: the old rule decides
+
+    assert select_top([big, small], edges, K, same_radius).index == 0
+
+
+def test_far_rim_of_a_tilted_cylinder_is_not_reported_as_a_face() -> None:
+    face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=0)  # minor axis vertical
+    rim = replace(face, cy=face.cy + 0.5 * face.a)  # shifted along the minor axis
+    sideways = replace(face, cx=face.cx + 0.5 * face.a)  # along the major axis: not a rim
+    other = Ellipse(cx=160, cy=140, a=25, b=20, angle_deg=0)  # another size: not a rim
+    assert detector_module._far_rim(rim, face)
+    assert not detector_module._far_rim(sideways, face)
+    assert not detector_module._far_rim(other, face)
+    assert not detector_module._far_rim(face, face)  # no offset
+    ellipses = [face, rim, sideways]
+    choice = select_top(ellipses, np.zeros(SHAPE, np.uint8))
+    evidence = tuple(replace(ev, support=s) for ev, s in zip(choice.evidence, (1.0, 0.6, 0.7),
+                                                             strict=True))
+    kept = detector_module._distinct([0, 1, 2], ellipses, replace(choice, evidence=evidence))
+    assert kept == [0, 2]
+    top_rim = replace(choice, index=1, evidence=evidence)  # the top is never dropped
+    assert 1 in detector_module._distinct([0, 1, 2], ellipses, top_rim)

@@ -9,9 +9,9 @@ import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
-from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.edges import edge_image, unblurred_gradients
 from stackpick_sim.vision.pose import choose_by_band, circle_poses
-from stackpick_sim.vision.refine import edge_points, refine_subpixel, subpixel
+from stackpick_sim.vision.refine import edge_points, refine_on_profile, refine_subpixel, subpixel
 from stackpick_sim.vision.roi import find_roi
 from stackpick_sim.vision.synthetic import draw_ellipses, render_cylinders
 from stackpick_sim.vision.wall import WallEvidence, wall_evidence
@@ -92,3 +92,34 @@ def test_subpixel_refit_recovers_a_drawn_ellipse() -> None:
     fit = refine_subpixel(start, grad, pts, dirs, (240, 320))
     assert abs(fit.cx - truth.cx) < 0.1 and abs(fit.cy - truth.cy) < 0.1
     assert abs(fit.a - truth.a) < 0.15 and abs(fit.b - truth.b) < 0.15
+
+
+def test_profile_refit_recovers_a_drawn_ellipse_on_unblurred_gradients() -> None:
+    truth = Ellipse(cx=140.3, cy=120.4, a=32.0, b=27.2, angle_deg=35.0)
+    image = draw_ellipses((240, 320), [truth], noise_sigma=1.0, rng=np.random.default_rng(6))
+    raw = unblurred_gradients(image, edge_image(image))
+    assert raw.gx.shape == image.shape and raw.noise > 0
+    start = Ellipse(cx=140.8, cy=120.0, a=31.6, b=27.6, angle_deg=33.0)
+    fit = refine_on_profile(start, raw, (240, 320))
+    assert abs(fit.cx - truth.cx) < 0.1 and abs(fit.cy - truth.cy) < 0.1
+    assert abs(fit.a - truth.a) < 0.15 and abs(fit.b - truth.b) < 0.15
+    assert abs(fit.angle_deg - truth.angle_deg) < 0.5
+    # On a blank image there is no outline to fit: the start comes back unchanged.
+    blank = np.full((240, 320), 40, np.uint8)
+    assert refine_on_profile(start, unblurred_gradients(blank, edge_image(blank)),
+                             (240, 320)) == start
+
+
+def test_wall_band_brighter_than_a_wall_can_be_is_not_wall() -> None:
+    # The same tilted cylinder, its wall repainted as bright as its face (as a same-coloured
+    # lower face looks): at a 20 deg tilt a wall reaches at most ~tan(20 deg) of the face.
+    image, ellipse, normal = _cylinder((20.0, 0.0))
+    sols = circle_poses(ellipse, K, 1.0)
+    true_i = int(np.argmax([float(s.normal_cam @ normal) for s in sols]))
+    sol = sols[true_i]
+    assert wall_evidence(sol.normal_cam, sol.centre_cam, ellipse, K, image).share > 0.8
+    face = ellipse.mask(image.shape[:2])
+    lit = image.copy()
+    colour = np.median(image[face], axis=0)
+    lit[(image.sum(axis=2) > 30) & ~face] = colour.astype(np.uint8)
+    assert wall_evidence(sol.normal_cam, sol.centre_cam, ellipse, K, lit).share < 0.2

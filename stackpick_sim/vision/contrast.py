@@ -60,23 +60,26 @@ def outline(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64]]
     return pts, normals
 
 
-def contrast_profile(ellipse: Ellipse, image: EdgeImage) -> NDArray[np.float64]:
+def contrast_profile(ellipse: Ellipse, image: EdgeImage,
+                     samples: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+                     ) -> NDArray[np.float64]:
     """(n,) windowed |signed normal gradient| (grey levels/px) along the outline samples.
 
-    Samples whose neighbourhood leaves the image read 0 (unseen).
+    Samples whose neighbourhood leaves the image read 0 (unseen). ``samples`` is
+    :func:`outline` of the ellipse when the caller has it already.
     """
-    pts, normals = outline(ellipse)
+    pts, normals = outline(ellipse) if samples is None else samples
     h, w = image.gx.shape
-    best = np.zeros(pts.shape[0])
-    for off in NORMAL_OFFSETS_PX:
-        u = np.rint(pts[:, 0] + off * normals[:, 0]).astype(np.int64)
-        v = np.rint(pts[:, 1] + off * normals[:, 1]).astype(np.int64)
-        inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-        g = np.zeros(pts.shape[0])
-        ui, vi = u[inside], v[inside]
-        g[inside] = (image.gx[vi, ui] * normals[inside, 0]
-                     + image.gy[vi, ui] * normals[inside, 1])
-        best = np.where(np.abs(g) > np.abs(best), g, best)
+    offsets = np.asarray(NORMAL_OFFSETS_PX)[:, None, None]
+    q = np.rint(pts[None, :, :] + offsets * normals[None, :, :]).astype(np.int64)  # (k, n, 2)
+    u, v = q[..., 0], q[..., 1]
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    np.clip(u, 0, w - 1, out=u)
+    np.clip(v, 0, h - 1, out=v)
+    g = image.gx[v, u] * normals[None, :, 0] + image.gy[v, u] * normals[None, :, 1]
+    g = np.where(inside, g, 0.0)
+    # The strongest offset per sample (the first of equals, as a running strict maximum).
+    best = np.take_along_axis(g, np.argmax(np.abs(g), axis=0)[None, :], axis=0)[0]
     k = WINDOW_SAMPLES
     padded = np.concatenate([best[-(k // 2):], best, best[: k // 2]])
     smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
@@ -88,9 +91,12 @@ def contrast_threshold(image: EdgeImage) -> float:
     return max(MIN_CONTRAST, NOISE_MULTIPLE * image.noise)
 
 
-def contrast_support(ellipse: Ellipse, image: EdgeImage) -> NDArray[np.bool_]:
-    """(n,) bool per outline sample: does a consistent edge run there."""
-    return contrast_profile(ellipse, image) >= contrast_threshold(image)
+def contrast_support(ellipse: Ellipse, image: EdgeImage,
+                     samples: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+                     ) -> NDArray[np.bool_]:
+    """(n,) bool per outline sample: does a consistent edge run there (``samples``: the
+    ellipse's :func:`outline`, if already computed)."""
+    return contrast_profile(ellipse, image, samples) >= contrast_threshold(image)
 
 
 #: Search reach (px) either side of the outline for the contrast refit: a face fitted on a
@@ -103,13 +109,19 @@ REFIT_ROUNDS = 2
 REFIT_MIN_SHARE = 0.5
 
 
-def refit_on_contrast(ellipse: Ellipse, image: EdgeImage) -> Ellipse | None:
+def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False
+                      ) -> Ellipse | None:
     """Refit ``ellipse`` on the strongest consistent edge within REFIT_REACH_PX across each
     outline sample, or None when too little of the outline shows one.
 
     Unlike the edge-map refit (:func:`~stackpick_sim.vision.refine.refine`) this sees edges
     too faint for Canny's global threshold, such as the boundary between two faces of one
     colour, so a face fitted mostly on its strong arcs can find its faint arcs too.
+
+    With ``innermost`` each sample takes the innermost local peak of the contrast that
+    passes the threshold instead of the strongest: a top face over a lower face of its own
+    colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
+    on both outlines is too large.
     """
     current = ellipse
     h, w = image.gx.shape
@@ -125,8 +137,15 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage) -> Ellipse | None:
         kernel = np.ones(k) / k
         smooth = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
                            for j in range(offsets.size)], axis=1)
-        best = np.argmax(np.abs(smooth), axis=1)
-        strength = np.abs(smooth[np.arange(best.size), best]) / SOBEL_GAIN
+        mag = np.abs(smooth) / SOBEL_GAIN
+        best = np.argmax(mag, axis=1)
+        if innermost:
+            # Local peaks (not below either neighbour across the outline) that pass.
+            padded_mag = np.pad(mag, ((0, 0), (1, 1)))
+            peak = ((mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:])
+                    & (mag >= contrast_threshold(image)))
+            best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
+        strength = mag[np.arange(best.size), best]
         ok = strength >= contrast_threshold(image)
         if np.count_nonzero(ok) < REFIT_MIN_SHARE * ok.size:
             return None

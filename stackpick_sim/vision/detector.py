@@ -1,7 +1,10 @@
 """The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
 
-When no ellipse passes the top rule, those that failed on support or interior edges alone
-are refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run.
+Given a depth range, refined ellipses too small or too large for any face radius in it are
+dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, those that failed on support
+or interior edges alone are refitted on the edge contrast (faint same-colour boundaries) and
+the rule is re-run. One face fitted twice is reported once (DUPLICATE_SHARE), and a
+cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -11,7 +14,9 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -21,14 +26,31 @@ from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
-from stackpick_sim.vision.edges import MIN_SIDE_PX, EdgeImage, as_rgb_or_gray, edge_image
-from stackpick_sim.vision.fitting import fit_or_split, plausible
-from stackpick_sim.vision.merging import MergedEllipse, merge_segments
-from stackpick_sim.vision.occlusion import OcclusionEvidence, select_top
+from stackpick_sim.vision.edges import (
+    MIN_SIDE_PX,
+    EdgeImage,
+    as_rgb_or_gray,
+    edge_image,
+    unblurred_gradients,
+)
+from stackpick_sim.vision.fitting import distances, ellipse_params, fit_or_split, plausible
+from stackpick_sim.vision.merging import (
+    MergedEllipse,
+    boundary_samples,
+    merge_segments,
+)
+from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
 from stackpick_sim.vision.pose import estimate_pose
-from stackpick_sim.vision.refine import edge_points, refine, refine_subpixel
+from stackpick_sim.vision.refine import (
+    PROFILE_REACH_PX,
+    edge_points,
+    refine,
+    refine_on_profile,
+    refine_subpixel,
+)
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
+from stackpick_sim.vision.wall import face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
@@ -37,6 +59,31 @@ DEFAULT_FOVY_DEG = 45.0
 #: least half visible keeps about its visible share, and the scoring counts faces >= 50%
 #: visible. Placeholder from the development seeds 0-99, not tuned further.
 MIN_REPORTED_SUPPORT = 0.6
+#: Size gate (with a depth range): a face of radius r at depth z images with a semi-major
+#: axis of at least f r / z px (perspective only enlarges it: up to 4% on the paper scene's
+#: frames). Ellipses smaller than this share of the smallest such axis for the farthest depth,
+#: or larger than this multiple of the largest for the nearest, are not faces of the pile
+#: (arcs of rims, walls and shading fitted together). The slack covers fits on partial arcs.
+SIZE_GATE_SLACK = (0.9, 1.25)
+#: Two reported ellipses are one face fitted twice when each outline lies within this
+#: distance (px) of the other along DUPLICATE_SHARE of it: the edge refit's first collection
+#: tolerance (refine.TOLERANCES_PX), within which it pulls a fit onto the face's edge.
+DUPLICATE_TOLERANCE_PX = 2.5
+DUPLICATE_SHARE = 0.9
+#: A reported ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
+#: behind its face), not a face, when it has a better-supported face's size within this
+#: share...
+RIM_SIZE_TOLERANCE = 0.1
+#: ...and is shifted from it along that face's minor axis (the image of the cylinder's axis,
+#: within RIM_ANGLE_DEG) by this range of shares of its semi-major axis: a height h rim of a
+#: face of radius r tilted by t lies (h / r) sin t semi-axes away; the paper scene's h <= r and
+#: t <= 45 deg give <= 0.71, the upper end adds perspective and fit error, the lower end keeps
+#: near-concentric ellipses (two faces stacked in line, square on) out of the test.
+RIM_OFFSET_RANGE = (0.15, 0.9)
+RIM_ANGLE_DEG = 20.0
+#: Margin (px) beyond the profile search of the window whose unblurred gradients the top
+#: face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour.
+PROFILE_WINDOW_MARGIN_PX = 3
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 
@@ -48,12 +95,16 @@ class DetectorConfig:
     ``intrinsics``: camera K (default: a centred pinhole of DEFAULT_FOVY_DEG for the image's
     size). ``radii_m``: candidate face radii. ``depth_range_m``: expected (min, max) depth of
     a top face, metres, used to choose among the radii (the caller knows the camera's height
-    above the belt); None takes the first radius.
+    above the belt); None takes the first radius. ``kind_colours``: optional RGB colour
+    (components 0-1) of the objects of each radius, parallel to ``radii_m``: a face's radius
+    is then read from its colour (nearest chromaticity), which gives each candidate's depth
+    for the top rule (the nearest wins) and the pose its radius.
     """
 
     intrinsics: CameraIntrinsics | None = None
     radii_m: tuple[float, ...] = DEFAULT_RADII_M
     depth_range_m: tuple[float, float] | None = None
+    kind_colours: tuple[tuple[float, float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -62,6 +113,12 @@ class DetectorConfig:
             lo, hi = self.depth_range_m
             if not 0 < lo <= hi:
                 raise ConfigError(f"depth_range_m must be 0 < min <= max, got {self.depth_range_m}")
+        if self.kind_colours is not None and (
+                len(self.kind_colours) != len(self.radii_m)
+                or any(len(c) != 3 or not all(0.0 <= x <= 1.0 for x in c)
+                       for c in self.kind_colours)):
+            raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
+                              f"radius in radii_m, got {self.kind_colours}")
 
 
 class TopObjectDetector:
@@ -74,6 +131,17 @@ class TopObjectDetector:
         if self.config.intrinsics is not None:
             return self.config.intrinsics
         return CameraIntrinsics.from_fovy(DEFAULT_FOVY_DEG, shape[1], shape[0])
+
+    def _axis_range(self, k: CameraIntrinsics) -> tuple[float, float] | None:
+        """(min, max) semi-major axis (px) of a face given the depth range, or None without
+        one (see SIZE_GATE_SLACK)."""
+        if self.config.depth_range_m is None:
+            return None
+        near, far = self.config.depth_range_m
+        radii = self.config.radii_m
+        lo = SIZE_GATE_SLACK[0] * min(k.fx, k.fy) * min(radii) / far
+        hi = SIZE_GATE_SLACK[1] * max(k.fx, k.fy) * max(radii) / near
+        return lo, hi
 
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
@@ -113,20 +181,27 @@ class TopObjectDetector:
         t = lap("merging", t)
         points, grads = edge_points(grad)
         merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
+        k = self._intrinsics(shape)
+        gate = self._axis_range(k)
+        if gate is not None:
+            # After the refit: a fit on a few short arcs can be far smaller than its face.
+            merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
         t = lap("refine", t)
         du, dv = roi.offset
-        k = self._intrinsics(shape)
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
-        choice = select_top([m.ellipse for m in merged], grad, k_crop)
+        radius_of = (None if self.config.kind_colours is None else
+                     radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
+        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop)
+                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
         t = lap("top", t)
-        keep = [i for i, ev in enumerate(choice.evidence)
-                if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index]
+        keep = _distinct([i for i, ev in enumerate(choice.evidence)
+                          if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
+                         [m.ellipse for m in merged], choice)
         ellipses = tuple(
             DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
                             segments=merged[i].segments, residual_px=merged[i].residual_px,
@@ -140,8 +215,11 @@ class TopObjectDetector:
         if choice.index is not None:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
+            top_ellipse = _profile_refit(top_ellipse, work, grad)
+            radius = None if radius_of is None else radius_of(top_ellipse)
             pose = estimate_pose(_moved(top_ellipse, du, dv), k,
-                                 self.config.radii_m, None, self.config.depth_range_m,
+                                 self.config.radii_m if radius is None else (radius,), None,
+                                 self.config.depth_range_m,
                                  image=img if img.ndim == 3 else None)
             detection = replace(detection, pose=pose)
         t = lap("pose", t)
@@ -149,27 +227,113 @@ class TopObjectDetector:
         return detection
 
 
+def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
+                     colours: tuple[tuple[float, float, float], ...]
+                     ) -> Callable[[Ellipse], float | None] | None:
+    """Ellipse -> radius (of ``radii``) of the object kind whose colour (``colours``, RGB 0-1,
+    parallel to ``radii``) is nearest in chromaticity to the face's colour in the (H, W, 3)
+    RGB ``image`` the ellipse is given in; None for a gray image."""
+    if image.ndim != 3:
+        return None
+    kinds = np.asarray(colours, np.float64)
+    chroma = kinds / np.maximum(kinds.sum(axis=1, keepdims=True), 1e-9)
+
+    def radius_of(ellipse: Ellipse) -> float | None:
+        face = face_colour(ellipse, image)
+        if float(face.sum()) <= 0.0:
+            return None
+        d = np.abs(chroma - face / float(face.sum())).sum(axis=1)
+        return float(radii[int(np.argmin(d))])
+
+    return radius_of
+
+
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int]
                        ) -> tuple[list[MergedEllipse], bool]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
-    support at least MIN_REPORTED_SUPPORT); keep a refit where it passes the rule. Returns
-    the ellipses and whether any changed."""
+    support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
+    consistent edge; keep a refit where it passes the rule. Returns the ellipses and whether
+    any changed."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
-    refits = {i: r for i in todo
-              if (r := refit_on_contrast(merged[i].ellipse, grad)) is not None
-              and plausible(r, shape)}
-    if not refits:
+    tries = [(i, r) for innermost in (False, True) for i in todo
+             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
+             and plausible(r, shape)]
+    if not tries:
         return merged, False
-    checked = select_top(list(refits.values()), grad).evidence
-    passed = {i: r for (i, r), ev in zip(refits.items(), checked, strict=True)
-              if not ev.occluded}
+    checked = select_top([r for _, r in tries], grad).evidence
+    passed: dict[int, Ellipse] = {}
+    for (i, r), ev in zip(tries, checked, strict=True):
+        if not ev.occluded and i not in passed:  # the strongest-edge refit first
+            passed[i] = r
     if not passed:
         return merged, False
     return [replace(m, ellipse=passed[i]) if i in passed else m
             for i, m in enumerate(merged)], True
+
+
+def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
+    """``indices`` without duplicates, in their order: an ellipse whose outline lies within
+    DUPLICATE_TOLERANCE_PX of an ellipse already kept, along at least DUPLICATE_SHARE of it
+    (and the other way round), is the same face fitted twice (two arcs the merge kept apart
+    refine to one outline). The top face is kept first, then the better supported. Far rims of
+    better-supported faces (:func:`_far_rim`) are dropped too."""
+    order = sorted(indices, key=lambda i: (i != choice.index, -choice.evidence[i].support))
+    kept: list[int] = []
+    for i in order:
+        if not any(_same_outline(ellipses[i], ellipses[j]) for j in kept):
+            kept.append(i)
+    # Far rims: only of better-supported faces, never the top.
+    return sorted(i for i in kept if i == choice.index or not any(
+        choice.evidence[j].support > choice.evidence[i].support
+        and _far_rim(ellipses[i], ellipses[j]) for j in kept if j != i))
+
+
+def _far_rim(rim: Ellipse, face: Ellipse) -> bool:
+    """Whether ``rim`` is the far rim of the cylinder whose face is ``face``: the same size
+    (within RIM_SIZE_TOLERANCE), shifted along the face's minor axis (the projected cylinder
+    axis, within RIM_ANGLE_DEG) by RIM_OFFSET_RANGE of its semi-major axis."""
+    if (abs(rim.a - face.a) > RIM_SIZE_TOLERANCE * face.a
+            or abs(rim.b - face.b) > RIM_SIZE_TOLERANCE * face.b):
+        return False
+    du, dv = rim.cx - face.cx, rim.cy - face.cy
+    offset = math.hypot(du, dv)
+    lo, hi = RIM_OFFSET_RANGE
+    if not lo * face.a <= offset <= hi * face.a:
+        return False
+    minor = math.radians(face.angle_deg + 90.0)
+    along = abs(du * math.cos(minor) + dv * math.sin(minor)) / offset
+    return along >= math.cos(math.radians(RIM_ANGLE_DEG))
+
+
+def _same_outline(e1: Ellipse, e2: Ellipse) -> bool:
+    """Whether each outline lies on the other (see :func:`_distinct`)."""
+    if math.hypot(e1.cx - e2.cx, e1.cy - e2.cy) > max(e1.b, e2.b):
+        return False
+    for one, other in ((e1, e2), (e2, e1)):
+        d = distances(ellipse_params([other]), boundary_samples(one))[0]
+        if float(np.mean(d < DUPLICATE_TOLERANCE_PX)) < DUPLICATE_SHARE:
+            return False
+    return True
+
+
+def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -> Ellipse:
+    """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
+    gradients of the window of ``work`` around it (the window keeps the cost per face)."""
+    u0, v0, u1, v1 = ellipse.bounds()
+    margin = PROFILE_REACH_PX + PROFILE_WINDOW_MARGIN_PX
+    h, w = work.shape[:2]
+    c0, r0 = max(0, math.floor(u0 - margin)), max(0, math.floor(v0 - margin))
+    c1, r1 = min(w, math.ceil(u1 + margin) + 1), min(h, math.ceil(v1 + margin) + 1)
+    if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
+        return ellipse
+    window = np.ascontiguousarray(work[r0:r1, c0:c1])
+    box = replace(grad, edges=grad.edges[r0:r1, c0:c1])
+    raw = unblurred_gradients(window, box)
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
+    return _moved(fit, c0, r0)
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

@@ -14,8 +14,10 @@ Only depth depends on it; the face-centre pixel and the tilt angles do not.
 
 **Two-fold ambiguity**: the cylinder's side wall is visible on the side its axis leans
 towards (the inward normal, projected). Given the colour image, each solution's predicted wall
-band is checked for the face's hue (:mod:`stackpick_sim.vision.wall`): the true band shows the
-wall, the other the belt or another object. The solution with the clearly better band wins; a
+band is checked for the face's hue at a wall's brightness (:mod:`stackpick_sim.vision.wall`:
+under the ring light a wall is at most ~tan(tilt) as bright as its face): the true band shows
+the wall, the other the belt or another object, often a lower face of the same colour, which
+is as bright as the face. The solution with the clearly better band wins; a
 solution whose band is visible but not the face's colour loses. When neither predicts a
 visible band (a face seen nearly square on, where both solutions nearly coincide) the smaller
 tilt from the optical axis is taken: a face resting flat under a downward-looking camera.
@@ -26,6 +28,7 @@ axis) are checked against the edge map.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -34,8 +37,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, plane_basis, tilt_angles
-from stackpick_sim.vision.wall import WallEvidence, face_colour, wall_evidence
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
+from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidence
 
 #: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
 #: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.
@@ -94,7 +97,24 @@ class Pose:
 
 def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
                  ) -> tuple[CirclePose, CirclePose]:
-    """The two circle poses (radius ``radius`` m) whose image is ``ellipse``."""
+    """The two circle poses (radius ``radius`` m) whose image is ``ellipse``.
+
+    Everything but the scale is independent of the radius, so the unit-radius solutions are
+    computed once per (ellipse, intrinsics) (cached: the top rule and the pose ask for the
+    same ellipses several times) and scaled; callers get their own arrays.
+    """
+    unit = _unit_circle_poses(ellipse, intrinsics)
+    return (CirclePose(normal_cam=unit[0].normal_cam.copy(),
+                       centre_cam=unit[0].centre_cam * radius),
+            CirclePose(normal_cam=unit[1].normal_cam.copy(),
+                       centre_cam=unit[1].centre_cam * radius))
+
+
+@functools.lru_cache(maxsize=256)
+def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
+                       ) -> tuple[CirclePose, CirclePose]:
+    """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
+    radius = 1.0
     k = intrinsics.K
     conic = ellipse.conic()
     q = k.T @ conic @ k
@@ -119,7 +139,10 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
         u, _ = plane_basis(n)
         s2 = -float(x0 @ q @ x0) / float(u @ q @ u)
         scale = radius / math.sqrt(max(s2, 1e-300))
-        out.append(CirclePose(normal_cam=n, centre_cam=x0 * scale))
+        centre = x0 * scale
+        n.setflags(write=False)
+        centre.setflags(write=False)
+        out.append(CirclePose(normal_cam=n, centre_cam=centre))
     return out[0], out[1]
 
 

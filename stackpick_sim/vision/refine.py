@@ -6,15 +6,22 @@ every edge pixel near the ellipse whose gradient is roughly normal to it is coll
 ellipse refitted, a few times with a shrinking tolerance (an ICP-like loop). Pixels of other
 outlines crossing the ellipse are rejected by the gradient test; those running alongside it
 by the shrinking tolerance.
+
+The top face's final fit is sub-pixel twice: Canny's pixels moved to the gradient peak
+(:func:`refine_subpixel`), then the gradient peaks read across the whole predicted outline,
+faint arcs included, with outliers dropped (:func:`refine_on_profile`).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.contrast import contrast_threshold, outline
+from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params, fit_ellipse, plausible
 
 #: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
@@ -32,17 +39,23 @@ SUBPIXEL_TOLERANCE_PX = 1.2
 MAX_SHIFT_PX = 0.5
 
 
-def _bilinear(img: NDArray[np.int16], pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(N,) bilinear samples of an (H, W) image at (N, 2) points (u, v), clamped inside."""
-    h, w = img.shape
+def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bilinear samples (N,) of two (H, W) images of one shape at (N, 2) points (u, v),
+    clamped inside; the weights and indices are computed once for both."""
+    h, w = gx.shape
     u = np.clip(pts[:, 0], 0.0, w - 1.001)
     v = np.clip(pts[:, 1], 0.0, h - 1.001)
     u0, v0 = u.astype(np.int64), v.astype(np.int64)
     fu, fv = u - u0, v - v0
-    f = img.astype(np.float64, copy=False)
-    top = f[v0, u0] * (1 - fu) + f[v0, u0 + 1] * fu
-    bottom = f[v0 + 1, u0] * (1 - fu) + f[v0 + 1, u0 + 1] * fu
-    return np.asarray(top * (1 - fv) + bottom * fv, np.float64)
+    i00 = v0 * w + u0
+    idx = np.stack([i00, i00 + 1, i00 + w, i00 + w + 1])
+    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
+    out = []
+    for img in (gx, gy):
+        f = img.ravel()[idx].astype(np.float64)
+        out.append(np.asarray((f * wts).sum(axis=0), np.float64))
+    return out[0], out[1]
 
 
 def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float64]
@@ -53,7 +66,7 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     mags = []
     for step in (-1.0, 0.0, 1.0):
         q = pts + step * dirs
-        mags.append(np.hypot(_bilinear(image.gx, q), _bilinear(image.gy, q)))
+        mags.append(np.hypot(*_bilinear_pair(image.gx, image.gy, q)))
     before, centre, after = mags
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
@@ -85,25 +98,25 @@ def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float
     return np.stack([uu, vv], axis=1).astype(np.float64), g
 
 
-def _normals(ellipse: Ellipse, pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(N, 2) unit normals of the ellipse's implicit form at (N, 2) points."""
-    t = np.radians(ellipse.angle_deg)
-    c, s = np.cos(t), np.sin(t)
-    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
-    x, y = c * du + s * dv, -s * du + c * dv
-    gx, gy = x / ellipse.a**2, y / ellipse.b**2
-    n = np.stack([c * gx - s * gy, s * gx + c * gy], axis=1)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
-
 def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64],
            tol_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The edge pixels (M, 2) within ``tol_px`` of ``ellipse`` whose unit gradients (M, 2)
-    lie within the MIN_NORMAL_COS cone of its normal, and their gradients."""
-    near = distances(ellipse_params([ellipse]), pts)[0] < tol_px
-    pts, grads = pts[near], grads[near]
-    cos = np.abs(np.einsum("ij,ij->i", _normals(ellipse, pts), grads))
-    keep = cos >= MIN_NORMAL_COS
+    lie within the MIN_NORMAL_COS cone of its normal, and their gradients.
+
+    Distance (Sampson, as :func:`~stackpick_sim.vision.fitting.distances`) and normal come
+    from one evaluation of the implicit form's gradient.
+    """
+    t = math.radians(ellipse.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
+    x = (c * du + s * dv) / ellipse.a
+    y = (-s * du + c * dv) / ellipse.b
+    gx, gy = x / ellipse.a, y / ellipse.b
+    norm = np.sqrt(gx * gx + gy * gy)
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
+    # |unit normal . gradient|, the normal rotated back to the image frame.
+    cos = np.abs((c * gx - s * gy) * grads[:, 0] + (s * gx + c * gy) * grads[:, 1])
+    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
     return pts[keep], grads[keep]
 
 
@@ -123,4 +136,67 @@ def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.floa
         if fit is None or not plausible(fit, shape):
             break
         current = fit
+    return current
+
+
+#: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
+#: steps: covers the sub-pixel refit's error on a face whose faint arcs Canny dropped.
+PROFILE_REACH_PX = 2.0
+PROFILE_STEP_PX = 0.5
+#: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
+#: from the sub-pixel refit, already within a fraction of a pixel (a second round did not
+#: help on the development seeds).
+PROFILE_ROUNDS = 1
+#: Samples whose residual to the first profile fit exceeds this multiple of the median
+#: residual (and OUTLIER_MIN_PX) are dropped before the final fit: a neighbour's edge met
+#: where two outlines run close.
+OUTLIER_MEDIANS = 3.0
+OUTLIER_MIN_PX = 0.3
+#: Fewest accepted samples, as a share of the outline, for a profile refit.
+PROFILE_MIN_SHARE = 0.5
+
+
+def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]) -> Ellipse:
+    """Refit ``ellipse`` on the sub-pixel gradient peaks across its whole outline.
+
+    Along each outline sample's normal the normal gradient is read (bilinear) every
+    PROFILE_STEP_PX within PROFILE_REACH_PX; the strongest interior peak, placed by a
+    parabola through its neighbours, is kept when it reaches the consistent-contrast
+    threshold (:func:`~stackpick_sim.vision.contrast.contrast_threshold`, per sample). Unlike
+    :func:`refine_subpixel` this does not need Canny's edge pixels, so a face whose boundary
+    with a same-coloured neighbour is faint is fitted on its whole outline, not on the strong
+    arcs only. Returns ``ellipse`` when too little of the outline shows a peak.
+    """
+    threshold = contrast_threshold(image) * SOBEL_GAIN
+    steps = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
+    current = ellipse
+    for round_ in range(PROFILE_ROUNDS):
+        pts, normals = outline(current)
+        q = pts[:, None, :] + steps[None, :, None] * normals[:, None, :]  # (n, k, 2)
+        flat = q.reshape(-1, 2)
+        nn = np.repeat(normals, steps.size, axis=0)
+        bx, by = _bilinear_pair(image.gx, image.gy, flat)
+        g = np.abs(bx * nn[:, 0] + by * nn[:, 1]).reshape(q.shape[:2])
+        best = np.argmax(g[:, 1:-1], axis=1) + 1
+        rows = np.arange(best.size)
+        before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
+        curvature = before - 2.0 * centre + after
+        shift = np.where(curvature < -1e-9,
+                         0.5 * (before - after) / np.where(curvature < -1e-9, curvature, -1.0),
+                         0.0)
+        ok = centre >= threshold
+        if np.count_nonzero(ok) < PROFILE_MIN_SHARE * ok.size:
+            return current
+        offset = steps[best] + np.clip(shift, -0.5, 0.5) * PROFILE_STEP_PX
+        peaks = pts + offset[:, None] * normals
+        peaks = peaks[ok]
+        fit = fit_ellipse(peaks)
+        if fit is None or not plausible(fit, shape):
+            return current
+        if round_ == PROFILE_ROUNDS - 1:
+            d = distances(ellipse_params([fit]), peaks)[0]
+            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(np.median(d)))
+            if np.count_nonzero(inliers) >= PROFILE_MIN_SHARE * ok.size:
+                fit = fit_ellipse(peaks[inliers]) or fit
+        current = fit if plausible(fit, shape) else current
     return current

@@ -56,7 +56,8 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     whole = Roi(u0=0, v0=0, u1=w, v1=h)
     small = cv2.resize(image, (max(1, w // DECIMATION), max(1, h // DECIMATION)),
                        interpolation=cv2.INTER_AREA)
-    level = small.max(axis=2) if small.ndim == 3 else small
+    level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
+             if small.ndim == 3 else small)
     if min(level.shape) < 3:
         return whole
     border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])

@@ -4,9 +4,11 @@ A circular face seen as an ellipse has two pose solutions (:func:`~stackpick_sim
 circle_poses`). Each predicts where the cylinder's side wall shows: the band swept by the rim
 moving into the object along the face normal, outside the face ellipse. The wall is the same
 material as the face, so in the image it has the face's hue (chromaticity); its brightness
-differs (the ring light meets it obliquely: darker when nearly upright, brighter than the
-face when tilted towards the light), so only the chromaticity is compared. On the wrong
-solution's side the band falls on the grey belt or on another object.
+differs: the ring light at the camera meets it obliquely, so it is darker than the face, at
+most about tan(tilt) of it (WALL_BRIGHTNESS_MARGIN). A sample counts as wall when it has the
+face's hue at a wall's brightness. On the wrong solution's side the band falls on the grey
+belt or on another object; a lower face of the same colour passes the hue test but is about
+as bright as the face, which no wall of a face tilted < 45 deg is.
 
 The solution whose predicted band matches better resolves the two-fold tilt ambiguity
 (:mod:`stackpick_sim.vision.pose`). (Tried and dropped: calling a face whose best band is
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, plane_basis
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 
 #: Depths along the axis, as fractions of the face radius, at which the band is sampled.
 #: The paper scene's squattest cylinder has height / radius = 0.03 / 0.035 = 0.86, so 0.6
@@ -43,10 +45,34 @@ CHROMA_TOLERANCE = 0.12
 #: A band sample darker than this share of the face's brightness carries no usable hue
 #: (deep shadow). An upright wall under the ring light measures ~0.27 of its face.
 MIN_RELATIVE_BRIGHTNESS = 0.12
+#: A wall sample may be at most tan(tilt) + this share of the face's brightness, the tilt
+#: being the face normal's angle to the viewing ray: under a ring light at the camera a
+#: Lambertian wall faces the light by at most sin(tilt) where the face does by cos(tilt).
+#: The margin covers ambient light on near-frontal walls (~0.2) and shading (measured on the
+#: development seeds: true walls at <= tan(tilt) + 0.2, the same-coloured lower faces that the
+#: other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4).
+WALL_BRIGHTNESS_MARGIN = 0.3
 #: Interior points whose median colour is the face's colour, at this share of the semi-axes.
 FACE_SAMPLE_SCALE = 0.5
 #: Interior sample count.
 FACE_SAMPLES = 16
+
+
+def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`stackpick_sim.geometry.plane_basis` (same vectors) on Python floats: numpy's
+    ``cross`` costs ~20 us a call, and the top rule and pose call this a few hundred times
+    a frame."""
+    n0, n1, n2 = (float(x) for x in normal)
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
+    if abs(n0) < 0.9:  # helper (1, 0, 0): u = n x e_x
+        u0, u1, u2 = 0.0, n2, -n1
+    else:  # helper (0, 1, 0): u = n x e_y
+        u0, u1, u2 = -n2, 0.0, n0
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    u0, u1, u2 = u0 / un, u1 / un, u2 / un
+    v = (n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0)
+    return np.array([u0, u1, u2]), np.array(v)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,5 +141,11 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     face_sum = max(float(colour.sum()), 1.0)
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    ok = (chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+    ray = centre_cam / max(float(np.linalg.norm(centre_cam)), 1e-12)
+    cos_tilt = min(1.0, abs(float(np.dot(normal_cam, ray))) / max(float(np.linalg.norm(normal_cam)),
+                                                                 1e-12))
+    tan_tilt = math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
+    brightest = (tan_tilt + WALL_BRIGHTNESS_MARGIN) * face_sum
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+          & (sums <= brightest))
     return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))

@@ -46,13 +46,16 @@ class TruthFace:
 @dataclass(frozen=True, kw_only=True)
 class BenchFrame:
     """One frame: ``image_rgb`` (H, W, 3) uint8 RGB, intrinsics, the depth range a caller knows
-    (metres along the optical axis, from the camera height above the belt) and the faces."""
+    (metres along the optical axis, from the camera height above the belt), the faces, and the
+    scene's object kinds as (radius m, (r, g, b) 0-1) pairs (a caller knows those too; empty
+    when unknown)."""
 
     seed: int
     image_rgb: NDArray[np.uint8]
     intrinsics: CameraIntrinsics
     depth_range_m: tuple[float, float]
     faces: tuple[TruthFace, ...]
+    kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -72,7 +75,9 @@ def depth_range(world_T_cam: NDArray[np.float64], belt_top_z: float) -> tuple[fl
 
 
 def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str, Any],
-                      belt_top_z: float) -> BenchFrame:
+                      belt_top_z: float,
+                      kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
+                      ) -> BenchFrame:
     """A BenchFrame from an RGB image and a ground-truth dict (FrameTruth JSON schema)."""
     k = record["intrinsics"]
     intr = CameraIntrinsics(fx=k["fx"], fy=k["fy"], cx=k["cx"], cy=k["cy"],
@@ -88,7 +93,7 @@ def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str,
             visible_fraction=float(o["visible_fraction"]), is_top=bool(o["is_top"])))
     rng = depth_range(np.asarray(record["world_T_cam"], float), belt_top_z)
     return BenchFrame(seed=seed, image_rgb=image_rgb, intrinsics=intr, depth_range_m=rng,
-                      faces=tuple(faces))
+                      faces=tuple(faces), kinds=kinds)
 
 
 def dataset_seeds(directory: Path) -> list[int]:
@@ -96,7 +101,9 @@ def dataset_seeds(directory: Path) -> list[int]:
     return sorted(int(p.stem) for p in directory.glob("*.json") if p.stem.isdigit())
 
 
-def load_frame(directory: Path, seed: int, belt_top_z: float) -> BenchFrame:
+def load_frame(directory: Path, seed: int, belt_top_z: float,
+               kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
+               ) -> BenchFrame:
     """Read frame ``seed`` of a data set directory; ImageError if its files are missing."""
     stem = directory / f"{seed:06d}"
     bgr = cv2.imread(f"{stem}.png", cv2.IMREAD_COLOR)
@@ -104,7 +111,26 @@ def load_frame(directory: Path, seed: int, belt_top_z: float) -> BenchFrame:
         raise ImageError(f"frame {seed} missing in {directory} (need {stem}.png and .json)")
     record = json.loads(Path(f"{stem}.json").read_text())
     rgb = np.ascontiguousarray(bgr[:, :, ::-1], dtype=np.uint8)
-    return frame_from_record(seed, rgb, record, belt_top_z)
+    return frame_from_record(seed, rgb, record, belt_top_z, kinds)
+
+
+def _kinds(types: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, float]], ...]:
+    """(radius, rgb) per object type of a scene's ``object_types`` table (JSON-shaped)."""
+    out = []
+    for t in types.values():
+        rgba = t["rgba"] if isinstance(t, dict) else t.rgba
+        radius = t["radius"] if isinstance(t, dict) else t.radius
+        out.append((float(radius), (float(rgba[0]), float(rgba[1]), float(rgba[2]))))
+    return tuple(out)
+
+
+def dataset_kinds(directory: Path) -> tuple[tuple[float, tuple[float, float, float]], ...]:
+    """Object kinds (radius, rgb) recorded in a data set's index.json; () if absent."""
+    index = directory / "index.json"
+    if not index.exists():
+        return ()
+    types = json.loads(index.read_text()).get("scene", {}).get("object_types", {})
+    return _kinds(types) if isinstance(types, dict) else ()
 
 
 def dataset_belt_z(directory: Path, default: float) -> float:
@@ -121,8 +147,9 @@ def iter_dataset(directory: Path, seeds: Sequence[int] | None,
     """Frames of a data set directory (all present, or the given seeds that are present)."""
     present = dataset_seeds(directory)
     wanted = present if seeds is None else [s for s in seeds if s in set(present)]
+    kinds = dataset_kinds(directory)
     for seed in wanted:
-        yield load_frame(directory, seed, belt_top_z)
+        yield load_frame(directory, seed, belt_top_z, kinds)
 
 
 def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFrame]:
@@ -134,4 +161,5 @@ def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFram
             _, image, truth = seeded_look_frame(cfg, seed)
         except SceneGenerationError:
             continue
-        yield frame_from_record(seed, image, truth.as_dict(), cfg.conveyor.top_z)
+        yield frame_from_record(seed, image, truth.as_dict(), cfg.conveyor.top_z,
+                                _kinds(dict(cfg.object_types)))

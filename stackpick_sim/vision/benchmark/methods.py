@@ -2,8 +2,10 @@
 
 * ``ours``: :class:`~stackpick_sim.vision.detector.TopObjectDetector` end to end.
 * ``rht``, ``findellipses``, ``edgedrawing``: a baseline ellipse detector, then the same top
-  rule (:func:`~stackpick_sim.vision.occlusion.select_top` over our edge map) and the same
-  pose solver as ours, so differences in success and pose come from the ellipses alone. Their
+  rule (:func:`~stackpick_sim.vision.occlusion.select_top` over our edge map, with the
+  intrinsics and, when the frame knows the object kinds, radii read from the faces' colours,
+  as ours) and the same pose solver as ours, so differences in success and pose come from
+  the ellipses (and ours' refits) alone. Their
   total time includes that edge map, the top rule and the pose; ``detector_ms`` is the
   baseline's own call.
 
@@ -28,7 +30,12 @@ from stackpick_sim.vision.baselines import (
 )
 from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.scoring import MethodOutput
-from stackpick_sim.vision.detector import DEFAULT_RADII_M, DetectorConfig, TopObjectDetector
+from stackpick_sim.vision.detector import (
+    DEFAULT_RADII_M,
+    DetectorConfig,
+    TopObjectDetector,
+    radius_by_colour,
+)
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import estimate_pose
@@ -46,9 +53,13 @@ class Method:
 
 
 def run_ours(frame: BenchFrame) -> MethodOutput:
-    """Our detector on one frame, with the frame's intrinsics and depth range."""
-    det = TopObjectDetector(DetectorConfig(intrinsics=frame.intrinsics,
-                                           depth_range_m=frame.depth_range_m))
+    """Our detector on one frame, with the frame's intrinsics, depth range and object kinds
+    (radii and colours) when known."""
+    kinds = frame.kinds
+    det = TopObjectDetector(DetectorConfig(
+        intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
+        radii_m=tuple(r for r, _ in kinds) if kinds else DEFAULT_RADII_M,
+        kind_colours=tuple(c for _, c in kinds) if kinds else None))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
@@ -72,13 +83,17 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         t1 = time.perf_counter()
         ellipses = tuple(s.ellipse for s in found)
         grad = edge_image(rgb)
-        choice = select_top(ellipses, grad)
+        radii = tuple(r for r, _ in frame.kinds) if frame.kinds else DEFAULT_RADII_M
+        radius_of = (radius_by_colour(rgb, radii, tuple(c for _, c in frame.kinds))
+                     if frame.kinds else None)
+        choice = select_top(ellipses, grad, frame.intrinsics, radius_of)
         pose = None
         top = None
         if choice.index is not None:
             top = ellipses[choice.index]
-            p = estimate_pose(top, frame.intrinsics, DEFAULT_RADII_M, None,
-                              frame.depth_range_m, image=rgb)
+            radius = None if radius_of is None else radius_of(top)
+            p = estimate_pose(top, frame.intrinsics, radii if radius is None else (radius,),
+                              None, frame.depth_range_m, image=rgb)
             pose = (p.x, p.y, p.theta_x_deg, p.theta_y_deg)
         t2 = time.perf_counter()
         return MethodOutput(ellipses=ellipses, top=top, pose=pose, total_ms=(t2 - t0) * 1e3,
