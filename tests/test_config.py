@@ -73,6 +73,9 @@ def test_scene_by_path(tmp_path: Path) -> None:
     ("conveyor.speed=-1", "conveyor.speed = -1.0 is out of range"),
     ("camera.noise_std=nan", "camera.noise_std = nan is out of range"),
     ("objects.types=['huge']", "objects.types names unknown type(s) ['huge']"),
+    ("objects.max_face_height=0.25", "objects.max_face_height = 0.25 is out of range; allowed: "
+     "above the lowest object's height (0.025 m) and at least 0.1 m below "
+     "camera.look_height (0.3 m)"),
     ("conveyor.speed", "is not of the form key=value"),
     ("conveyor.speed=0.2.3", "the value is not a TOML value; expected number"),
 ])

@@ -14,7 +14,7 @@ from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.conveyor import Conveyor
-from stackpick_sim.sim.ground_truth import TOP_VISIBLE_FRACTION
+from stackpick_sim.sim.ground_truth import TOP_VISIBLE_FRACTION, top_face
 from stackpick_sim.sim.snapshot import look_frame
 from stackpick_sim.sim.stacks import Scene, generate_scene
 
@@ -62,6 +62,7 @@ def test_pile_is_valid(paper_scenes: dict[int, Scene]) -> None:
         for obj in truth.objects:
             assert obj.on_belt
             assert obj.tilt_deg <= cfg.objects.max_tilt_deg
+            assert obj.face_center_world[2] - cfg.conveyor.top_z <= cfg.objects.max_face_height
             assert obj.ellipse is not None
         assert truth.top_objects, "a settled pile always has an object nothing rests on"
         for obj in truth.objects:
@@ -199,6 +200,19 @@ def test_objects_past_the_belt_end_are_removed_cleanly() -> None:
     for obj in cell.objects:  # parked at rest outside the cell
         assert cell.data.xpos[obj.body_id][0] < -1.0
     assert _warnings(cell.data) == {}
+
+
+def test_piles_taller_than_max_face_height_are_redrawn() -> None:
+    # Low enough that many piles have a face above it (a cylinder on top of two others).
+    cfg = load_scene("paper", ["objects.count=[3,3]", "objects.max_face_height=0.06"])
+    redrawn = 0
+    for seed in (0, 1, 2):
+        scene = generate_scene(cfg, seed)
+        redrawn += scene.rejections.get("face is above objects.max_face_height", 0)
+        for obj in scene.cell.objects:
+            centre, _ = top_face(scene.cell, obj, scene.cell.world_T_cam()[:3, 3])
+            assert centre[2] - cfg.conveyor.top_z <= 0.06
+    assert redrawn > 0
 
 
 def test_impossible_pile_gives_one_clear_error() -> None:

@@ -18,6 +18,9 @@ from stackpick_sim.exceptions import ConfigError
 #: A pile larger than this cannot be placed so that every face overlaps another object
 #: within the camera's view; rejection sampling would only spin.
 MAX_OBJECTS = 10
+#: The highest face must stay this far below the camera at the look pose, m (the camera's
+#: near clipping and a face that still fits the image).
+MIN_FACE_CLEARANCE = 0.1
 
 
 def _require(ok: bool, key: str, value: object, allowed: str) -> None:
@@ -112,6 +115,10 @@ class ObjectsCfg:
     """Horizontal spread of drop points around the pile centre, m."""
     centre_jitter: float = 0.02
     """Std of the pile centre's offset from the look point, m."""
+    max_face_height: float = 0.15
+    """Highest a top face's centre may lie above the belt, m: a pile with a higher face is
+    redrawn, and the detectors look for faces between this height and the belt (see
+    :func:`stackpick_sim.sim.cell.face_depth_range`)."""
 
     def __post_init__(self) -> None:
         lo, hi = self.count
@@ -126,6 +133,8 @@ class ObjectsCfg:
                  "objects.pile_radius", self.pile_radius, "0 to 0.1 m")
         _require(math.isfinite(self.centre_jitter) and 0 <= self.centre_jitter <= 0.05,
                  "objects.centre_jitter", self.centre_jitter, "0 to 0.05 m")
+        _require(math.isfinite(self.max_face_height) and 0.01 <= self.max_face_height <= 0.5,
+                 "objects.max_face_height", self.max_face_height, "0.01 to 0.5 m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -316,3 +325,9 @@ class SceneConfig:
         widest = max(2 * self.object_types[t].radius for t in self.objects.types)
         _require(widest < self.conveyor.width / 2, "conveyor.width", self.conveyor.width,
                  f"more than twice the widest object's diameter ({widest:.3f} m)")
+        lowest = min(self.object_types[t].height for t in self.objects.types)
+        top = self.camera.look_height - MIN_FACE_CLEARANCE
+        _require(lowest < self.objects.max_face_height <= top,
+                 "objects.max_face_height", self.objects.max_face_height,
+                 f"above the lowest object's height ({lowest:.3f} m) and at least "
+                 f"{MIN_FACE_CLEARANCE} m below camera.look_height ({self.camera.look_height} m)")

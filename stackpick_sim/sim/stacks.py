@@ -5,10 +5,11 @@ generator, cylinders are set down one by one onto the belt or onto the pile (nea
 cylinder, preferably one whose face overlaps nothing yet, nearly upright) and simulated, with
 a temporary viscous damping and MuJoCo's sleeping, until they rest; a drop that leaves a
 cylinder off the belt or tilted too far is undone and redrawn. A pile is accepted when, the
-damping and sleeping removed, it stays put, every cylinder rests on the belt or on
-others, no axis is tilted past ``objects.max_tilt_deg``, every top face lies inside the
-look-pose image and overlaps at least one other object's silhouette there, and it rides the
-running belt for a second without collapsing (checked from a saved state, then restored).
+damping and sleeping removed, it stays put, every cylinder rests on the belt or on others, no
+axis is tilted past ``objects.max_tilt_deg``, no face lies higher than
+``objects.max_face_height`` above the belt, every top face lies inside the look-pose image and
+overlaps at least one other object's silhouette there, and it rides the running belt for a
+second without collapsing (checked from a saved state, then restored).
 Same config and seed give the same settled state, bit for bit.
 """
 
@@ -229,6 +230,9 @@ def _face_problems(cell: Cell, upto: int) -> dict[int, str]:
             face = project_circle(r_wc.T @ (centre - p_wc), -(r_wc.T @ normal), obj.radius, k)
         except ValueError:
             problems[i] = f"{obj.name} is not in front of the camera"
+            continue
+        if centre[2] - cell.cfg.conveyor.top_z > cell.cfg.objects.max_face_height:
+            problems[i] = f"{obj.name}'s face is above objects.max_face_height"
             continue
         u0, v0, u1, v1 = face.bounds()
         if (u0 < IMAGE_MARGIN_PX or v0 < IMAGE_MARGIN_PX or u1 > k.width - 1 - IMAGE_MARGIN_PX
