@@ -16,6 +16,8 @@ at the noise level, so hidden arcs remain gaps.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,6 +86,76 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     padded = np.concatenate([best[-(k // 2):], best, best[: k // 2]])
     smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
     return np.abs(smooth) / SOBEL_GAIN
+
+
+@dataclass(frozen=True, kw_only=True)
+class Outlines:
+    """The :func:`outline` samples of several ellipses, concatenated.
+
+    ``points``, ``normals``: (N, 2) px and unit outward normals; ``offsets``: (E + 1,) int,
+    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``owner``: (N,) ellipse index of
+    each sample; ``local``: (N,) its index along its own outline.
+    """
+
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    offsets: NDArray[np.int64]
+    owner: NDArray[np.int64]
+    local: NDArray[np.int64]
+
+    @property
+    def counts(self) -> NDArray[np.int64]:
+        """(E,) samples per ellipse."""
+        return np.diff(self.offsets)
+
+    def cyclic(self, shift: int) -> NDArray[np.int64]:
+        """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
+        counts = self.counts[self.owner]
+        return np.asarray(self.offsets[self.owner] + (self.local + shift) % counts, np.int64)
+
+
+def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
+    """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
+    counts = np.array([max(16, math.ceil(perimeter_px(e))) for e in ellipses], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    owner = np.repeat(np.arange(len(ellipses)), counts)
+    local = np.arange(int(offsets[-1])) - offsets[owner]
+    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg)), 2.0 * np.pi / n]
+                    for e, n in zip(ellipses, counts, strict=True)], np.float64).reshape(-1, 7)
+    cx, cy, a, b, c, s, step = (geo[owner, i] for i in range(7))
+    t = local * step
+    ct, st = np.cos(t), np.sin(t)
+    x, y = a * ct, b * st
+    pts = np.stack([cx + c * x - s * y, cy + s * x + c * y], axis=1)
+    nx, ny = b * ct, a * st
+    norm = np.hypot(nx, ny)
+    nx, ny = nx / norm, ny / norm
+    normals = np.stack([c * nx - s * ny, s * nx + c * ny], axis=1)
+    return Outlines(points=pts, normals=normals, offsets=offsets, owner=owner, local=local)
+
+
+def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
+    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass."""
+    pts, normals = lines.points, lines.normals
+    h, w = image.gx.shape
+    offsets = np.asarray(NORMAL_OFFSETS_PX)[:, None, None]
+    q = np.rint(pts[None, :, :] + offsets * normals[None, :, :]).astype(np.int64)  # (k, n, 2)
+    u, v = q[..., 0], q[..., 1]
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    np.clip(u, 0, w - 1, out=u)
+    np.clip(v, 0, h - 1, out=v)
+    flat = v * w + u
+    g = (image.gx.ravel()[flat] * normals[None, :, 0]
+         + image.gy.ravel()[flat] * normals[None, :, 1])
+    g = np.where(inside, g, 0.0)
+    best = np.take_along_axis(g, np.argmax(np.abs(g), axis=0)[None, :], axis=0)[0]
+    k = WINDOW_SAMPLES
+    total = best.copy()
+    for shift in range(-(k // 2), k // 2 + 1):
+        if shift:
+            total += best[lines.cyclic(shift)]
+    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
 
 
 def contrast_threshold(image: EdgeImage) -> float:
