@@ -44,7 +44,7 @@ from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
     PROFILE_REACH_PX,
     edge_points,
-    refine,
+    refine_all,
     refine_on_profile,
     refine_subpixel,
 )
@@ -180,7 +180,8 @@ class TopObjectDetector:
         merged = merge_segments(chains, fits, edges)
         t = lap("merging", t)
         points, grads = edge_points(grad)
-        merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
+        refined = refine_all([m.ellipse for m in merged], points, grads, crop)
+        merged = [replace(m, ellipse=e) for m, e in zip(merged, refined, strict=True)]
         k = self._intrinsics(shape)
         gate = self._axis_range(k)
         if gate is not None:

@@ -88,6 +88,32 @@ def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float6
     return np.abs(q) / grad
 
 
+def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
+    """(E, N) bool: :func:`distances` < ``tol_px``, evaluated only for the points inside each
+    ellipse's bounding square grown by the tolerance (the others are farther off)."""
+    p = np.asarray(points, np.float64)
+    reach = params[:, 2:3] + tol_px + 1.0
+    e, n = np.nonzero((np.abs(p[None, :, 0] - params[:, 0:1]) <= reach)
+                      & (np.abs(p[None, :, 1] - params[:, 1:2]) <= reach))
+    out = np.zeros((params.shape[0], p.shape[0]), bool)
+    out[e, n] = pair_distances(params, p, e, n) < tol_px
+    return out
+
+
+def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
+                   which: NDArray[np.int64], at: NDArray[np.int64]) -> NDArray[np.float64]:
+    """(K,) :func:`distances` of points ``at`` (K,) of (N, 2) ``points`` to ellipses ``which``
+    (K,) of (E, 5) ``params``: one distance per (ellipse, point) pair."""
+    q = params[which]
+    cx, cy, a, b, t = (q[:, i] for i in range(5))
+    du, dv = points[at, 0] - cx, points[at, 1] - cy
+    c, s = np.cos(t), np.sin(t)
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
+    return np.asarray(np.abs(x * x + y * y - 1.0) / grad, np.float64)
+
+
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
     """RMS Sampson distance (px) of (N, 2) points to ``ellipse``."""
     d = distances(ellipse_params([ellipse]), points)[0]

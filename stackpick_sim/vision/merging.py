@@ -22,13 +22,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import outlines
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     distances,
     ellipse_params,
     fit_ellipse,
+    pair_distances,
     plausible,
     rms_residual,
+    within,
 )
 
 #: Eq. 3 threshold k on C = N_{A/B} N_{B/A}. Two halves of one face extrapolate ~1 px off
@@ -87,25 +90,29 @@ def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]
     return out
 
 
-def _pertain_matrix(params: NDArray[np.float64], points: NDArray[np.float64],
-                    owner: NDArray[np.int64], n_groups: int) -> NDArray[np.float64]:
-    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b."""
-    on = (distances(params, points) < MERGE_TOLERANCE_PX).astype(np.float64)
-    onehot = np.zeros((points.shape[0], n_groups))
-    onehot[np.arange(points.shape[0]), owner] = 1.0
+def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArray[np.float64]:
+    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
+    if not ellipses:
+        return np.zeros(0)
+    lines = outlines(ellipses)  # the boundary_samples of each ellipse
+    pts = np.rint(lines.points).astype(np.int64)
+    h, w = support.shape
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    ok = np.zeros(pts.shape[0], bool)
+    ok[inside] = support[pts[inside, 1], pts[inside, 0]] > 0
+    return np.asarray(np.bincount(lines.owner, weights=ok, minlength=len(ellipses))
+                      / lines.counts, np.float64)
+
+
+def _pertain_matrix(on: NDArray[np.bool_], owner: NDArray[np.int64], n_groups: int
+                    ) -> NDArray[np.float64]:
+    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b, from
+    ``on`` (G, N) (pixel within tolerance of each group's ellipse) and ``owner`` (N,) the
+    group of each pixel (0..G-1)."""
+    onehot = np.zeros((owner.shape[0], n_groups))
+    onehot[np.arange(owner.shape[0]), owner] = 1.0
     counts = onehot.sum(axis=0)
-    return (on @ onehot) / np.maximum(counts, 1.0)
-
-
-def _keeps_members(merged: Ellipse, points: NDArray[np.float64], owner: NDArray[np.int64],
-                   groups: tuple[int, int]) -> bool:
-    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse.
-
-    A low RMS residual alone lets a big ellipse pass between the arcs of two different
-    faces; requiring each part to stay on the union's ellipse does not.
-    """
-    d = distances(ellipse_params([merged]), points)[0] < MERGE_TOLERANCE_PX
-    return all(float(d[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
+    return np.asarray((on @ onehot) / np.maximum(counts, 1.0), np.float64)
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
@@ -115,6 +122,9 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
     ellipse) for those that fitted on their own (one segment may appear once per piece);
     ``edges`` the (H, W) 0/1 edge map. Returns ellipses sorted by support, best first.
+
+    Each group's row of pixel distances is computed once, when its ellipse is (re)fitted; a
+    refused pair changes nothing, so the next best pair is read off the same counts.
     """
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     if not fits:
@@ -124,36 +134,56 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     seg_of_piece = np.array([i for i, _ in fits])
     points = np.vstack([chains[i] for i in seg_of_piece]).astype(np.float64)
     owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
+    on = within(ellipse_params([e for _, e in fits]), points, MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
-    while True:
+    changed = True
+    while changed:
+        changed = False
         alive = [g for g, e in enumerate(ellipses) if e is not None]
         if len(alive) < 2:
             break
-        params = ellipse_params([ellipses[g] for g in alive])  # type: ignore[misc]
         remap = -np.ones(len(ellipses), np.int64)
         remap[alive] = np.arange(len(alive))
-        n = _pertain_matrix(params, points, remap[owner], len(alive))
+        n = _pertain_matrix(on[alive], remap[owner], len(alive))
         c = n * n.T
         np.fill_diagonal(c, 0.0)
         for i, j in refused:
             if remap[i] >= 0 and remap[j] >= 0:
                 c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
-        best = int(np.argmax(c))
-        bi, bj = divmod(best, len(alive))
-        if c[bi, bj] <= MERGE_K:
+        while True:
+            best = int(np.argmax(c))
+            bi, bj = divmod(best, len(alive))
+            if c[bi, bj] <= MERGE_K:
+                break
+            gi, gj = alive[bi], alive[bj]
+            in_union = (owner == gi) | (owner == gj)
+            merged = fit_ellipse(points[in_union])
+            d = (None if merged is None or not plausible(merged, shape)
+                 else distances(ellipse_params([merged]), points)[0])
+            if (merged is None or d is None
+                    or float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
+                    or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, (gi, gj))):
+                refused.add((gi, gj))
+                c[bi, bj] = c[bj, bi] = 0.0
+                continue
+            ellipses[gi], ellipses[gj] = merged, None
+            members[gi] += members[gj]
+            owner[owner == gj] = gi
+            on[gi] = d < MERGE_TOLERANCE_PX
+            changed = True
             break
-        gi, gj = alive[bi], alive[bj]
-        union = points[(owner == gi) | (owner == gj)]
-        merged = fit_ellipse(union)
-        if (merged is None or not plausible(merged, shape)
-                or rms_residual(merged, union) > MERGE_MAX_RESIDUAL_PX
-                or not _keeps_members(merged, points, owner, (gi, gj))):
-            refused.add((gi, gj))
-            continue
-        ellipses[gi], ellipses[gj] = merged, None
-        members[gi] += members[gj]
-        owner[owner == gj] = gi
     return _absorb_and_validate(chains, members, ellipses, edges)
+
+
+def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
+                   ) -> bool:
+    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse
+    (``on``: (N,) pixel within tolerance of it).
+
+    A low RMS residual alone lets a big ellipse pass between the arcs of two different
+    faces; requiring each part to stay on the union's ellipse does not.
+    """
+    return all(float(on[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
 
 
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
@@ -165,31 +195,46 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         return []
     all_points = np.vstack(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
-    params = ellipse_params([e for _, e in groups])
-    on = distances(params, all_points) < MERGE_TOLERANCE_PX
+    on = within(ellipse_params([e for _, e in groups]), all_points, MERGE_TOLERANCE_PX)
     lengths = np.array([c.shape[0] for c in chains], np.float64)
-    hits = np.stack([np.bincount(seg_id, weights=row, minlength=len(chains)) for row in on])
+    g_on, p_on = np.nonzero(on)
+    hits = np.bincount(g_on * len(chains) + seg_id[p_on],
+                       minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
     frac = hits / lengths[None, :]
-    support = support_map(edges)
     shape = (int(edges.shape[0]), int(edges.shape[1]))
-    out: list[MergedEllipse] = []
+    starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    finals: list[tuple[list[int], Ellipse, float | None]] = []
     for g, (segs, ellipse) in enumerate(groups):
         extra = [int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
+        if not extra:
+            finals.append((segs, ellipse, None))  # residual on its own segments, below
+            continue
         segs_all = segs + extra
         pts = np.vstack([chains[s] for s in segs_all]).astype(np.float64)
-        refit = fit_ellipse(pts) if extra else ellipse
+        refit = fit_ellipse(pts)
         if refit is not None and plausible(refit, shape):
             residual = rms_residual(refit, pts)
             if residual <= MAX_RESIDUAL_PX:
-                ellipse = refit
-            else:
-                segs_all, pts = segs, np.vstack([chains[s] for s in segs]).astype(np.float64)
-                residual = rms_residual(ellipse, pts)
+                finals.append((segs_all, refit, residual))
+                continue
+            finals.append((segs, ellipse, None))
         else:
-            residual = rms_residual(ellipse, pts)
-        share = float(np.mean(supported(ellipse, support)))
-        if share >= MIN_SUPPORT:
-            out.append(MergedEllipse(ellipse=ellipse, segments=tuple(segs_all),
-                                     residual_px=residual, support=share))
+            finals.append((segs_all, ellipse, rms_residual(ellipse, pts)))
+    # The residuals still missing, for all those groups at once.
+    todo = [k for k, (_, _, r) in enumerate(finals) if r is None]
+    residuals = {k: r for k, (_, _, r) in enumerate(finals) if r is not None}
+    if todo:
+        at = np.concatenate([np.arange(starts[s], starts[s + 1]) for k in todo
+                             for s in finals[k][0]])
+        which = np.repeat(np.arange(len(todo)), [sum(chains[s].shape[0] for s in finals[k][0])
+                                                 for k in todo])
+        d = pair_distances(ellipse_params([finals[k][1] for k in todo]), all_points, which, at)
+        ms = np.bincount(which, weights=d * d, minlength=len(todo)) / np.bincount(
+            which, minlength=len(todo))
+        residuals.update({k: float(np.sqrt(m)) for k, m in zip(todo, ms, strict=True)})
+    shares = support_shares([e for _, e, _ in finals], support_map(edges))
+    out = [MergedEllipse(ellipse=e, segments=tuple(segs), residual_px=residuals[k],
+                         support=float(shares[k]))
+           for k, (segs, e, _) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
     out.sort(key=lambda m: -m.support)
     return out

@@ -123,20 +123,58 @@ def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
            shape: tuple[int, int]) -> Ellipse:
     """Refit ``ellipse`` on the edge pixels (M, 2) with gradients (M, 2) along it."""
-    reach = ellipse.a + TOLERANCES_PX[0] + 1
-    near = (np.abs(points[:, 0] - ellipse.cx) <= reach) & (np.abs(points[:, 1] - ellipse.cy)
-                                                            <= reach)
-    pts, g = points[near], grads[near]
-    current = ellipse
+    return refine_all([ellipse], points, grads, shape)[0]
+
+
+def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
+               grads: NDArray[np.float64], shape: tuple[int, int]) -> list[Ellipse]:
+    """:func:`refine` of every ellipse, in lockstep: each round collects the pixels along
+    all current fits in one pass over (ellipse, pixel) pairs, then refits each ellipse that
+    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone)."""
+    current = list(ellipses)
+    if not current or points.shape[0] == 0:
+        return current
+    reach = np.array([e.a for e in current]) + TOLERANCES_PX[0] + 1
+    cx = np.array([e.cx for e in current])
+    cy = np.array([e.cy for e in current])
+    pe, pm = np.nonzero((np.abs(points[None, :, 0] - cx[:, None]) <= reach[:, None])
+                        & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
+    pts, g = points[pm], grads[pm]
+    active = np.ones(len(current), bool)
     for tol in TOLERANCES_PX:
-        kept, _ = _along(current, pts, g, tol)
-        if kept.shape[0] < MIN_PIXELS:
+        live = active[pe]
+        idx = np.flatnonzero(live)
+        keep = _along_pairs(current, pe[idx], pts[idx], g[idx], tol)
+        sel = idx[keep]
+        bounds = np.searchsorted(pe[sel], np.arange(len(current) + 1))
+        for e in np.flatnonzero(active).tolist():
+            kept = pts[sel[bounds[e]:bounds[e + 1]]]
+            fit = fit_ellipse(kept) if kept.shape[0] >= MIN_PIXELS else None
+            if fit is None or not plausible(fit, shape):
+                active[e] = False
+                continue
+            current[e] = fit
+        if not active.any():
             break
-        fit = fit_ellipse(kept)
-        if fit is None or not plausible(fit, shape):
-            break
-        current = fit
     return current
+
+
+def _along_pairs(ellipses: list[Ellipse], which: NDArray[np.int64], pts: NDArray[np.float64],
+                 grads: NDArray[np.float64], tol_px: float) -> NDArray[np.bool_]:
+    """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel (K, 2), unit gradient
+    (K, 2)) pairs."""
+    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
+    cx, cy, a, b, c, s = (geo[which, i] for i in range(6))
+    du, dv = pts[:, 0] - cx, pts[:, 1] - cy
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    gx, gy = x / a, y / b
+    norm = np.sqrt(gx * gx + gy * gy)
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
+    cos = np.abs((c * gx - s * gy) * grads[:, 0] + (s * gx + c * gy) * grads[:, 1])
+    return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
+                      np.bool_)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
