@@ -33,7 +33,7 @@ from stackpick_sim.vision.edges import (
     edge_image,
     unblurred_gradients,
 )
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_or_split, plausible
+from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, plausible
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_samples,
@@ -171,10 +171,9 @@ class TopObjectDetector:
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
-        for chain in segs.chains:
-            for points, ellipse, _ in fit_or_split(chain, crop):
-                fits.append((len(pieces), ellipse))
-                pieces.append(points)
+        for _, points, ellipse, _ in fit_all(segs.chains, crop):
+            fits.append((len(pieces), ellipse))
+            pieces.append(points)
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
         merged = merge_segments(chains, fits, edges)

@@ -14,6 +14,7 @@ residual tests and the merging counts look at.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -166,3 +167,65 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
     half = points.shape[0] // 2
     return (fit_or_split(points[:half], shape, depth - 1)
             + fit_or_split(points[half:], shape, depth - 1))
+
+
+def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
+            ) -> list[tuple[int, NDArray, Ellipse, float]]:
+    """:func:`fit_or_split` of every chain, level by level: the straightness test and the
+    residuals of all pieces of one level are one array pass each (only the direct fit runs
+    per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
+    order :func:`fit_or_split` gives them chain after chain."""
+    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
+    found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
+    for level in range(depth + 1):
+        if not pending:
+            break
+        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
+        bows = _bows([p[2] for p in long_enough])
+        fitted: list[tuple[tuple[int, str], NDArray, Ellipse]] = []
+        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
+        for p, bow in zip(long_enough, bows, strict=True):
+            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
+            if e is None or not plausible(e, shape):
+                failed.append(p)
+            else:
+                fitted.append(((p[0], p[1]), p[2], e))
+        if fitted:
+            pts = np.vstack([f[1] for f in fitted]).astype(np.float64)
+            which = np.repeat(np.arange(len(fitted)), [f[1].shape[0] for f in fitted])
+            d = pair_distances(ellipse_params([f[2] for f in fitted]), pts, which,
+                               np.arange(pts.shape[0]))
+            rms = np.sqrt(np.bincount(which, weights=d * d) / np.bincount(which))
+            for f, r in zip(fitted, rms.tolist(), strict=True):
+                if r > MAX_RESIDUAL_PX:
+                    failed.append((f[0][0], f[0][1], f[1]))
+                else:
+                    found.append((f[0], f[1], f[2], r))
+        pending = []
+        if level == depth:
+            break
+        for i, path, pts_ in failed:
+            if pts_.shape[0] >= 2 * MIN_FIT_PX:
+                half = pts_.shape[0] // 2
+                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+    found.sort(key=lambda f: f[0])
+    return [(key[0], pts_, e, r) for key, pts_, e, r in found]
+
+
+def _bows(pieces: list[NDArray]) -> list[float]:
+    """:func:`bow_px` of each piece (N_i, 2), in one pass."""
+    if not pieces:
+        return []
+    p = np.vstack(pieces).astype(np.float64)
+    counts = np.array([q.shape[0] for q in pieces])
+    which = np.repeat(np.arange(len(pieces)), counts)
+    mean_u = np.bincount(which, weights=p[:, 0]) / counts
+    mean_v = np.bincount(which, weights=p[:, 1]) / counts
+    cu, cv = p[:, 0] - mean_u[which], p[:, 1] - mean_v[which]
+    sxx = np.bincount(which, weights=cu * cu)
+    syy = np.bincount(which, weights=cv * cv)
+    sxy = np.bincount(which, weights=cu * cv)
+    n = np.maximum(1, counts)
+    half_trace, det = 0.5 * (sxx + syy) / n, (sxx * syy - sxy * sxy) / (n * n)
+    smallest = half_trace - np.sqrt(np.maximum(0.0, half_trace * half_trace - det))
+    return np.sqrt(np.maximum(0.0, smallest)).tolist()
