@@ -15,6 +15,7 @@ at the noise level, so hidden arcs remain gaps.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -46,13 +47,24 @@ def perimeter_px(ellipse: Ellipse) -> float:
     return math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
 
 
+@functools.lru_cache(maxsize=1024)
+def unit_circle(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(cos t, sin t), each (n,), of n parameters t evenly spaced on [0, 2 pi) (read-only;
+    cached: outlines of a few hundred sizes are sampled many times a frame, and float64
+    trigonometry costs ~10 ns a value)."""
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    ct.setflags(write=False)
+    st.setflags(write=False)
+    return ct, st
+
+
 def outline(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(n, 2) points about 1 px apart along the ellipse and their (n, 2) unit outward normals."""
     n = max(16, math.ceil(perimeter_px(ellipse)))
-    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     th = math.radians(ellipse.angle_deg)
     c, s = math.cos(th), math.sin(th)
-    ct, st = np.cos(t), np.sin(t)
+    ct, st = unit_circle(n)
     x, y = ellipse.a * ct, ellipse.b * st
     pts = np.stack([ellipse.cx + c * x - s * y, ellipse.cy + s * x + c * y], axis=1)
     nx, ny = ellipse.b * ct, ellipse.a * st  # gradient of the implicit form, scaled by a*b
@@ -121,11 +133,12 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     owner = np.repeat(np.arange(len(ellipses)), counts)
     local = np.arange(int(offsets[-1])) - offsets[owner]
     geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
-                     math.sin(math.radians(e.angle_deg)), 2.0 * np.pi / n]
-                    for e, n in zip(ellipses, counts, strict=True)], np.float64).reshape(-1, 7)
-    cx, cy, a, b, c, s, step = (geo[owner, i] for i in range(7))
-    t = local * step
-    ct, st = np.cos(t), np.sin(t)
+                     math.sin(math.radians(e.angle_deg))]
+                    for e in ellipses], np.float64).reshape(-1, 6)
+    cx, cy, a, b, c, s = (geo[owner, i] for i in range(6))
+    tables = [unit_circle(int(n)) for n in counts]
+    ct = np.concatenate([t[0] for t in tables])
+    st = np.concatenate([t[1] for t in tables])
     x, y = a * ct, b * st
     pts = np.stack([cx + c * x - s * y, cy + s * x + c * y], axis=1)
     nx, ny = b * ct, a * st

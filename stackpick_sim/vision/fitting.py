@@ -106,9 +106,9 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
     """(K,) :func:`distances` of points ``at`` (K,) of (N, 2) ``points`` to ellipses ``which``
     (K,) of (E, 5) ``params``: one distance per (ellipse, point) pair."""
     q = params[which]
-    cx, cy, a, b, t = (q[:, i] for i in range(5))
+    cx, cy, a, b = (q[:, i] for i in range(4))
     du, dv = points[at, 0] - cx, points[at, 1] - cy
-    c, s = np.cos(t), np.sin(t)
+    c, s = np.cos(params[:, 4])[which], np.sin(params[:, 4])[which]
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12

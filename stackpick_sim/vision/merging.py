@@ -14,7 +14,6 @@ circumference that edge pixels support.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import cv2
@@ -22,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision.contrast import outlines
+from stackpick_sim.vision.contrast import outline, outlines
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     distances,
@@ -74,10 +73,7 @@ def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
 def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
     """(n, 2) points about 1 px apart along the ellipse (Ramanujan's perimeter)."""
-    a, b = ellipse.a, ellipse.b
-    h = ((a - b) / (a + b)) ** 2
-    perimeter = math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
-    return ellipse.points(max(16, math.ceil(perimeter)))
+    return outline(ellipse)[0]
 
 
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:

@@ -53,8 +53,7 @@ def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np
     wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
     out = []
     for img in (gx, gy):
-        f = img.ravel()[idx].astype(np.float64)
-        out.append(np.asarray((f * wts).sum(axis=0), np.float64))
+        out.append(np.asarray((img.ravel()[idx] * wts).sum(axis=0), np.float64))
     return out[0], out[1]
 
 
@@ -63,11 +62,8 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     """(N, 2) edge pixels (u, v) moved to the gradient-magnitude peak along (N, 2) unit
     gradient directions: a parabola through the magnitudes one pixel either side
     (Devernay's sub-pixel Canny, with bilinear sampling)."""
-    mags = []
-    for step in (-1.0, 0.0, 1.0):
-        q = pts + step * dirs
-        mags.append(np.hypot(*_bilinear_pair(image.gx, image.gy, q)))
-    before, centre, after = mags
+    q = np.concatenate([pts + step * dirs for step in (-1.0, 0.0, 1.0)])
+    before, centre, after = np.hypot(*_bilinear_pair(image.gx, image.gy, q)).reshape(3, -1)
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
     shift = np.zeros(pts.shape[0])
