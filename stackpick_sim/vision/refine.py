@@ -23,6 +23,7 @@ from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_threshold, outline
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params, fit_ellipse, plausible
+from stackpick_sim.vision.wall import column_median
 
 #: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
 #: ~2 px off on its far side, the last matches the merge tolerance.
@@ -229,7 +230,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
             return current
         if round_ == PROFILE_ROUNDS - 1:
             d = distances(ellipse_params([fit]), peaks)[0]
-            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(np.median(d)))
+            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
             if np.count_nonzero(inliers) >= PROFILE_MIN_SHARE * ok.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape) else current

@@ -75,6 +75,14 @@ def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
     return np.array([u0, u1, u2]), np.array(v)
 
 
+def column_median(values: NDArray) -> NDArray[np.float64]:
+    """Median of each column of an (N, ...) array, N >= 1: ``np.median(values, axis=0)``
+    from one sort (numpy's median costs ~10x more on the few values read here)."""
+    ordered = np.sort(np.asarray(values, np.float64), axis=0)
+    n = ordered.shape[0]
+    return np.asarray(0.5 * (ordered[(n - 1) // 2] + ordered[n // 2]), np.float64)
+
+
 @dataclass(frozen=True, kw_only=True)
 class WallEvidence:
     """Band samples a solution predicts outside the face (``samples``) and the share of them
@@ -94,7 +102,7 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float6
     h, w = image.shape[:2]
     np.clip(u, 0, w - 1, out=u)
     np.clip(v, 0, h - 1, out=v)
-    return np.asarray(np.median(image[v, u].astype(np.float64), axis=0), np.float64)
+    return column_median(image[v, u].astype(np.float64))
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
