@@ -127,14 +127,18 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     e3, e1 = evecs[:, 0], evecs[:, 2]
     g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
     h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
-    k_inv_t = np.linalg.inv(k).T
+    # K^-1 of a pinhole, written out (numpy's inv and solve cost ~20 us each on 3x3).
+    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    k_inv_t = np.array([[1.0 / fx, 0.0, 0.0], [0.0, 1.0 / fy, 0.0],
+                        [-cx / fx, -cy / fy, 1.0]])
     conic_inv = np.linalg.inv(conic)
     out = []
     for sign in (1.0, -1.0):
         n = sign * g * e1 + h * e3
         n = n if n[2] > 0 else -n
         centre_px = conic_inv @ (k_inv_t @ n)
-        ray = np.linalg.solve(k, centre_px / centre_px[2])
+        pu, pv = float(centre_px[0] / centre_px[2]), float(centre_px[1] / centre_px[2])
+        ray = np.array([(pu - cx) / fx, (pv - cy) / fy, 1.0])
         x0 = ray / float(n @ ray)  # circle centre on the plane n . X = 1
         u, _ = plane_basis(n)
         s2 = -float(x0 @ q @ x0) / float(u @ q @ u)

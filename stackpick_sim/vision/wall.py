@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.contrast import unit_circle
 
 #: Depths along the axis, as fractions of the face radius, at which the band is sampled.
 #: The paper scene's squattest cylinder has height / radius = 0.03 / 0.035 = 0.86, so 0.6
@@ -115,10 +116,12 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
     u, v = plane_basis(normal_cam)
-    t = np.linspace(0.0, 2.0 * np.pi, WALL_RIM_POINTS, endpoint=False)
-    rim = centre_cam + np.outer(np.cos(t), u) + np.outer(np.sin(t), v)
-    depth = np.repeat(np.asarray(depths), WALL_RIM_POINTS)[:, None]
-    pts = intrinsics.project(np.tile(rim, (len(depths), 1)) + depth * normal_cam)
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    rim = centre_cam + ct[:, None] * u[None, :] + st[:, None] * v[None, :]
+    depth = np.asarray(depths)[:, None, None]
+    band = (rim[None, :, :] + depth * np.asarray(normal_cam)[None, None, :]).reshape(-1, 3)
+    pts = np.stack([intrinsics.fx * band[:, 0] / band[:, 2] + intrinsics.cx,
+                    intrinsics.fy * band[:, 1] / band[:, 2] + intrinsics.cy], axis=1)
     th = math.radians(ellipse.angle_deg)
     du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
     x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
