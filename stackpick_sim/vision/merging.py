@@ -29,7 +29,6 @@ from stackpick_sim.vision.fitting import (
     fit_ellipse,
     pair_distances,
     plausible,
-    rms_residual,
     within,
 )
 
@@ -199,38 +198,48 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     frac = hits / lengths[None, :]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    finals: list[tuple[list[int], Ellipse, float | None]] = []
+
+    def pixels(segs: list[int]) -> NDArray[np.int64]:
+        return np.concatenate([np.arange(starts[s], starts[s + 1]) for s in segs])
+
+    def rms(pairs: list[tuple[Ellipse, list[int]]]) -> list[float]:
+        """RMS residual of each (ellipse, segments) pair, all in one pass."""
+        if not pairs:
+            return []
+        at = [pixels(segs) for _, segs in pairs]
+        which = np.repeat(np.arange(len(pairs)), [x.size for x in at])
+        d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which,
+                           np.concatenate(at))
+        return np.sqrt(np.bincount(which, weights=d * d) / np.bincount(which)).tolist()
+
+    # Refit each group with the segments lying on it; residuals of all refits at once.
+    extras = [[int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
+              for g, (segs, _) in enumerate(groups)]
+    refits: dict[int, Ellipse | None] = {}
+    for g, (segs, _) in enumerate(groups):
+        if extras[g]:
+            refit = fit_ellipse(all_points[pixels(segs + extras[g])])
+            refits[g] = refit if refit is not None and plausible(refit, shape) else None
+    tried = [g for g, r in refits.items() if r is not None]
+    refit_rms = dict(zip(tried, rms([(e, groups[g][0] + extras[g]) for g in tried
+                                     if (e := refits[g]) is not None]), strict=True))
+    finals: list[tuple[list[int], Ellipse]] = []
+    residuals: dict[int, float] = {}
     for g, (segs, ellipse) in enumerate(groups):
-        extra = [int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
-        if not extra:
-            finals.append((segs, ellipse, None))  # residual on its own segments, below
-            continue
-        segs_all = segs + extra
-        pts = np.vstack([chains[s] for s in segs_all]).astype(np.float64)
-        refit = fit_ellipse(pts)
-        if refit is not None and plausible(refit, shape):
-            residual = rms_residual(refit, pts)
-            if residual <= MAX_RESIDUAL_PX:
-                finals.append((segs_all, refit, residual))
-                continue
-            finals.append((segs, ellipse, None))
+        refit = refits.get(g)
+        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
+            finals.append((segs + extras[g], refit))
+            residuals[g] = refit_rms[g]
+        elif g in refits and refit is None:
+            finals.append((segs + extras[g], ellipse))  # the fit failed: keep all, as fitted
         else:
-            finals.append((segs_all, ellipse, rms_residual(ellipse, pts)))
-    # The residuals still missing, for all those groups at once.
-    todo = [k for k, (_, _, r) in enumerate(finals) if r is None]
-    residuals = {k: r for k, (_, _, r) in enumerate(finals) if r is not None}
-    if todo:
-        at = np.concatenate([np.arange(starts[s], starts[s + 1]) for k in todo
-                             for s in finals[k][0]])
-        which = np.repeat(np.arange(len(todo)), [sum(chains[s].shape[0] for s in finals[k][0])
-                                                 for k in todo])
-        d = pair_distances(ellipse_params([finals[k][1] for k in todo]), all_points, which, at)
-        ms = np.bincount(which, weights=d * d, minlength=len(todo)) / np.bincount(
-            which, minlength=len(todo))
-        residuals.update({k: float(np.sqrt(m)) for k, m in zip(todo, ms, strict=True)})
-    shares = support_shares([e for _, e, _ in finals], support_map(edges))
+            finals.append((segs, ellipse))
+    todo = [g for g in range(len(finals)) if g not in residuals]
+    residuals.update(zip(todo, rms([(finals[g][1], finals[g][0]) for g in todo]),
+                         strict=True))
+    shares = support_shares([e for _, e in finals], support_map(edges))
     out = [MergedEllipse(ellipse=e, segments=tuple(segs), residual_px=residuals[k],
                          support=float(shares[k]))
-           for k, (segs, e, _) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
+           for k, (segs, e) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
     out.sort(key=lambda m: -m.support)
     return out
