@@ -191,13 +191,15 @@ class TopObjectDetector:
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
-        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
+        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
+                                edge_points=points)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
+                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
+                                    edge_points=points)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],

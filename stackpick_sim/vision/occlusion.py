@@ -226,7 +226,8 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
 
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
-               radius_of: Callable[[Ellipse], float | None] | None = None) -> TopChoice:
+               radius_of: Callable[[Ellipse], float | None] | None = None, *,
+               edge_points: NDArray[np.float64] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -236,16 +237,18 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:mod:`stackpick_sim.vision.wall_cover`). With ``intrinsics`` and ``radius_of`` (an
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others by DEPTH_TIE_M. Returns the chosen index (else the
-    best-supported unoccluded ellipse) or None with the reason.
+    best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
+    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
-    binary = (np.asarray(edge_map) > 0).astype(np.uint8)
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
+    binary = (np.asarray(edge_map) > 0).astype(np.uint8)
     support = None if gradients is not None else support_map(binary)
-    vv, uu = np.nonzero(binary)
-    edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
+    if edge_points is None:
+        vv, uu = np.nonzero(binary)
+        edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
     evidence = evidence_all(ellipses, edge_points, support, gradients)
     candidates = [i for i, ev in enumerate(evidence) if not ev.occluded]
     if not candidates:

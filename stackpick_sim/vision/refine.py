@@ -91,7 +91,7 @@ def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float
     """(M, 2) edge pixels (u, v) and their (M, 2) unit gradient directions."""
     vv, uu = np.nonzero(image.edges)
     g = np.stack([image.gx[vv, uu], image.gy[vv, uu]], axis=1).astype(np.float64)
-    g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-9)
+    g /= np.maximum(np.hypot(g[:, 0], g[:, 1]), 1e-9)[:, None]
     return np.stack([uu, vv], axis=1).astype(np.float64), g
 
 
@@ -162,7 +162,7 @@ def _along_pairs(ellipses: list[Ellipse], which: NDArray[np.int64], pts: NDArray
     (K, 2)) pairs."""
     geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
                      math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    cx, cy, a, b, c, s = (geo[which, i] for i in range(6))
+    cx, cy, a, b, c, s = geo[which].T
     du, dv = pts[:, 0] - cx, pts[:, 1] - cy
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
