@@ -41,7 +41,8 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
     if points.shape[0] < 5:
         return None
     (cx, cy), (w, h), angle = cv2.fitEllipseDirect(np.asarray(points, np.float32))
-    if not (np.isfinite(cx) and np.isfinite(cy) and w > 0 and h > 0 and np.isfinite(angle)):
+    if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
+            and math.isfinite(angle)):
         return None
     if w >= h:
         a, b, ang = w / 2.0, h / 2.0, angle

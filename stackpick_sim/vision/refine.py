@@ -138,6 +138,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                         & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
     pts, g = points[pm], grads[pm]
     active = np.ones(len(current), bool)
+    previous: dict[int, NDArray[np.int64]] = {}
     for tol in TOLERANCES_PX:
         live = active[pe]
         idx = np.flatnonzero(live)
@@ -145,7 +146,11 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
         sel = idx[keep]
         bounds = np.searchsorted(pe[sel], np.arange(len(current) + 1))
         for e in np.flatnonzero(active).tolist():
-            kept = pts[sel[bounds[e]:bounds[e + 1]]]
+            mine = sel[bounds[e]:bounds[e + 1]]
+            if e in previous and np.array_equal(mine, previous[e]):
+                continue  # the same pixels as the fit in hand: the same fit
+            previous[e] = mine
+            kept = pts[mine]
             fit = fit_ellipse(kept) if kept.shape[0] >= MIN_PIXELS else None
             if fit is None or not plausible(fit, shape):
                 active[e] = False
