@@ -50,8 +50,9 @@ def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np
     u0, v0 = u.astype(np.int64), v.astype(np.int64)
     fu, fv = u - u0, v - v0
     i00 = v0 * w + u0
-    idx = np.stack([i00, i00 + 1, i00 + w, i00 + w + 1])
-    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
+    idx = i00[None, :] + np.array([0, 1, w, w + 1])[:, None]
+    gu, gv = 1 - fu, 1 - fv
+    wts = np.stack([gu * gv, fu * gv, gu * fv, fu * fv])
     out = []
     for img in (gx, gy):
         out.append(np.asarray((img.ravel()[idx] * wts).sum(axis=0), np.float64))
@@ -213,10 +214,9 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     for round_ in range(PROFILE_ROUNDS):
         pts, normals = outline(current)
         q = pts[:, None, :] + steps[None, :, None] * normals[:, None, :]  # (n, k, 2)
-        flat = q.reshape(-1, 2)
-        nn = np.repeat(normals, steps.size, axis=0)
-        bx, by = _bilinear_pair(image.gx, image.gy, flat)
-        g = np.abs(bx * nn[:, 0] + by * nn[:, 1]).reshape(q.shape[:2])
+        bx, by = _bilinear_pair(image.gx, image.gy, q.reshape(-1, 2))
+        g = np.abs(bx.reshape(q.shape[:2]) * normals[:, 0:1]
+                   + by.reshape(q.shape[:2]) * normals[:, 1:2])
         best = np.argmax(g[:, 1:-1], axis=1) + 1
         rows = np.arange(best.size)
         before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
