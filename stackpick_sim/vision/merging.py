@@ -167,7 +167,11 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             on[gi] = d < MERGE_TOLERANCE_PX
             changed = True
             break
-    return _absorb_and_validate(chains, members, ellipses, edges)
+    # The pieces' rows of pixel distances stay valid for absorbing when they lead ``chains``.
+    alive = [g for g, e in enumerate(ellipses) if e is not None]
+    leading = bool(np.array_equal(seg_of_piece, np.arange(len(fits))))
+    return _absorb_and_validate(chains, members, ellipses, edges,
+                                on[alive] if leading else None)
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
@@ -182,15 +186,22 @@ def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tupl
 
 
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
-                         ellipses: list[Ellipse | None], edges: NDArray[np.uint8]
-                         ) -> list[MergedEllipse]:
-    """Add leftover segments lying on each final ellipse, refit, keep supported ones."""
+                         ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
+                         known: NDArray[np.bool_] | None = None) -> list[MergedEllipse]:
+    """Add leftover segments lying on each final ellipse, refit, keep supported ones.
+
+    ``known``: (G, K) whether each of the first K pixels of ``chains`` lies on each final
+    ellipse, when already computed."""
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
     all_points = np.vstack(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
-    on = within(ellipse_params([e for _, e in groups]), all_points, MERGE_TOLERANCE_PX)
+    params = ellipse_params([e for _, e in groups])
+    if known is None:
+        on = within(params, all_points, MERGE_TOLERANCE_PX)
+    else:
+        on = np.hstack([known, within(params, all_points[known.shape[1]:], MERGE_TOLERANCE_PX)])
     lengths = np.array([c.shape[0] for c in chains], np.float64)
     g_on, p_on = np.nonzero(on)
     hits = np.bincount(g_on * len(chains) + seg_id[p_on],
