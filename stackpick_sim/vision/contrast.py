@@ -115,15 +115,20 @@ class Outlines:
     owner: NDArray[np.int64]
     local: NDArray[np.int64]
 
-    @property
+    @functools.cached_property
     def counts(self) -> NDArray[np.int64]:
         """(E,) samples per ellipse."""
         return np.diff(self.offsets)
 
+    @functools.cached_property
+    def _starts_and_counts(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(N,) first sample and sample count of each sample's own outline."""
+        return self.offsets[self.owner], self.counts[self.owner]
+
     def cyclic(self, shift: int) -> NDArray[np.int64]:
         """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
-        counts = self.counts[self.owner]
-        return np.asarray(self.offsets[self.owner] + (self.local + shift) % counts, np.int64)
+        starts, counts = self._starts_and_counts
+        return np.asarray(starts + (self.local + shift) % counts, np.int64)
 
 
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
@@ -154,10 +159,8 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     h, w = image.gx.shape
     offsets = np.asarray(NORMAL_OFFSETS_PX)[:, None, None]
     q = np.rint(pts[None, :, :] + offsets * normals[None, :, :]).astype(np.int64)  # (k, n, 2)
-    u, v = q[..., 0], q[..., 1]
-    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    np.clip(u, 0, w - 1, out=u)
-    np.clip(v, 0, h - 1, out=v)
+    u, v = np.clip(q[..., 0], 0, w - 1), np.clip(q[..., 1], 0, h - 1)
+    inside = (u == q[..., 0]) & (v == q[..., 1])
     flat = v * w + u
     g = (image.gx.ravel()[flat] * normals[None, :, 0]
          + image.gy.ravel()[flat] * normals[None, :, 1])
