@@ -6,10 +6,12 @@ their union still fits; the best pair merges first and the counts are recomputed
 merge until no pair qualifies (the product is symmetric, so a short arc whose own ellipse is
 poorly constrained cannot absorb a long one by accident).
 
-All pair counts come from one (groups x pixels) boolean matrix and one matrix product per
+All pair counts come from one (groups x pixels) boolean matrix, whose row for a group is
+computed once per (re)fit and only for the pixels near its ellipse, and one matrix product per
 round. Afterwards every edge segment too short to have been fitted on its own is absorbed by
 the ellipse its pixels lie on, and each final ellipse is validated by the share of its
-circumference that edge pixels support.
+circumference that edge pixels support; residuals and support of all final ellipses are
+computed together.
 """
 
 from __future__ import annotations

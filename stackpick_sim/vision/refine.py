@@ -5,7 +5,8 @@ an arc can carry a few pixels of another outline, or miss a faint stretch of its
 every edge pixel near the ellipse whose gradient is roughly normal to it is collected and the
 ellipse refitted, a few times with a shrinking tolerance (an ICP-like loop). Pixels of other
 outlines crossing the ellipse are rejected by the gradient test; those running alongside it
-by the shrinking tolerance.
+by the shrinking tolerance. All ellipses are refined in lockstep (:func:`refine_all`): each
+round tests all (ellipse, nearby pixel) pairs in one array pass.
 
 The top face's final fit is sub-pixel twice: Canny's pixels moved to the gradient peak
 (:func:`refine_subpixel`), then the gradient peaks read across the whole predicted outline,
