@@ -95,9 +95,9 @@ class WallEvidence:
 
 def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float64]:
     """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image."""
-    t = np.linspace(0.0, 2.0 * np.pi, FACE_SAMPLES, endpoint=False)
+    ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
-    x, y = FACE_SAMPLE_SCALE * ellipse.a * np.cos(t), FACE_SAMPLE_SCALE * ellipse.b * np.sin(t)
+    x, y = FACE_SAMPLE_SCALE * ellipse.a * ct, FACE_SAMPLE_SCALE * ellipse.b * st
     u = np.rint(ellipse.cx + math.cos(th) * x - math.sin(th) * y).astype(np.int64)
     v = np.rint(ellipse.cy + math.sin(th) * x + math.cos(th) * y).astype(np.int64)
     h, w = image.shape[:2]
@@ -152,9 +152,12 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     face_sum = max(float(colour.sum()), 1.0)
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    ray = centre_cam / max(float(np.linalg.norm(centre_cam)), 1e-12)
-    cos_tilt = min(1.0, abs(float(np.dot(normal_cam, ray))) / max(float(np.linalg.norm(normal_cam)),
-                                                                 1e-12))
+    # Three-vectors: Python floats (numpy's norm and dot cost more than the arithmetic).
+    c0, c1, c2 = (float(x) for x in centre_cam)
+    n0, n1, n2 = (float(x) for x in normal_cam)
+    c_norm = max(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2), 1e-12)
+    n_norm = max(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2), 1e-12)
+    cos_tilt = min(1.0, abs((n0 * c0 + n1 * c1 + n2 * c2) / c_norm) / n_norm)
     tan_tilt = math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
     brightest = (tan_tilt + WALL_BRIGHTNESS_MARGIN) * face_sum
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
