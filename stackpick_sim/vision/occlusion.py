@@ -244,9 +244,12 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
-    binary = (np.asarray(edge_map) > 0).astype(np.uint8)
-    support = None if gradients is not None else support_map(binary)
+    binary = None
+    if gradients is None or edge_points is None:
+        binary = (np.asarray(edge_map) > 0).astype(np.uint8)
+    support = None if gradients is not None or binary is None else support_map(binary)
     if edge_points is None:
+        assert binary is not None
         vv, uu = np.nonzero(binary)
         edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
     evidence = evidence_all(ellipses, edge_points, support, gradients)
