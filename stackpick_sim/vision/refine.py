@@ -129,7 +129,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                grads: NDArray[np.float64], shape: tuple[int, int]) -> list[Ellipse]:
     """:func:`refine` of every ellipse, in lockstep: each round collects the pixels along
     all current fits in one pass over (ellipse, pixel) pairs, then refits each ellipse that
-    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone)."""
+    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone).
+    A fit on the same pixels as the fit in hand is not repeated."""
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
@@ -138,22 +139,26 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     cy = np.array([e.cy for e in current])
     pe, pm = np.nonzero((np.abs(points[None, :, 0] - cx[:, None]) <= reach[:, None])
                         & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
-    pts, g = points[pm], grads[pm]
+    # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
+    columns = (points[pm, 0], points[pm, 1], grads[pm, 0], grads[pm, 1])
     active = np.ones(len(current), bool)
     previous: dict[int, NDArray[np.int64]] = {}
     for tol in TOLERANCES_PX:
-        live = active[pe]
-        idx = np.flatnonzero(live)
-        keep = _along_pairs(current, pe[idx], pts[idx], g[idx], tol)
-        sel = idx[keep]
+        if active.all():
+            idx, which, cols = None, pe, columns
+        else:
+            idx = np.flatnonzero(active[pe])
+            which, cols = pe[idx], tuple(c[idx] for c in columns)
+        keep = _along_columns(current, which, cols, tol)
+        sel = np.flatnonzero(keep) if idx is None else idx[keep]
         bounds = np.searchsorted(pe[sel], np.arange(len(current) + 1))
         for e in np.flatnonzero(active).tolist():
             mine = sel[bounds[e]:bounds[e + 1]]
             if e in previous and np.array_equal(mine, previous[e]):
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = mine
-            kept = pts[mine]
-            fit = fit_ellipse(kept) if kept.shape[0] >= MIN_PIXELS else None
+            fit = (fit_ellipse(np.stack([columns[0][mine], columns[1][mine]], axis=1))
+                   if mine.size >= MIN_PIXELS else None)
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
@@ -163,20 +168,21 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     return current
 
 
-def _along_pairs(ellipses: list[Ellipse], which: NDArray[np.int64], pts: NDArray[np.float64],
-                 grads: NDArray[np.float64], tol_px: float) -> NDArray[np.bool_]:
-    """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel (K, 2), unit gradient
-    (K, 2)) pairs."""
-    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
+                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
+    """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel) pairs given as
+    columns (u, v, gu, gv), each (K,): pixel and unit gradient."""
+    geo = np.array([[e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(math.radians(e.angle_deg)),
                      math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    cx, cy, a, b, c, s = geo[which].T
-    du, dv = pts[:, 0] - cx, pts[:, 1] - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    gx, gy = x / a, y / b
+    cx, cy, ia, ib, c, s = (np.ascontiguousarray(geo[:, i])[which] for i in range(6))
+    u, v, gu, gv = cols
+    du, dv = u - cx, v - cy
+    x = (c * du + s * dv) * ia
+    y = (-s * du + c * dv) * ib
+    gx, gy = x * ia, y * ib
     norm = np.sqrt(gx * gx + gy * gy)
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
-    cos = np.abs((c * gx - s * gy) * grads[:, 0] + (s * gx + c * gy) * grads[:, 1])
+    cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
     return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
                       np.bool_)
 
