@@ -106,9 +106,8 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
                    which: NDArray[np.int64], at: NDArray[np.int64]) -> NDArray[np.float64]:
     """(K,) :func:`distances` of points ``at`` (K,) of (N, 2) ``points`` to ellipses ``which``
     (K,) of (E, 5) ``params``: one distance per (ellipse, point) pair."""
-    q = params[which]
-    cx, cy, a, b = (q[:, i] for i in range(4))
-    du, dv = points[at, 0] - cx, points[at, 1] - cy
+    cx, cy, a, b = (params[:, i][which] for i in range(4))  # contiguous per column
+    du, dv = points[:, 0][at] - cx, points[:, 1][at] - cy
     c, s = np.cos(params[:, 4])[which], np.sin(params[:, 4])[which]
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b

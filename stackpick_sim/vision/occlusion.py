@@ -143,13 +143,13 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
                      math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    cx, cy, a, b, c, s = (geo[:, i : i + 1] for i in range(6))
+    cx, cy, a = (geo[:, i : i + 1] for i in range(3))
     reach = a + JUNCTION_RADIUS_PX + 1
     du = edge_points[None, :, 0] - cx
     dv = edge_points[None, :, 1] - cy
     pe, pm = np.nonzero((np.abs(du) <= reach) & (np.abs(dv) <= reach))  # local pairs
     pdu, pdv = du[pe, pm], dv[pe, pm]
-    pc, ps, pa, pb = c[pe, 0], s[pe, 0], a[pe, 0], b[pe, 0]
+    pc, ps, pa, pb = (geo[:, i][pe] for i in (4, 5, 2, 3))  # contiguous per column
     xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
     x, y = xr / pa, yr / pb
     # Sampson distance, as fitting.distances.
