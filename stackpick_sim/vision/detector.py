@@ -192,7 +192,7 @@ class TopObjectDetector:
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                edge_points=points)
+                            edge_points=points)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
