@@ -116,7 +116,7 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
     radius = 1.0
     k = intrinsics.K
-    conic = ellipse.conic()
+    conic = _conic(ellipse)
     q = k.T @ conic @ k
     q = 0.5 * (q + q.T)
     evals, evecs = np.linalg.eigh(q)
@@ -141,13 +141,26 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
         ray = np.array([(pu - cx) / fx, (pv - cy) / fy, 1.0])
         x0 = ray / float(n @ ray)  # circle centre on the plane n . X = 1
         u, _ = plane_basis(n)
-        s2 = -float(x0 @ q @ x0) / float(u @ q @ u)
+        s2 = -float(x0 @ (q @ x0)) / float(u @ (q @ u))
         scale = radius / math.sqrt(max(s2, 1e-300))
         centre = x0 * scale
         n.setflags(write=False)
         centre.setflags(write=False)
         out.append(CirclePose(normal_cam=n, centre_cam=centre))
     return out[0], out[1]
+
+
+def _conic(ellipse: Ellipse) -> NDArray[np.float64]:
+    """:meth:`~stackpick_sim.geometry.Ellipse.conic`, written out on Python floats (the
+    matrix products on 2x2 arrays cost more than the arithmetic)."""
+    t = math.radians(ellipse.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / ellipse.a ** 2, 1.0 / ellipse.b ** 2
+    m00, m01, m11 = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
+    d0 = -(m00 * ellipse.cx + m01 * ellipse.cy)
+    d1 = -(m01 * ellipse.cx + m11 * ellipse.cy)
+    f = -(d0 * ellipse.cx + d1 * ellipse.cy) - 1.0
+    return np.array([[m00, m01, d0], [m01, m11, d1], [d0, d1, f]])
 
 
 def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,
