@@ -219,11 +219,13 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         """RMS residual of each (ellipse, segments) pair, all in one pass."""
         if not pairs:
             return []
-        at = [pixels(segs) for _, segs in pairs]
-        which = np.repeat(np.arange(len(pairs)), [x.size for x in at])
-        d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which,
-                           np.concatenate(at))
-        return np.sqrt(np.bincount(which, weights=d * d) / np.bincount(which)).tolist()
+        chosen = np.zeros((len(pairs), len(chains)), bool)
+        for k, (_, segs) in enumerate(pairs):
+            chosen[k, segs] = True
+        which, at = np.nonzero(chosen[:, seg_id])
+        d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which, at)
+        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
+                       / np.bincount(which, minlength=len(pairs))).tolist()
 
     # Refit each group with the segments lying on it; residuals of all refits at once.
     extras = [[int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
