@@ -15,7 +15,10 @@ at the noise level, so hidden arcs remain gaps.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,13 +47,24 @@ def perimeter_px(ellipse: Ellipse) -> float:
     return math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
 
 
+@functools.lru_cache(maxsize=1024)
+def unit_circle(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(cos t, sin t), each (n,), of n parameters t evenly spaced on [0, 2 pi) (read-only;
+    cached: outlines of a few hundred sizes are sampled many times a frame, and float64
+    trigonometry costs ~10 ns a value)."""
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    ct.setflags(write=False)
+    st.setflags(write=False)
+    return ct, st
+
+
 def outline(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(n, 2) points about 1 px apart along the ellipse and their (n, 2) unit outward normals."""
     n = max(16, math.ceil(perimeter_px(ellipse)))
-    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     th = math.radians(ellipse.angle_deg)
     c, s = math.cos(th), math.sin(th)
-    ct, st = np.cos(t), np.sin(t)
+    ct, st = unit_circle(n)
     x, y = ellipse.a * ct, ellipse.b * st
     pts = np.stack([ellipse.cx + c * x - s * y, ellipse.cy + s * x + c * y], axis=1)
     nx, ny = ellipse.b * ct, ellipse.a * st  # gradient of the implicit form, scaled by a*b
@@ -84,6 +98,80 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     padded = np.concatenate([best[-(k // 2):], best, best[: k // 2]])
     smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
     return np.abs(smooth) / SOBEL_GAIN
+
+
+@dataclass(frozen=True, kw_only=True)
+class Outlines:
+    """The :func:`outline` samples of several ellipses, concatenated.
+
+    ``points``, ``normals``: (N, 2) px and unit outward normals; ``offsets``: (E + 1,) int,
+    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``owner``: (N,) ellipse index of
+    each sample; ``local``: (N,) its index along its own outline.
+    """
+
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    offsets: NDArray[np.int64]
+    owner: NDArray[np.int64]
+    local: NDArray[np.int64]
+
+    @functools.cached_property
+    def counts(self) -> NDArray[np.int64]:
+        """(E,) samples per ellipse."""
+        return np.diff(self.offsets)
+
+    @functools.cached_property
+    def _starts_and_counts(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(N,) first sample and sample count of each sample's own outline."""
+        return self.offsets[self.owner], self.counts[self.owner]
+
+    def cyclic(self, shift: int) -> NDArray[np.int64]:
+        """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
+        starts, counts = self._starts_and_counts
+        return np.asarray(starts + (self.local + shift) % counts, np.int64)
+
+
+def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
+    """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
+    counts = np.array([max(16, math.ceil(perimeter_px(e))) for e in ellipses], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    owner = np.repeat(np.arange(len(ellipses)), counts)
+    local = np.arange(int(offsets[-1])) - offsets[owner]
+    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg))]
+                    for e in ellipses], np.float64).reshape(-1, 6)
+    cx, cy, a, b, c, s = (geo[owner, i] for i in range(6))
+    tables = [unit_circle(int(n)) for n in counts]
+    ct = np.concatenate([t[0] for t in tables])
+    st = np.concatenate([t[1] for t in tables])
+    x, y = a * ct, b * st
+    pts = np.stack([cx + c * x - s * y, cy + s * x + c * y], axis=1)
+    nx, ny = b * ct, a * st
+    norm = np.hypot(nx, ny)
+    nx, ny = nx / norm, ny / norm
+    normals = np.stack([c * nx - s * ny, s * nx + c * ny], axis=1)
+    return Outlines(points=pts, normals=normals, offsets=offsets, owner=owner, local=local)
+
+
+def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
+    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass."""
+    pts, normals = lines.points, lines.normals
+    h, w = image.gx.shape
+    offsets = np.asarray(NORMAL_OFFSETS_PX)[:, None, None]
+    q = np.rint(pts[None, :, :] + offsets * normals[None, :, :]).astype(np.int64)  # (k, n, 2)
+    u, v = np.clip(q[..., 0], 0, w - 1), np.clip(q[..., 1], 0, h - 1)
+    inside = (u == q[..., 0]) & (v == q[..., 1])
+    flat = v * w + u
+    g = (image.gx.ravel()[flat] * normals[None, :, 0]
+         + image.gy.ravel()[flat] * normals[None, :, 1])
+    g = np.where(inside, g, 0.0)
+    best = np.take_along_axis(g, np.argmax(np.abs(g), axis=0)[None, :], axis=0)[0]
+    k = WINDOW_SAMPLES
+    total = best.copy()
+    for shift in range(-(k // 2), k // 2 + 1):
+        if shift:
+            total += best[lines.cyclic(shift)]
+    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

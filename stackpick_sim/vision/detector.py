@@ -33,7 +33,7 @@ from stackpick_sim.vision.edges import (
     edge_image,
     unblurred_gradients,
 )
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_or_split, plausible
+from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, plausible
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_samples,
@@ -44,7 +44,7 @@ from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
     PROFILE_REACH_PX,
     edge_points,
-    refine,
+    refine_all,
     refine_on_profile,
     refine_subpixel,
 )
@@ -171,16 +171,16 @@ class TopObjectDetector:
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
-        for chain in segs.chains:
-            for points, ellipse, _ in fit_or_split(chain, crop):
-                fits.append((len(pieces), ellipse))
-                pieces.append(points)
+        for _, points, ellipse, _ in fit_all(segs.chains, crop):
+            fits.append((len(pieces), ellipse))
+            pieces.append(points)
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
         merged = merge_segments(chains, fits, edges)
         t = lap("merging", t)
         points, grads = edge_points(grad)
-        merged = [replace(m, ellipse=refine(m.ellipse, points, grads, crop)) for m in merged]
+        refined = refine_all([m.ellipse for m in merged], points, grads, crop)
+        merged = [replace(m, ellipse=e) for m, e in zip(merged, refined, strict=True)]
         k = self._intrinsics(shape)
         gate = self._axis_range(k)
         if gate is not None:
@@ -191,13 +191,15 @@ class TopObjectDetector:
         k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
-        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
+        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
+                            edge_points=points)
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of)
+                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
+                                    edge_points=points)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],

@@ -83,8 +83,11 @@ def as_rgb_or_gray(image: NDArray) -> NDArray[np.uint8]:
 
 def _l1(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> NDArray[np.int16]:
     """|dx| + |dy| saturated to int16 (a cheap gradient magnitude for ranking channels)."""
-    zero = np.zeros_like(dx)
-    return np.asarray(cv2.add(cv2.absdiff(dx, zero), cv2.absdiff(dy, zero)), np.int16)
+    # A scalar 0, not a zero image: the same result at a third of the cost (OpenCV takes a
+    # scalar operand; its type stubs do not say so).
+    ax = cv2.absdiff(dx, 0)  # type: ignore[call-overload]
+    ay = cv2.absdiff(dy, 0)  # type: ignore[call-overload]
+    return np.asarray(cv2.add(ax, ay), np.int16)
 
 
 def colour_gradients(blurred: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:

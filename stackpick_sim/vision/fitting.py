@@ -14,6 +14,7 @@ residual tests and the merging counts look at.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -40,7 +41,8 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
     if points.shape[0] < 5:
         return None
     (cx, cy), (w, h), angle = cv2.fitEllipseDirect(np.asarray(points, np.float32))
-    if not (np.isfinite(cx) and np.isfinite(cy) and w > 0 and h > 0 and np.isfinite(angle)):
+    if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
+            and math.isfinite(angle)):
         return None
     if w >= h:
         a, b, ang = w / 2.0, h / 2.0, angle
@@ -86,6 +88,31 @@ def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float6
     q = x * x + y * y - 1.0
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
     return np.abs(q) / grad
+
+
+def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
+    """(E, N) bool: :func:`distances` < ``tol_px``, evaluated only for the points inside each
+    ellipse's bounding square grown by the tolerance (the others are farther off)."""
+    p = np.asarray(points, np.float64)
+    reach = params[:, 2:3] + tol_px + 1.0
+    e, n = np.nonzero((np.abs(p[None, :, 0] - params[:, 0:1]) <= reach)
+                      & (np.abs(p[None, :, 1] - params[:, 1:2]) <= reach))
+    out = np.zeros((params.shape[0], p.shape[0]), bool)
+    out[e, n] = pair_distances(params, p, e, n) < tol_px
+    return out
+
+
+def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
+                   which: NDArray[np.int64], at: NDArray[np.int64]) -> NDArray[np.float64]:
+    """(K,) :func:`distances` of points ``at`` (K,) of (N, 2) ``points`` to ellipses ``which``
+    (K,) of (E, 5) ``params``: one distance per (ellipse, point) pair."""
+    cx, cy, a, b = (params[:, i][which] for i in range(4))  # contiguous per column
+    du, dv = points[:, 0][at] - cx, points[:, 1][at] - cy
+    c, s = np.cos(params[:, 4])[which], np.sin(params[:, 4])[which]
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
+    return np.asarray(np.abs(x * x + y * y - 1.0) / grad, np.float64)
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
@@ -140,3 +167,65 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
     half = points.shape[0] // 2
     return (fit_or_split(points[:half], shape, depth - 1)
             + fit_or_split(points[half:], shape, depth - 1))
+
+
+def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
+            ) -> list[tuple[int, NDArray, Ellipse, float]]:
+    """:func:`fit_or_split` of every chain, level by level: the straightness test and the
+    residuals of all pieces of one level are one array pass each (only the direct fit runs
+    per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
+    order :func:`fit_or_split` gives them chain after chain."""
+    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
+    found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
+    for level in range(depth + 1):
+        if not pending:
+            break
+        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
+        bows = _bows([p[2] for p in long_enough])
+        fitted: list[tuple[tuple[int, str], NDArray, Ellipse]] = []
+        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
+        for p, bow in zip(long_enough, bows, strict=True):
+            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
+            if e is None or not plausible(e, shape):
+                failed.append(p)
+            else:
+                fitted.append(((p[0], p[1]), p[2], e))
+        if fitted:
+            pts = np.vstack([f[1] for f in fitted]).astype(np.float64)
+            which = np.repeat(np.arange(len(fitted)), [f[1].shape[0] for f in fitted])
+            d = pair_distances(ellipse_params([f[2] for f in fitted]), pts, which,
+                               np.arange(pts.shape[0]))
+            rms = np.sqrt(np.bincount(which, weights=d * d) / np.bincount(which))
+            for f, r in zip(fitted, rms.tolist(), strict=True):
+                if r > MAX_RESIDUAL_PX:
+                    failed.append((f[0][0], f[0][1], f[1]))
+                else:
+                    found.append((f[0], f[1], f[2], r))
+        pending = []
+        if level == depth:
+            break
+        for i, path, pts_ in failed:
+            if pts_.shape[0] >= 2 * MIN_FIT_PX:
+                half = pts_.shape[0] // 2
+                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+    found.sort(key=lambda f: f[0])
+    return [(key[0], pts_, e, r) for key, pts_, e, r in found]
+
+
+def _bows(pieces: list[NDArray]) -> list[float]:
+    """:func:`bow_px` of each piece (N_i, 2), in one pass."""
+    if not pieces:
+        return []
+    p = np.vstack(pieces).astype(np.float64)
+    counts = np.array([q.shape[0] for q in pieces])
+    which = np.repeat(np.arange(len(pieces)), counts)
+    mean_u = np.bincount(which, weights=p[:, 0]) / counts
+    mean_v = np.bincount(which, weights=p[:, 1]) / counts
+    cu, cv = p[:, 0] - mean_u[which], p[:, 1] - mean_v[which]
+    sxx = np.bincount(which, weights=cu * cu)
+    syy = np.bincount(which, weights=cv * cv)
+    sxy = np.bincount(which, weights=cu * cv)
+    n = np.maximum(1, counts)
+    half_trace, det = 0.5 * (sxx + syy) / n, (sxx * syy - sxy * sxy) / (n * n)
+    smallest = half_trace - np.sqrt(np.maximum(0.0, half_trace * half_trace - det))
+    return np.sqrt(np.maximum(0.0, smallest)).tolist()

@@ -6,15 +6,16 @@ their union still fits; the best pair merges first and the counts are recomputed
 merge until no pair qualifies (the product is symmetric, so a short arc whose own ellipse is
 poorly constrained cannot absorb a long one by accident).
 
-All pair counts come from one (groups x pixels) boolean matrix and one matrix product per
+All pair counts come from one (groups x pixels) boolean matrix, whose row for a group is
+computed once per (re)fit and only for the pixels near its ellipse, and one matrix product per
 round. Afterwards every edge segment too short to have been fitted on its own is absorbed by
 the ellipse its pixels lie on, and each final ellipse is validated by the share of its
-circumference that edge pixels support.
+circumference that edge pixels support; residuals and support of all final ellipses are
+computed together.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import cv2
@@ -22,13 +23,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import outline, outlines
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     distances,
     ellipse_params,
     fit_ellipse,
+    pair_distances,
     plausible,
-    rms_residual,
+    within,
 )
 
 #: Eq. 3 threshold k on C = N_{A/B} N_{B/A}. Two halves of one face extrapolate ~1 px off
@@ -71,10 +74,7 @@ def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
 def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
     """(n, 2) points about 1 px apart along the ellipse (Ramanujan's perimeter)."""
-    a, b = ellipse.a, ellipse.b
-    h = ((a - b) / (a + b)) ** 2
-    perimeter = math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
-    return ellipse.points(max(16, math.ceil(perimeter)))
+    return outline(ellipse)[0]
 
 
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:
@@ -87,25 +87,29 @@ def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]
     return out
 
 
-def _pertain_matrix(params: NDArray[np.float64], points: NDArray[np.float64],
-                    owner: NDArray[np.int64], n_groups: int) -> NDArray[np.float64]:
-    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b."""
-    on = (distances(params, points) < MERGE_TOLERANCE_PX).astype(np.float64)
-    onehot = np.zeros((points.shape[0], n_groups))
-    onehot[np.arange(points.shape[0]), owner] = 1.0
+def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArray[np.float64]:
+    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
+    if not ellipses:
+        return np.zeros(0)
+    lines = outlines(ellipses)  # the boundary_samples of each ellipse
+    pts = np.rint(lines.points).astype(np.int64)
+    h, w = support.shape
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    ok = np.zeros(pts.shape[0], bool)
+    ok[inside] = support[pts[inside, 1], pts[inside, 0]] > 0
+    return np.asarray(np.bincount(lines.owner, weights=ok, minlength=len(ellipses))
+                      / lines.counts, np.float64)
+
+
+def _pertain_matrix(on: NDArray[np.bool_], owner: NDArray[np.int64], n_groups: int
+                    ) -> NDArray[np.float64]:
+    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b, from
+    ``on`` (G, N) (pixel within tolerance of each group's ellipse) and ``owner`` (N,) the
+    group of each pixel (0..G-1)."""
+    onehot = np.zeros((owner.shape[0], n_groups))
+    onehot[np.arange(owner.shape[0]), owner] = 1.0
     counts = onehot.sum(axis=0)
-    return (on @ onehot) / np.maximum(counts, 1.0)
-
-
-def _keeps_members(merged: Ellipse, points: NDArray[np.float64], owner: NDArray[np.int64],
-                   groups: tuple[int, int]) -> bool:
-    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse.
-
-    A low RMS residual alone lets a big ellipse pass between the arcs of two different
-    faces; requiring each part to stay on the union's ellipse does not.
-    """
-    d = distances(ellipse_params([merged]), points)[0] < MERGE_TOLERANCE_PX
-    return all(float(d[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
+    return np.asarray((on @ onehot) / np.maximum(counts, 1.0), np.float64)
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
@@ -115,6 +119,9 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
     ellipse) for those that fitted on their own (one segment may appear once per piece);
     ``edges`` the (H, W) 0/1 edge map. Returns ellipses sorted by support, best first.
+
+    Each group's row of pixel distances is computed once, when its ellipse is (re)fitted; a
+    refused pair changes nothing, so the next best pair is read off the same counts.
     """
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     if not fits:
@@ -124,72 +131,130 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     seg_of_piece = np.array([i for i, _ in fits])
     points = np.vstack([chains[i] for i in seg_of_piece]).astype(np.float64)
     owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
+    on = within(ellipse_params([e for _, e in fits]), points, MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
-    while True:
+    changed = True
+    while changed:
+        changed = False
         alive = [g for g, e in enumerate(ellipses) if e is not None]
         if len(alive) < 2:
             break
-        params = ellipse_params([ellipses[g] for g in alive])  # type: ignore[misc]
         remap = -np.ones(len(ellipses), np.int64)
         remap[alive] = np.arange(len(alive))
-        n = _pertain_matrix(params, points, remap[owner], len(alive))
+        n = _pertain_matrix(on[alive], remap[owner], len(alive))
         c = n * n.T
         np.fill_diagonal(c, 0.0)
         for i, j in refused:
             if remap[i] >= 0 and remap[j] >= 0:
                 c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
-        best = int(np.argmax(c))
-        bi, bj = divmod(best, len(alive))
-        if c[bi, bj] <= MERGE_K:
+        while True:
+            best = int(np.argmax(c))
+            bi, bj = divmod(best, len(alive))
+            if c[bi, bj] <= MERGE_K:
+                break
+            gi, gj = alive[bi], alive[bj]
+            in_union = (owner == gi) | (owner == gj)
+            merged = fit_ellipse(points[in_union])
+            d = (None if merged is None or not plausible(merged, shape)
+                 else distances(ellipse_params([merged]), points)[0])
+            if (merged is None or d is None
+                    or float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
+                    or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, (gi, gj))):
+                refused.add((gi, gj))
+                c[bi, bj] = c[bj, bi] = 0.0
+                continue
+            ellipses[gi], ellipses[gj] = merged, None
+            members[gi] += members[gj]
+            owner[owner == gj] = gi
+            on[gi] = d < MERGE_TOLERANCE_PX
+            changed = True
             break
-        gi, gj = alive[bi], alive[bj]
-        union = points[(owner == gi) | (owner == gj)]
-        merged = fit_ellipse(union)
-        if (merged is None or not plausible(merged, shape)
-                or rms_residual(merged, union) > MERGE_MAX_RESIDUAL_PX
-                or not _keeps_members(merged, points, owner, (gi, gj))):
-            refused.add((gi, gj))
-            continue
-        ellipses[gi], ellipses[gj] = merged, None
-        members[gi] += members[gj]
-        owner[owner == gj] = gi
-    return _absorb_and_validate(chains, members, ellipses, edges)
+    # The pieces' rows of pixel distances stay valid for absorbing when they lead ``chains``.
+    alive = [g for g, e in enumerate(ellipses) if e is not None]
+    leading = bool(np.array_equal(seg_of_piece, np.arange(len(fits))))
+    return _absorb_and_validate(chains, members, ellipses, edges,
+                                on[alive] if leading else None)
+
+
+def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
+                   ) -> bool:
+    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse
+    (``on``: (N,) pixel within tolerance of it).
+
+    A low RMS residual alone lets a big ellipse pass between the arcs of two different
+    faces; requiring each part to stay on the union's ellipse does not.
+    """
+    return all(float(on[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
 
 
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
-                         ellipses: list[Ellipse | None], edges: NDArray[np.uint8]
-                         ) -> list[MergedEllipse]:
-    """Add leftover segments lying on each final ellipse, refit, keep supported ones."""
+                         ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
+                         known: NDArray[np.bool_] | None = None) -> list[MergedEllipse]:
+    """Add leftover segments lying on each final ellipse, refit, keep supported ones.
+
+    ``known``: (G, K) whether each of the first K pixels of ``chains`` lies on each final
+    ellipse, when already computed."""
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
     all_points = np.vstack(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
     params = ellipse_params([e for _, e in groups])
-    on = distances(params, all_points) < MERGE_TOLERANCE_PX
+    if known is None:
+        on = within(params, all_points, MERGE_TOLERANCE_PX)
+    else:
+        on = np.hstack([known, within(params, all_points[known.shape[1]:], MERGE_TOLERANCE_PX)])
     lengths = np.array([c.shape[0] for c in chains], np.float64)
-    hits = np.stack([np.bincount(seg_id, weights=row, minlength=len(chains)) for row in on])
+    g_on, p_on = np.nonzero(on)
+    hits = np.bincount(g_on * len(chains) + seg_id[p_on],
+                       minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
     frac = hits / lengths[None, :]
-    support = support_map(edges)
     shape = (int(edges.shape[0]), int(edges.shape[1]))
-    out: list[MergedEllipse] = []
+    starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+
+    def pixels(segs: list[int]) -> NDArray[np.int64]:
+        return np.concatenate([np.arange(starts[s], starts[s + 1]) for s in segs])
+
+    def rms(pairs: list[tuple[Ellipse, list[int]]]) -> list[float]:
+        """RMS residual of each (ellipse, segments) pair, all in one pass."""
+        if not pairs:
+            return []
+        chosen = np.zeros((len(pairs), len(chains)), bool)
+        for k, (_, segs) in enumerate(pairs):
+            chosen[k, segs] = True
+        which, at = np.nonzero(chosen[:, seg_id])
+        d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which, at)
+        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
+                       / np.bincount(which, minlength=len(pairs))).tolist()
+
+    # Refit each group with the segments lying on it; residuals of all refits at once.
+    extras = [[int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
+              for g, (segs, _) in enumerate(groups)]
+    refits: dict[int, Ellipse | None] = {}
+    for g, (segs, _) in enumerate(groups):
+        if extras[g]:
+            refit = fit_ellipse(all_points[pixels(segs + extras[g])])
+            refits[g] = refit if refit is not None and plausible(refit, shape) else None
+    tried = [g for g, r in refits.items() if r is not None]
+    refit_rms = dict(zip(tried, rms([(e, groups[g][0] + extras[g]) for g in tried
+                                     if (e := refits[g]) is not None]), strict=True))
+    finals: list[tuple[list[int], Ellipse]] = []
+    residuals: dict[int, float] = {}
     for g, (segs, ellipse) in enumerate(groups):
-        extra = [int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
-        segs_all = segs + extra
-        pts = np.vstack([chains[s] for s in segs_all]).astype(np.float64)
-        refit = fit_ellipse(pts) if extra else ellipse
-        if refit is not None and plausible(refit, shape):
-            residual = rms_residual(refit, pts)
-            if residual <= MAX_RESIDUAL_PX:
-                ellipse = refit
-            else:
-                segs_all, pts = segs, np.vstack([chains[s] for s in segs]).astype(np.float64)
-                residual = rms_residual(ellipse, pts)
+        refit = refits.get(g)
+        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
+            finals.append((segs + extras[g], refit))
+            residuals[g] = refit_rms[g]
+        elif g in refits and refit is None:
+            finals.append((segs + extras[g], ellipse))  # the fit failed: keep all, as fitted
         else:
-            residual = rms_residual(ellipse, pts)
-        share = float(np.mean(supported(ellipse, support)))
-        if share >= MIN_SUPPORT:
-            out.append(MergedEllipse(ellipse=ellipse, segments=tuple(segs_all),
-                                     residual_px=residual, support=share))
+            finals.append((segs, ellipse))
+    todo = [g for g in range(len(finals)) if g not in residuals]
+    residuals.update(zip(todo, rms([(finals[g][1], finals[g][0]) for g in todo]),
+                         strict=True))
+    shares = support_shares([e for _, e in finals], support_map(edges))
+    out = [MergedEllipse(ellipse=e, segments=tuple(segs), residual_px=residuals[k],
+                         support=float(shares[k]))
+           for k, (segs, e) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
     out.sort(key=lambda m: -m.support)
     return out

@@ -35,9 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import contrast_support, outline
+from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.fitting import distances, ellipse_params
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import circle_poses
 from stackpick_sim.vision.wall_cover import under_another
@@ -110,76 +109,102 @@ class TopChoice:
         return self.index is not None
 
 
-def _gaps(ok: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """Cyclic runs of False in ``ok`` as (start, length), start index into ``ok``."""
-    n = ok.size
-    if ok.all():
-        return []
-    if not ok.any():
-        return [(0, n)]
-    shift = int(np.flatnonzero(ok)[0])
-    rolled = np.roll(ok, -shift)
-    diff = np.diff(np.concatenate([[1], rolled.astype(np.int8), [1]]))
-    starts, stops = np.flatnonzero(diff == -1), np.flatnonzero(diff == 1)
-    return [((int(s) + shift) % n, int(e - s)) for s, e in zip(starts, stops, strict=True)]
-
-
 def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
                  support: NDArray[np.uint8], gradients: EdgeImage | None = None
                  ) -> OcclusionEvidence:
     """Occlusion evidence of ``ellipse`` given the edge pixels (M, 2) (u, v) and the
-    (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX).
+    (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX); see :func:`evidence_all`."""
+    return evidence_all([ellipse], edge_points, support, gradients)[0]
+
+
+def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
+                 support: NDArray[np.uint8] | None, gradients: EdgeImage | None = None
+                 ) -> tuple[OcclusionEvidence, ...]:
+    """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) and the
+    (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX; unused with ``gradients``).
 
     With ``gradients`` the circumference's support is read from the consistent edge contrast
     (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
+    All ellipses are handled together: their outlines are one array, and the edge pixels
+    near each (its bounding square) are (ellipse, pixel) pairs of one array.
     """
-    samples, normals = outline(ellipse)  # the same points as boundary_samples(ellipse)
+    if not ellipses:
+        return ()
+    lines = outlines(ellipses)
+    samples = lines.points
     if gradients is not None:
-        ok = contrast_support(ellipse, gradients, (samples, normals))
+        ok = contrast_profiles(lines, gradients) >= contrast_threshold(gradients)
     else:
+        assert support is not None
         pix = np.rint(samples).astype(np.int64)
         h, w = support.shape
         inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
-    params = ellipse_params([ellipse])
-    near = np.abs(edge_points[:, 0] - ellipse.cx) <= ellipse.a + JUNCTION_RADIUS_PX + 1
-    near &= np.abs(edge_points[:, 1] - ellipse.cy) <= ellipse.a + JUNCTION_RADIUS_PX + 1
-    local = edge_points[near]
-    off_curve = local[distances(params, local)[0] > MERGE_TOLERANCE_PX]
-    inner = off_curve[_inside(ellipse, off_curve, MERGE_TOLERANCE_PX)]
-    occluded_ends, longest = 0, 0
-    n = samples.shape[0]
-    for start, length in _gaps(ok):
-        longest = max(longest, length)
-        if length < MIN_GAP_PX or length == n:
+    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
+    cx, cy, a = (geo[:, i : i + 1] for i in range(3))
+    reach = a + JUNCTION_RADIUS_PX + 1
+    du = edge_points[None, :, 0] - cx
+    dv = edge_points[None, :, 1] - cy
+    pe, pm = np.nonzero((np.abs(du) <= reach) & (np.abs(dv) <= reach))  # local pairs
+    pdu, pdv = du[pe, pm], dv[pe, pm]
+    pc, ps, pa, pb = (geo[:, i][pe] for i in (4, 5, 2, 3))  # contiguous per column
+    xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
+    x, y = xr / pa, yr / pb
+    # Sampson distance, as fitting.distances.
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / pa) ** 2 + (y / pb) ** 2) + 1e-12)
+
+    def inside_by(margin: float) -> NDArray[np.bool_]:
+        xs = xr / np.maximum(pa - margin, 1e-6)
+        ys = yr / np.maximum(pb - margin, 1e-6)
+        return np.asarray(xs * xs + ys * ys < 1.0, np.bool_)
+
+    off_curve = dist > MERGE_TOLERANCE_PX
+    inner = off_curve & inside_by(MERGE_TOLERANCE_PX)
+    interior = np.bincount(pe[inside_by(INTERIOR_MARGIN_PX)], minlength=len(ellipses))
+    counts = lines.counts
+    support_share = np.bincount(lines.owner, weights=ok, minlength=len(ellipses)) / counts
+    # Gaps: cyclic runs of unsupported samples, from their first and last samples.
+    prev_ok, next_ok = ok[lines.cyclic(-1)], ok[lines.cyclic(1)]
+    firsts = np.flatnonzero(~ok & prev_ok)
+    lasts = np.flatnonzero(~ok & next_ok)
+    longest = [0] * len(ellipses)
+    ends: list[tuple[int, int]] = []  # (ellipse, global index of a supported sample at a gap)
+    lo_f, lo_l = np.searchsorted(firsts, lines.offsets), np.searchsorted(lasts, lines.offsets)
+    for e in range(len(ellipses)):
+        n, base = int(counts[e]), int(lines.offsets[e])
+        f = firsts[lo_f[e]:lo_f[e + 1]] - base
+        t = lasts[lo_l[e]:lo_l[e + 1]] - base
+        if f.size == 0:
+            longest[e] = 0 if ok[base] else n  # all supported, or one gap all round
             continue
-        for end in ((start - 1) % n, (start + length) % n):
-            if _near(off_curve, samples[end], JUNCTION_RADIUS_PX) and _near(
-                    inner, samples[end], CROSSING_REACH_PX):
-                occluded_ends += 1
-    interior = int(np.count_nonzero(_inside(ellipse, local, INTERIOR_MARGIN_PX)))
-    return OcclusionEvidence(support=float(ok.mean()), longest_gap_px=longest,
-                             occluded_ends=occluded_ends, interior_edge_px=interior,
-                             perimeter_px=n)
-
-
-def _inside(ellipse: Ellipse, points: NDArray[np.float64], margin_px: float
-            ) -> NDArray[np.bool_]:
-    """(M,) bool: which points (M, 2) (u, v) lie more than ``margin_px`` inside the outline
-    (the ellipse with both semi-axes shrunk by the margin)."""
-    t = math.radians(ellipse.angle_deg)
-    du, dv = points[:, 0] - ellipse.cx, points[:, 1] - ellipse.cy
-    x = (math.cos(t) * du + math.sin(t) * dv) / max(ellipse.a - margin_px, 1e-6)
-    y = (-math.sin(t) * du + math.cos(t) * dv) / max(ellipse.b - margin_px, 1e-6)
-    return np.asarray(x * x + y * y < 1.0, np.bool_)
-
-
-def _near(points: NDArray[np.float64], centre: NDArray[np.float64], radius_px: float) -> bool:
-    """True when any of the points (M, 2) lies within ``radius_px`` of ``centre`` (2,)."""
-    if points.shape[0] == 0:
-        return False
-    return bool(np.any(np.hypot(*(points - centre).T) <= radius_px))
+        if t[0] < f[0]:
+            t = np.roll(t, -1)  # the first gap wraps round the outline's start
+        lengths = (t - f) % n + 1
+        longest[e] = int(lengths.max())
+        for start, length in zip(f.tolist(), lengths.tolist(), strict=True):
+            if length >= MIN_GAP_PX:
+                ends.append((e, base + (start - 1) % n))
+                ends.append((e, base + (start + length) % n))
+    occluded_ends = [0] * len(ellipses)
+    off = np.flatnonzero(off_curve)
+    if ends and off.size:
+        end_e = np.array([e for e, _ in ends])
+        end_pts = samples[[i for _, i in ends]]
+        pts = edge_points[pm[off]]
+        d2 = ((pts[None, :, 0] - end_pts[:, 0:1]) ** 2
+              + (pts[None, :, 1] - end_pts[:, 1:2]) ** 2)
+        mine = pe[off][None, :] == end_e[:, None]
+        junction = np.any(mine & (d2 <= JUNCTION_RADIUS_PX ** 2), axis=1)
+        crossing = np.any(mine & inner[off][None, :] & (d2 <= CROSSING_REACH_PX ** 2), axis=1)
+        for e in end_e[junction & crossing].tolist():
+            occluded_ends[e] += 1
+    return tuple(OcclusionEvidence(support=float(support_share[e]), longest_gap_px=longest[e],
+                                   occluded_ends=occluded_ends[e],
+                                   interior_edge_px=int(interior[e]),
+                                   perimeter_px=int(counts[e]))
+                 for e in range(len(ellipses)))
 
 
 def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
@@ -201,7 +226,8 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
 
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
-               radius_of: Callable[[Ellipse], float | None] | None = None) -> TopChoice:
+               radius_of: Callable[[Ellipse], float | None] | None = None, *,
+               edge_points: NDArray[np.float64] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -211,17 +237,22 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:mod:`stackpick_sim.vision.wall_cover`). With ``intrinsics`` and ``radius_of`` (an
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others by DEPTH_TIE_M. Returns the chosen index (else the
-    best-supported unoccluded ellipse) or None with the reason.
+    best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
+    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
-    binary = (np.asarray(edge_map) > 0).astype(np.uint8)
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
-    support = support_map(binary)
-    vv, uu = np.nonzero(binary)
-    edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
-    evidence = tuple(evidence_for(e, edge_points, support, gradients) for e in ellipses)
+    binary = None
+    if gradients is None or edge_points is None:
+        binary = (np.asarray(edge_map) > 0).astype(np.uint8)
+    support = None if gradients is not None or binary is None else support_map(binary)
+    if edge_points is None:
+        assert binary is not None
+        vv, uu = np.nonzero(binary)
+        edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
+    evidence = evidence_all(ellipses, edge_points, support, gradients)
     candidates = [i for i, ev in enumerate(evidence) if not ev.occluded]
     if not candidates:
         return TopChoice(index=None, evidence=evidence,

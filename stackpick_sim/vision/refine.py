@@ -5,7 +5,8 @@ an arc can carry a few pixels of another outline, or miss a faint stretch of its
 every edge pixel near the ellipse whose gradient is roughly normal to it is collected and the
 ellipse refitted, a few times with a shrinking tolerance (an ICP-like loop). Pixels of other
 outlines crossing the ellipse are rejected by the gradient test; those running alongside it
-by the shrinking tolerance.
+by the shrinking tolerance. All ellipses are refined in lockstep (:func:`refine_all`): each
+round tests all (ellipse, nearby pixel) pairs in one array pass.
 
 The top face's final fit is sub-pixel twice: Canny's pixels moved to the gradient peak
 (:func:`refine_subpixel`), then the gradient peaks read across the whole predicted outline,
@@ -23,6 +24,7 @@ from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_threshold, outline
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import distances, ellipse_params, fit_ellipse, plausible
+from stackpick_sim.vision.wall import column_median
 
 #: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
 #: ~2 px off on its far side, the last matches the merge tolerance.
@@ -49,12 +51,12 @@ def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np
     u0, v0 = u.astype(np.int64), v.astype(np.int64)
     fu, fv = u - u0, v - v0
     i00 = v0 * w + u0
-    idx = np.stack([i00, i00 + 1, i00 + w, i00 + w + 1])
-    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
+    idx = i00[None, :] + np.array([0, 1, w, w + 1])[:, None]
+    gu, gv = 1 - fu, 1 - fv
+    wts = np.stack([gu * gv, fu * gv, gu * fv, fu * fv])
     out = []
     for img in (gx, gy):
-        f = img.ravel()[idx].astype(np.float64)
-        out.append(np.asarray((f * wts).sum(axis=0), np.float64))
+        out.append(np.asarray((img.ravel()[idx] * wts).sum(axis=0), np.float64))
     return out[0], out[1]
 
 
@@ -63,11 +65,8 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     """(N, 2) edge pixels (u, v) moved to the gradient-magnitude peak along (N, 2) unit
     gradient directions: a parabola through the magnitudes one pixel either side
     (Devernay's sub-pixel Canny, with bilinear sampling)."""
-    mags = []
-    for step in (-1.0, 0.0, 1.0):
-        q = pts + step * dirs
-        mags.append(np.hypot(*_bilinear_pair(image.gx, image.gy, q)))
-    before, centre, after = mags
+    q = np.concatenate([pts + step * dirs for step in (-1.0, 0.0, 1.0)])
+    before, centre, after = np.hypot(*_bilinear_pair(image.gx, image.gy, q)).reshape(3, -1)
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
     shift = np.zeros(pts.shape[0])
@@ -94,7 +93,7 @@ def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float
     """(M, 2) edge pixels (u, v) and their (M, 2) unit gradient directions."""
     vv, uu = np.nonzero(image.edges)
     g = np.stack([image.gx[vv, uu], image.gy[vv, uu]], axis=1).astype(np.float64)
-    g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-9)
+    g /= np.maximum(np.hypot(g[:, 0], g[:, 1]), 1e-9)[:, None]
     return np.stack([uu, vv], axis=1).astype(np.float64), g
 
 
@@ -123,20 +122,69 @@ def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
            shape: tuple[int, int]) -> Ellipse:
     """Refit ``ellipse`` on the edge pixels (M, 2) with gradients (M, 2) along it."""
-    reach = ellipse.a + TOLERANCES_PX[0] + 1
-    near = (np.abs(points[:, 0] - ellipse.cx) <= reach) & (np.abs(points[:, 1] - ellipse.cy)
-                                                            <= reach)
-    pts, g = points[near], grads[near]
-    current = ellipse
+    return refine_all([ellipse], points, grads, shape)[0]
+
+
+def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
+               grads: NDArray[np.float64], shape: tuple[int, int]) -> list[Ellipse]:
+    """:func:`refine` of every ellipse, in lockstep: each round collects the pixels along
+    all current fits in one pass over (ellipse, pixel) pairs, then refits each ellipse that
+    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone).
+    A fit on the same pixels as the fit in hand is not repeated."""
+    current = list(ellipses)
+    if not current or points.shape[0] == 0:
+        return current
+    reach = np.array([e.a for e in current]) + TOLERANCES_PX[0] + 1
+    cx = np.array([e.cx for e in current])
+    cy = np.array([e.cy for e in current])
+    pe, pm = np.nonzero((np.abs(points[None, :, 0] - cx[:, None]) <= reach[:, None])
+                        & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
+    # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
+    columns = (points[pm, 0], points[pm, 1], grads[pm, 0], grads[pm, 1])
+    active = np.ones(len(current), bool)
+    previous: dict[int, NDArray[np.int64]] = {}
     for tol in TOLERANCES_PX:
-        kept, _ = _along(current, pts, g, tol)
-        if kept.shape[0] < MIN_PIXELS:
+        if active.all():
+            idx, which, cols = None, pe, columns
+        else:
+            idx = np.flatnonzero(active[pe])
+            which, cols = pe[idx], tuple(c[idx] for c in columns)
+        keep = _along_columns(current, which, cols, tol)
+        sel = np.flatnonzero(keep) if idx is None else idx[keep]
+        bounds = np.searchsorted(pe[sel], np.arange(len(current) + 1))
+        for e in np.flatnonzero(active).tolist():
+            mine = sel[bounds[e]:bounds[e + 1]]
+            if e in previous and np.array_equal(mine, previous[e]):
+                continue  # the same pixels as the fit in hand: the same fit
+            previous[e] = mine
+            fit = (fit_ellipse(np.stack([columns[0][mine], columns[1][mine]], axis=1))
+                   if mine.size >= MIN_PIXELS else None)
+            if fit is None or not plausible(fit, shape):
+                active[e] = False
+                continue
+            current[e] = fit
+        if not active.any():
             break
-        fit = fit_ellipse(kept)
-        if fit is None or not plausible(fit, shape):
-            break
-        current = fit
     return current
+
+
+def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
+                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
+    """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel) pairs given as
+    columns (u, v, gu, gv), each (K,): pixel and unit gradient."""
+    geo = np.array([[e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
+    cx, cy, ia, ib, c, s = (np.ascontiguousarray(geo[:, i])[which] for i in range(6))
+    u, v, gu, gv = cols
+    du, dv = u - cx, v - cy
+    x = (c * du + s * dv) * ia
+    y = (-s * du + c * dv) * ib
+    gx, gy = x * ia, y * ib
+    norm = np.sqrt(gx * gx + gy * gy)
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
+    cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
+    return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
+                      np.bool_)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
@@ -173,10 +221,9 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     for round_ in range(PROFILE_ROUNDS):
         pts, normals = outline(current)
         q = pts[:, None, :] + steps[None, :, None] * normals[:, None, :]  # (n, k, 2)
-        flat = q.reshape(-1, 2)
-        nn = np.repeat(normals, steps.size, axis=0)
-        bx, by = _bilinear_pair(image.gx, image.gy, flat)
-        g = np.abs(bx * nn[:, 0] + by * nn[:, 1]).reshape(q.shape[:2])
+        bx, by = _bilinear_pair(image.gx, image.gy, q.reshape(-1, 2))
+        g = np.abs(bx.reshape(q.shape[:2]) * normals[:, 0:1]
+                   + by.reshape(q.shape[:2]) * normals[:, 1:2])
         best = np.argmax(g[:, 1:-1], axis=1) + 1
         rows = np.arange(best.size)
         before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
@@ -195,7 +242,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
             return current
         if round_ == PROFILE_ROUNDS - 1:
             d = distances(ellipse_params([fit]), peaks)[0]
-            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(np.median(d)))
+            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
             if np.count_nonzero(inliers) >= PROFILE_MIN_SHARE * ok.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape) else current

@@ -16,6 +16,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.vision.wall import column_median
+
 #: Side ratio of the small copy the box is found on (area averaging keeps thin walls).
 DECIMATION = 4
 #: Grey levels between a foreground pixel's brightest channel and the belt's. The belt
@@ -61,7 +63,7 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     if min(level.shape) < 3:
         return whole
     border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])
-    belt = float(np.median(border))
+    belt = float(column_median(border))
     fg = cv2.absdiff(level, np.full_like(level, round(belt))) > FOREGROUND_DELTA
     vv, uu = np.nonzero(fg)
     if uu.size == 0:

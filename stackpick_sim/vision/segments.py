@@ -13,14 +13,13 @@ Everything per pixel is done by OpenCV or numpy; Python loops run over segments 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-#: 3x3 kernel counting a pixel's 8 neighbours.
-NEIGHBOUR_KERNEL = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], np.float32)
 #: Chains shorter than this (px) are dropped: too short to constrain an ellipse.
 MIN_CHAIN_PX = 6
 #: Tolerance (px) of the polygonal approximation whose vertices are read for turns: 1 px
@@ -55,9 +54,14 @@ class EdgeSegments:
 
 
 def neighbour_count(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """(H, W) uint8 count of 8-neighbours set in a 0/1 image (0 outside the image)."""
-    return np.asarray(cv2.filter2D(binary, cv2.CV_8U, NEIGHBOUR_KERNEL,
-                                   borderType=cv2.BORDER_CONSTANT), np.uint8)
+    """(H, W) uint8 count of 8-neighbours set in a 0/1 image (0 outside the image).
+
+    The 3x3 box sum less the pixel itself (3x faster than a filter2D with the 8-neighbour kernel,
+    which gives the same counts).
+    """
+    box = cv2.boxFilter(binary, cv2.CV_8U, (3, 3), normalize=False,
+                        borderType=cv2.BORDER_CONSTANT)
+    return np.asarray(cv2.subtract(box, binary), np.uint8)
 
 
 def find_junctions(edges: NDArray[np.uint8]) -> NDArray[np.bool_]:
@@ -69,15 +73,16 @@ def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArr
     """Ordered (N, 2) chain from an OpenCV contour of a one-pixel-wide curve.
 
     ``contour`` is (M, 2) (u, v) and ``is_end`` (M,) marks end-point pixels. An open chain's
-    contour runs end -> end -> back; a closed one is already a loop.
+    contour runs end -> end -> back: the chain is the stretch from its first end pixel to the
+    next; a closed one is already a loop.
     """
     ends = np.flatnonzero(is_end)
     if ends.size == 0:
         return contour
-    rolled = np.roll(contour, -int(ends[0]), axis=0)
-    rolled_ends = np.flatnonzero(np.roll(is_end, -int(ends[0])))
-    stop = int(rolled_ends[1]) if rolled_ends.size > 1 else rolled.shape[0] - 1
-    return rolled[: stop + 1]
+    first = int(ends[0])
+    if ends.size > 1:
+        return contour[first: int(ends[1]) + 1]
+    return np.concatenate([contour[first:], contour[:first]])
 
 
 def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
@@ -99,26 +104,32 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     poly = cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX, closed)[:, 0, :]
     if poly.shape[0] < 3:
         return [chain]
-    verts = np.vstack([poly[-1:], poly, poly[:1]]) if closed else poly
-    sides = np.diff(verts.astype(np.float64), axis=0)
-    cross = sides[:-1, 0] * sides[1:, 1] - sides[:-1, 1] * sides[1:, 0]
-    turn = np.degrees(np.arctan2(cross, np.einsum("ij,ij->i", sides[:-1], sides[1:])))
+    # A handful of vertices: plain Python beats numpy's per-call cost here.
+    pl = poly.tolist()
+    verts = [pl[-1], *pl, pl[0]] if closed else pl
+    sides = [(q[0] - p[0], q[1] - p[1]) for p, q in itertools.pairwise(verts)]
+    turn = [math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+            for (x0, y0), (x1, y1) in itertools.pairwise(sides)]
     # turn[k] is the turn at poly[k] if closed, at poly[k + 1] if open.
-    sign = np.where(np.abs(turn) < MIN_SIGNED_TURN_DEG, 0.0, np.sign(turn))
-    mag = np.abs(turn)
+    mag = [abs(t) for t in turn]
+    sign = [0 if m < MIN_SIGNED_TURN_DEG else (1 if t > 0 else -1)
+            for t, m in zip(turn, mag, strict=True)]
+    count = len(mag)
     if closed:
-        before, after = np.roll(mag, 1), np.roll(mag, -1)
+        before = [mag[k - 1] for k in range(count)]
+        after = [mag[(k + 1) % count] for k in range(count)]
     else:
-        before = np.concatenate([[0.0], mag[:-1]])
-        after = np.concatenate([mag[1:], [0.0]])
-    spike = (mag > SPIKE_MIN_DEG) & (mag > SPIKE_RATIO * np.maximum(before, after))
-    cut = (mag > CORNER_ANGLE_DEG) | spike
-    signed = np.flatnonzero(sign)
-    if signed.size > 1:
-        flips = signed[1:][sign[signed[1:]] != sign[signed[:-1]]]
-        cut[flips] = True
-    at = np.flatnonzero(cut) + (0 if closed else 1)
-    if at.size == 0:
+        before = [0.0, *mag[:-1]]
+        after = [*mag[1:], 0.0]
+    cut = [m > CORNER_ANGLE_DEG or (m > SPIKE_MIN_DEG and m > SPIKE_RATIO * max(p, q))
+           for m, p, q in zip(mag, before, after, strict=True)]
+    signed = [k for k in range(count) if sign[k]]
+    for p, q in itertools.pairwise(signed):
+        if sign[q] != sign[p]:
+            cut[q] = True
+    shift = 0 if closed else 1
+    at = [k + shift for k in range(count) if cut[k]]
+    if not at:
         return [chain]
     cuts = sorted({_vertex_index(chain, poly[k]) for k in at})
     if closed:

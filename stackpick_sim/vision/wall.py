@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.contrast import unit_circle
 
 #: Depths along the axis, as fractions of the face radius, at which the band is sampled.
 #: The paper scene's squattest cylinder has height / radius = 0.03 / 0.035 = 0.86, so 0.6
@@ -75,6 +76,14 @@ def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
     return np.array([u0, u1, u2]), np.array(v)
 
 
+def column_median(values: NDArray) -> NDArray[np.float64]:
+    """Median of each column of an (N, ...) array, N >= 1: ``np.median(values, axis=0)``
+    from one sort (numpy's median costs ~10x more on the few values read here)."""
+    ordered = np.sort(np.asarray(values, np.float64), axis=0)
+    n = ordered.shape[0]
+    return np.asarray(0.5 * (ordered[(n - 1) // 2] + ordered[n // 2]), np.float64)
+
+
 @dataclass(frozen=True, kw_only=True)
 class WallEvidence:
     """Band samples a solution predicts outside the face (``samples``) and the share of them
@@ -86,15 +95,15 @@ class WallEvidence:
 
 def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float64]:
     """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image."""
-    t = np.linspace(0.0, 2.0 * np.pi, FACE_SAMPLES, endpoint=False)
+    ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
-    x, y = FACE_SAMPLE_SCALE * ellipse.a * np.cos(t), FACE_SAMPLE_SCALE * ellipse.b * np.sin(t)
+    x, y = FACE_SAMPLE_SCALE * ellipse.a * ct, FACE_SAMPLE_SCALE * ellipse.b * st
     u = np.rint(ellipse.cx + math.cos(th) * x - math.sin(th) * y).astype(np.int64)
     v = np.rint(ellipse.cy + math.sin(th) * x + math.cos(th) * y).astype(np.int64)
     h, w = image.shape[:2]
     np.clip(u, 0, w - 1, out=u)
     np.clip(v, 0, h - 1, out=v)
-    return np.asarray(np.median(image[v, u].astype(np.float64), axis=0), np.float64)
+    return column_median(image[v, u].astype(np.float64))
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -107,10 +116,12 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
     u, v = plane_basis(normal_cam)
-    t = np.linspace(0.0, 2.0 * np.pi, WALL_RIM_POINTS, endpoint=False)
-    rim = centre_cam + np.outer(np.cos(t), u) + np.outer(np.sin(t), v)
-    depth = np.repeat(np.asarray(depths), WALL_RIM_POINTS)[:, None]
-    pts = intrinsics.project(np.tile(rim, (len(depths), 1)) + depth * normal_cam)
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    rim = centre_cam + ct[:, None] * u[None, :] + st[:, None] * v[None, :]
+    depth = np.asarray(depths)[:, None, None]
+    band = (rim[None, :, :] + depth * np.asarray(normal_cam)[None, None, :]).reshape(-1, 3)
+    pts = np.stack([intrinsics.fx * band[:, 0] / band[:, 2] + intrinsics.cx,
+                    intrinsics.fy * band[:, 1] / band[:, 2] + intrinsics.cy], axis=1)
     th = math.radians(ellipse.angle_deg)
     du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
     x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
@@ -141,9 +152,12 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     face_sum = max(float(colour.sum()), 1.0)
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    ray = centre_cam / max(float(np.linalg.norm(centre_cam)), 1e-12)
-    cos_tilt = min(1.0, abs(float(np.dot(normal_cam, ray))) / max(float(np.linalg.norm(normal_cam)),
-                                                                 1e-12))
+    # Three-vectors: Python floats (numpy's norm and dot cost more than the arithmetic).
+    c0, c1, c2 = (float(x) for x in centre_cam)
+    n0, n1, n2 = (float(x) for x in normal_cam)
+    c_norm = max(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2), 1e-12)
+    n_norm = max(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2), 1e-12)
+    cos_tilt = min(1.0, abs((n0 * c0 + n1 * c1 + n2 * c2) / c_norm) / n_norm)
     tan_tilt = math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
     brightest = (tan_tilt + WALL_BRIGHTNESS_MARGIN) * face_sum
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)

@@ -1,0 +1,137 @@
+"""The batched stages (all ellipses or segments in one array pass) give what the one-at-a-time
+forms give, on synthetic stacks of known ellipses."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import contrast_profile, contrast_profiles, outline, outlines
+from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, fit_or_split, within
+from stackpick_sim.vision.occlusion import evidence_all
+from stackpick_sim.vision.refine import _along, edge_points, refine_all
+from stackpick_sim.vision.segments import link_segments, neighbour_count
+from stackpick_sim.vision.synthetic import draw_ellipses
+from stackpick_sim.vision.wall import column_median
+
+SHAPE = (240, 320)
+#: A stack of three overlapping faces (each drawn over the one before, in alternating greys)
+#: and a small face apart.
+STACK = [Ellipse(cx=140, cy=120, a=42, b=33, angle_deg=20),
+         Ellipse(cx=185, cy=128, a=38, b=30, angle_deg=110),
+         Ellipse(cx=218, cy=100, a=28, b=24, angle_deg=60),
+         Ellipse(cx=265, cy=60, a=16, b=11, angle_deg=145)]
+
+
+@pytest.fixture(scope="module")
+def scene() -> tuple[np.ndarray, list[Ellipse]]:
+    image = draw_ellipses(SHAPE, STACK, noise_sigma=2.0, rng=np.random.default_rng(3))
+    # Probes: the truths, shifted copies (partly off the edges) and one leaving the image.
+    probes = [*STACK,
+              *(Ellipse(cx=e.cx + 1.7, cy=e.cy - 1.1, a=e.a + 0.8, b=e.b - 0.6,
+                        angle_deg=e.angle_deg + 5.0) for e in STACK),
+              Ellipse(cx=5.0, cy=8.0, a=20.0, b=12.0, angle_deg=30.0)]
+    return image, probes
+
+
+def test_outlines_are_each_ellipses_outline(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    _, probes = scene
+    lines = outlines(probes)
+    assert lines.offsets[-1] == lines.points.shape[0]
+    for e, ellipse in enumerate(probes):
+        pts, normals = outline(ellipse)
+        part = slice(lines.offsets[e], lines.offsets[e + 1])
+        np.testing.assert_allclose(lines.points[part], pts, atol=1e-9)
+        np.testing.assert_allclose(lines.normals[part], normals, atol=1e-9)
+        assert np.all(lines.owner[part] == e)
+
+
+def test_contrast_profiles_match_one_at_a_time(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    grad = edge_image(image)
+    lines = outlines(probes)
+    batched = contrast_profiles(lines, grad)
+    for e, ellipse in enumerate(probes):
+        part = slice(lines.offsets[e], lines.offsets[e + 1])
+        np.testing.assert_allclose(batched[part], contrast_profile(ellipse, grad), atol=1e-9)
+
+
+def test_within_matches_full_distances(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    points, _ = edge_points(edge_image(image))
+    params = ellipse_params(probes)
+    for tol in (1.2, 1.5, 2.5):
+        np.testing.assert_array_equal(within(params, points, tol),
+                                      distances(params, points) < tol)
+
+
+def test_fit_all_gives_fit_or_split_pieces_in_order(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, _ = scene
+    chains = link_segments(edge_image(image).edges).chains
+    # Add a line running into an arc: fails whole, fits after splitting.
+    t = np.linspace(0.0, np.pi, 60)
+    arc = np.stack([200 + 30 * np.cos(t), 150 + 20 * np.sin(t)], axis=1)
+    line = np.stack([np.full(40, 230.0), np.linspace(110, 149, 40)], axis=1)
+    mixed = np.rint(np.vstack([line, arc])).astype(np.int32)
+    chains = (*chains, mixed)
+    expected = [(i, pts, e) for i, c in enumerate(chains) for pts, e, _ in fit_or_split(c, SHAPE)]
+    got = fit_all(chains, SHAPE)
+    assert len(got) == len(expected) > len(STACK)
+    for (i, pts, e, _), (j, pts2, e2) in zip(got, expected, strict=True):
+        assert i == j
+        np.testing.assert_array_equal(pts, pts2)
+        assert e == e2
+
+
+def test_refine_all_is_each_ellipse_refined_alone(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    points, grads = edge_points(edge_image(image))
+    together = refine_all(probes, points, grads, SHAPE)
+    alone = [refine_all([e], points, grads, SHAPE)[0] for e in probes]
+    assert together == alone
+    # And the refit pulled the shifted probes of the whole faces onto them.
+    for k in (2, 3):
+        truth, fit = STACK[k], together[len(STACK) + k]
+        assert abs(fit.cx - truth.cx) < 0.3 and abs(fit.cy - truth.cy) < 0.3
+
+
+def test_refine_collects_the_pixels_along_each_fit(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, _ = scene
+    points, grads = edge_points(edge_image(image))
+    kept, _ = _along(STACK[0], points, grads, 1.5)
+    # The face's visible outline: many pixels, all within the tolerance.
+    assert kept.shape[0] > 100
+    assert np.all(distances(ellipse_params([STACK[0]]), kept)[0] < 1.5)
+
+
+def test_evidence_all_matches_one_at_a_time(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    grad = edge_image(image)
+    points, _ = edge_points(grad)
+    together = evidence_all(probes, points, None, grad)
+    alone = [evidence_all([e], points, None, grad)[0] for e in probes]
+    assert together == tuple(alone)
+    # The top face of the stack passes; the faces under it do not.
+    assert not together[2].occluded and not together[3].occluded
+    assert together[0].occluded and together[1].occluded
+
+
+def test_neighbour_count_is_the_8_neighbour_sum() -> None:
+    rng = np.random.default_rng(0)
+    binary = (rng.random((40, 50)) < 0.3).astype(np.uint8)
+    kernel = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], np.float32)
+    expected = cv2.filter2D(binary, cv2.CV_8U, kernel, borderType=cv2.BORDER_CONSTANT)
+    np.testing.assert_array_equal(neighbour_count(binary), expected)
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 16, 251])
+def test_column_median_is_numpys_median(n: int) -> None:
+    values = np.random.default_rng(n).integers(0, 256, (n, 3)).astype(np.uint8)
+    np.testing.assert_array_equal(column_median(values), np.median(values, axis=0))
+    np.testing.assert_array_equal(column_median(values[:, 0]), np.median(values[:, 0]))
