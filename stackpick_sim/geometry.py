@@ -198,3 +198,11 @@ def normal_from_tilt(theta_x_deg: float, theta_y_deg: float) -> FloatArray:
     """Unit inward face normal (camera frame) with the given tilt angles; inverse of tilt_angles."""
     m = np.array([math.tan(math.radians(theta_y_deg)), -math.tan(math.radians(theta_x_deg)), 1.0])
     return m / np.linalg.norm(m)
+
+
+def face_depth_range(camera_height: float, max_face_height: float) -> tuple[float, float]:
+    """(min, max) depth, m, at which a top face can lie for a camera looking straight down
+    from ``camera_height`` m above the belt: from ``max_face_height`` above the belt (the
+    scene's ``objects.max_face_height``: the generator redraws taller piles) down to the belt
+    itself. What the detectors may assume of a face's distance."""
+    return (max(1e-3, camera_height - max_face_height), max(2e-3, camera_height))

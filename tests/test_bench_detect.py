@@ -78,10 +78,11 @@ def write_frame(directory: Path, seed: int) -> None:
 
 def test_load_frame_reads_dataset_record(tmp_path: Path) -> None:
     write_frame(tmp_path, 3)
-    frame = load_frame(tmp_path, 3, belt_top_z=0.10)
+    frame = load_frame(tmp_path, 3, belt_top_z=0.10, max_face_height=0.15)
     assert frame.shape == SHAPE and frame.image_rgb.shape == (*SHAPE, 3)
     assert [f.name for f in frame.tops] == ["b"]
-    assert abs(frame.depth_range_m[1] - (0.30 - 0.02)) < 1e-9
+    # the camera is 0.30 m above the belt: faces lie from 0.15 m above it down to it
+    assert np.allclose(frame.depth_range_m, (0.30 - 0.15, 0.30))
 
 
 def test_cli_writes_tables_for_a_data_set(tmp_path: Path) -> None:

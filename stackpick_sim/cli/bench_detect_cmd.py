@@ -21,7 +21,6 @@ from stackpick_sim.vision.benchmark import (
     table1,
 )
 from stackpick_sim.vision.benchmark.frames import (
-    dataset_belt_z,
     dataset_seeds,
     iter_dataset,
     iter_generated,
@@ -64,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         seeds = dataset_seeds(args.data) if args.seeds is None else parse_seeds(args.seeds)
         present = set(dataset_seeds(args.data))
         seeds = [s for s in seeds if s in present]
-        frames = iter_dataset(args.data, seeds, dataset_belt_z(args.data, cfg.conveyor.top_z))
+        frames = iter_dataset(args.data, seeds, cfg)
         source = f"data set {args.data}"
     else:
         seeds = parse_seeds(args.seeds or DEFAULT_SEEDS)

@@ -118,7 +118,7 @@ class ObjectsCfg:
     max_face_height: float = 0.15
     """Highest a top face's centre may lie above the belt, m: a pile with a higher face is
     redrawn, and the detectors look for faces between this height and the belt (see
-    :func:`stackpick_sim.sim.cell.face_depth_range`)."""
+    :func:`stackpick_sim.geometry.face_depth_range`)."""
 
     def __post_init__(self) -> None:
         lo, hi = self.count

@@ -88,15 +88,6 @@ def look_point(cfg: SceneConfig) -> NDArray[np.float64]:
     return np.array([cfg.conveyor.x, 0.0, cfg.conveyor.top_z])
 
 
-def face_depth_range(cfg: SceneConfig, camera_height: float | None = None) -> tuple[float, float]:
-    """(min, max) depth, m, at which a top face can lie for a camera looking straight down
-    from ``camera_height`` m above the belt (default: the look pose's): from
-    ``objects.max_face_height`` above the belt (the generator redraws taller piles) down to
-    the belt itself. What the detectors may assume of a face's distance."""
-    height = cfg.camera.look_height if camera_height is None else camera_height
-    return (max(1e-3, height - cfg.objects.max_face_height), max(2e-3, height))
-
-
 @dataclass(kw_only=True)
 class Cell:
     """A compiled cell: model, data and every id the hot loops need."""

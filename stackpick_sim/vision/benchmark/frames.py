@@ -20,13 +20,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ImageError, SceneGenerationError
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-
-#: Tallest pile expected above the belt, m: five 0.03 m cylinders. Top faces lie between the
-#: belt and this height, which bounds the depth the detector may assume.
-MAX_PILE_HEIGHT_M = 0.15
-#: Lowest face above the belt, m: the shorter kind (0.025 m) lying flat.
-MIN_FACE_HEIGHT_M = 0.02
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,17 +62,13 @@ class BenchFrame:
         return [f for f in self.faces if f.is_top and f.ellipse is not None]
 
 
-def depth_range(world_T_cam: NDArray[np.float64], belt_top_z: float) -> tuple[float, float]:
-    """(min, max) depth (m) of a top face for a camera ``world_T_cam`` (4, 4) looking down."""
-    belt_depth = float(world_T_cam[2, 3]) - belt_top_z
-    return (max(1e-3, belt_depth - MAX_PILE_HEIGHT_M), max(2e-3, belt_depth - MIN_FACE_HEIGHT_M))
-
-
 def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str, Any],
-                      belt_top_z: float,
+                      belt_top_z: float, max_face_height: float,
                       kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
                       ) -> BenchFrame:
-    """A BenchFrame from an RGB image and a ground-truth dict (FrameTruth JSON schema)."""
+    """A BenchFrame from an RGB image and a ground-truth dict (FrameTruth JSON schema); the
+    depth range is :func:`~stackpick_sim.geometry.face_depth_range` of the camera's height
+    above the belt (``belt_top_z``, m) and the scene's ``max_face_height`` (m)."""
     k = record["intrinsics"]
     intr = CameraIntrinsics(fx=k["fx"], fy=k["fy"], cx=k["cx"], cy=k["cy"],
                             width=int(record["width"]), height=int(record["height"]))
@@ -91,7 +81,8 @@ def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str,
             face_center_px=(float(o["face_center_px"][0]), float(o["face_center_px"][1])),
             theta_x_deg=float(o["theta_x_deg"]), theta_y_deg=float(o["theta_y_deg"]),
             visible_fraction=float(o["visible_fraction"]), is_top=bool(o["is_top"])))
-    rng = depth_range(np.asarray(record["world_T_cam"], float), belt_top_z)
+    camera_height = float(record["world_T_cam"][2][3]) - belt_top_z
+    rng = face_depth_range(camera_height, max_face_height)
     return BenchFrame(seed=seed, image_rgb=image_rgb, intrinsics=intr, depth_range_m=rng,
                       faces=tuple(faces), kinds=kinds)
 
@@ -101,7 +92,7 @@ def dataset_seeds(directory: Path) -> list[int]:
     return sorted(int(p.stem) for p in directory.glob("*.json") if p.stem.isdigit())
 
 
-def load_frame(directory: Path, seed: int, belt_top_z: float,
+def load_frame(directory: Path, seed: int, belt_top_z: float, max_face_height: float,
                kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
                ) -> BenchFrame:
     """Read frame ``seed`` of a data set directory; ImageError if its files are missing."""
@@ -111,7 +102,7 @@ def load_frame(directory: Path, seed: int, belt_top_z: float,
         raise ImageError(f"frame {seed} missing in {directory} (need {stem}.png and .json)")
     record = json.loads(Path(f"{stem}.json").read_text())
     rgb = np.ascontiguousarray(bgr[:, :, ::-1], dtype=np.uint8)
-    return frame_from_record(seed, rgb, record, belt_top_z, kinds)
+    return frame_from_record(seed, rgb, record, belt_top_z, max_face_height, kinds)
 
 
 def _kinds(types: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, float]], ...]:
@@ -133,23 +124,22 @@ def dataset_kinds(directory: Path) -> tuple[tuple[float, tuple[float, float, flo
     return _kinds(types) if isinstance(types, dict) else ()
 
 
-def dataset_belt_z(directory: Path, default: float) -> float:
-    """Belt top height recorded in a data set's index.json, else ``default`` (m)."""
-    index = directory / "index.json"
-    if index.exists():
-        scene = json.loads(index.read_text()).get("scene", {})
-        return float(scene.get("conveyor", {}).get("top_z", default))
-    return default
-
-
 def iter_dataset(directory: Path, seeds: Sequence[int] | None,
-                 belt_top_z: float) -> Iterator[BenchFrame]:
-    """Frames of a data set directory (all present, or the given seeds that are present)."""
+                 cfg: SceneConfig) -> Iterator[BenchFrame]:
+    """Frames of a data set directory (all present, or the given seeds that are present).
+
+    The belt height and ``objects.max_face_height`` come from the scene recorded in the data
+    set's index.json, else from ``cfg``."""
     present = dataset_seeds(directory)
     wanted = present if seeds is None else [s for s in seeds if s in set(present)]
     kinds = dataset_kinds(directory)
+    index = directory / "index.json"
+    scene = json.loads(index.read_text()).get("scene", {}) if index.exists() else {}
+    belt_top_z = float(scene.get("conveyor", {}).get("top_z", cfg.conveyor.top_z))
+    max_face_height = float(scene.get("objects", {}).get("max_face_height",
+                                                          cfg.objects.max_face_height))
     for seed in wanted:
-        yield load_frame(directory, seed, belt_top_z, kinds)
+        yield load_frame(directory, seed, belt_top_z, max_face_height, kinds)
 
 
 def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFrame]:
@@ -162,4 +152,5 @@ def iter_generated(cfg: SceneConfig, seeds: Sequence[int]) -> Iterator[BenchFram
         except SceneGenerationError:
             continue
         yield frame_from_record(seed, image, truth.as_dict(), cfg.conveyor.top_z,
+                                cfg.objects.max_face_height,
                                 _kinds(dict(cfg.object_types)))
