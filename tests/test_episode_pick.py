@@ -4,6 +4,7 @@ association, re-acquisition after a changed motion, and frames the controller do
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -17,6 +18,7 @@ from stackpick_sim.control.reach import (
     descent_tilt_share,
     tilted_axis,
 )
+from stackpick_sim.episodes.hypotheses import RadiusHypotheses
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator
 from stackpick_sim.geometry import CameraIntrinsics, project_circle
@@ -129,3 +131,39 @@ def test_far_neighbour_is_not_a_rejection_and_a_changed_motion_is_reacquired() -
     truth = _on_belt(7 * FRAME_DT, shifted, 1.3 * BELT_SPEED)
     assert np.linalg.norm(state.centre[:2] - truth[:2]) < 1e-3
     assert state.velocity[1] == pytest.approx(1.3 * BELT_SPEED, rel=0.05)
+
+
+def _moving_observation(t: float, centre: np.ndarray, rng: np.random.Generator,
+                        pixel_std: float) -> Observation:
+    """A noisy detection of a flat face at ``centre`` by the look camera following the belt
+    and swinging 30 mm to and fro across it (the parallax tells the face's height)."""
+    cam = _look_pose()
+    cam[:2, 3] += [0.03 * math.sin(2.0 * math.pi * t / 0.8), BELT_SPEED * t]
+    r, p = cam[:3, :3], cam[:3, 3]
+    c_cam, n_cam = r.T @ (centre - p), r.T @ DOWN
+    ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+    noise = rng.normal(0.0, pixel_std, 2)
+    ellipse = replace(ellipse, cx=ellipse.cx + noise[0], cy=ellipse.cy + noise[1])
+    cand = Candidate(pixel=K.project(c_cam)[0] + noise, normal_cam=n_cam, centre_cam=c_cam,
+                     radius=RADIUS, is_top=True, ellipse=ellipse)
+    return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                       candidates=(cand,), detection=None, image=None)
+
+
+def test_a_radius_hypothesis_that_lost_the_face_never_takes_over() -> None:
+    # The wrong radius (20 mm for 35) puts the face 86 mm too high: once the camera moves,
+    # its track drifts off the face and stops associating. The right one goes on paying
+    # each measurement's noise in NIS; it must stay active (the wrong one is charged for the
+    # frames it missed, and one that lost the face may not take over anyway).
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    hyps = RadiusHypotheses(cfg, K, oracle=False, radii=(0.02, RADIUS))
+    rng = np.random.default_rng(7)
+    first = _moving_observation(0.0, _on_belt(0.0), rng, 0.0)
+    hyps.start(first, first.candidates[0])
+    wrong = hyps.hypotheses[0]
+    for i in range(1, 90):
+        t = i * FRAME_DT
+        hyps.offer(_moving_observation(t, _on_belt(t), rng, 0.5))
+        assert hyps.radius == RADIUS, f"switched to the wrong radius at frame {i}"
+    assert wrong.last_fused_time is not None and wrong.last_fused_time < 10 * FRAME_DT
+    assert hyps.last_fused_time == pytest.approx(89 * FRAME_DT)

@@ -138,6 +138,8 @@ class TargetEstimator:
         self.last_fused_time: float | None = None
         self.nis = 0.0
         """Sum of the measurements' normalised innovations squared (capped at the gate)."""
+        self.missed_last = False
+        """The last :meth:`offer` found faces in the frame but none to associate."""
 
     @property
     def initialised(self) -> bool:
@@ -175,7 +177,12 @@ class TargetEstimator:
         self._fuse(obs, cand)
 
     def offer(self, obs: Observation) -> bool:
-        """Associate the nearest candidate of ``obs`` with the track and fuse it; True if used."""
+        """Associate the nearest candidate of ``obs`` with the track and fuse it; True if used.
+
+        :attr:`missed_last` tells afterwards whether usable faces were in the frame but none
+        near enough the prediction to be associated (the NIS did not count that frame).
+        """
+        self.missed_last = False
         if not obs.candidates:
             return False
         try:
@@ -200,8 +207,10 @@ class TargetEstimator:
         distance, best = min(scored, key=lambda s: s[0])
         distance *= self._metres_per_unit(obs.world_T_cam, predicted)
         if not self.tracker.initialised and distance > INIT_GATE:
+            self.missed_last = True
             return False
         if distance > ASSOCIATION_MAX:
+            self.missed_last = True
             return False  # another object's face: neither a measurement nor a rejection
         return self._fuse(obs, best)
 
