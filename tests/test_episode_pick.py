@@ -18,11 +18,13 @@ from stackpick_sim.control.reach import (
     descent_tilt_share,
     tilted_axis,
 )
+from stackpick_sim.episodes.arm import ArmController
 from stackpick_sim.episodes.hypotheses import RadiusHypotheses
 from stackpick_sim.episodes.sensing import Candidate, Observation
-from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator
+from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator, TargetState
 from stackpick_sim.geometry import CameraIntrinsics, project_circle
 from stackpick_sim.sim import robot
+from stackpick_sim.sim.cell import build_cell
 from stackpick_sim.sim.ik import tool_down_pose
 
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -49,6 +51,10 @@ def test_tilted_axis_interpolates_between_down_and_the_normal() -> None:
     assert descent_tilt_share(0.4, 0.19, 0.19) == pytest.approx(0.4)
     assert descent_tilt_share(0.4, 0.0, 0.19) == pytest.approx(1.0)
     assert descent_tilt_share(0.4, -0.002, 0.19) == pytest.approx(1.0)
+    # Where the arm cannot meet the face square-on at the grasp, the descent ends at that share.
+    assert descent_tilt_share(0.4, 0.19, 0.19, 0.7) == pytest.approx(0.4)
+    assert descent_tilt_share(0.4, 0.095, 0.19, 0.7) == pytest.approx(0.55)
+    assert descent_tilt_share(0.4, 0.0, 0.19, 0.7) == pytest.approx(0.7)
 
 
 @pytest.fixture(scope="module")
@@ -167,3 +173,87 @@ def test_a_radius_hypothesis_that_lost_the_face_never_takes_over() -> None:
         assert hyps.radius == RADIUS, f"switched to the wrong radius at frame {i}"
     assert wrong.last_fused_time is not None and wrong.last_fused_time < 10 * FRAME_DT
     assert hyps.last_fused_time == pytest.approx(89 * FRAME_DT)
+
+
+def _face(t: float, centre: np.ndarray, radius: float) -> Candidate:
+    """An exact detection of a flat face of ``radius`` m at ``centre`` seen from the look pose."""
+    cam = _look_pose()
+    r, p = cam[:3, :3], cam[:3, 3]
+    c_cam, n_cam = r.T @ (centre - p), r.T @ DOWN
+    return Candidate(pixel=K.project(c_cam)[0], normal_cam=n_cam, centre_cam=c_cam,
+                     radius=radius, is_top=True, ellipse=project_circle(c_cam, n_cam, radius, K))
+
+
+def test_a_face_of_another_size_at_the_prediction_is_not_the_track() -> None:
+    est = TargetEstimator(CFG, K, oracle=True)
+    first = _observation(0.0, [_on_belt(0.0)])
+    est.start(first, first.candidates[0])
+    for i in range(1, 4):
+        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    # A small face 2 mm from the prediction (a lower face showing through, a fragment of an
+    # outline): the tracked face is not in this frame, so nothing is fused.
+    t = 4 * FRAME_DT
+    small = _face(t, _on_belt(t) + np.array([0.002, 0.0, 0.0]), 0.6 * RADIUS)
+    obs = replace(_observation(t, []), candidates=(small,))
+    assert not est.offer(obs)
+    assert est.tracker.consecutive_rejections == 0
+    # With the tracked face beside it, the tracked face is the one fused.
+    t = 5 * FRAME_DT
+    both = (_face(t, _on_belt(t) + np.array([0.001, 0.0, 0.0]), 0.6 * RADIUS),
+            _face(t, _on_belt(t), RADIUS))
+    assert est.offer(replace(_observation(t, []), candidates=both))
+    assert np.linalg.norm(est.state(t, _look_pose()).centre[:2] - _on_belt(t)[:2]) < 5e-4
+
+
+def test_a_tracked_face_cut_by_the_border_is_still_fused_while_its_centre_is_in_view() -> None:
+    # A face drifting across the belt (world x, image v) towards the image's lower border:
+    # once tracked, its ellipse is used while cut by the border (noise inflated).
+    est = TargetEstimator(CFG, K, oracle=True)
+    velocity = np.array([0.1, BELT_SPEED, 0.0])
+    start = FACE + np.array([0.035, -0.05, 0.0])
+    first = _observation(0.0, [start])
+    est.start(first, first.candidates[0])
+    cut_frames = 0
+    for i in range(1, 14):
+        t = i * FRAME_DT
+        obs = _observation(t, [start + velocity * t])
+        e = obs.candidates[0].ellipse
+        assert e is not None and e.cy < K.height - 1
+        assert est.offer(obs), f"frame {i} not fused"
+        cut_frames += int(e.bounds()[3] > K.height - 1)
+    assert cut_frames >= 8
+    t_end = 13 * FRAME_DT
+    assert np.linalg.norm(est.state(t_end, _look_pose()).centre[:2]
+                          - (start + velocity * t_end)[:2]) < 1e-3
+
+
+@pytest.mark.parametrize("standoff", [0.05, 0.0, -0.004])
+def test_a_tool_at_its_goal_is_left_there_whatever_the_standoff(standoff: float) -> None:
+    # The grasp presses 2 mm past the face and the descent's floor is past it too: a goal
+    # reached at a negative standoff must not make the servo back off.
+    cell = build_cell(CFG, ["large"])
+    mujoco.mj_forward(cell.model, cell.data)
+    arm = ArmController(cell)
+    tool = arm.eih.world_T_ee(cell.data)
+    axis = tool[:3, 2]
+    target = TargetState(centre=tool[:3, 3] + standoff * axis, velocity=np.zeros(3),
+                         normal=axis)
+    qdot, err = arm.servo_rate(target, standoff, 0.0, 0.01)
+    assert err.lateral < 1e-9 and abs(err.depth) < 1e-9
+    assert np.max(np.abs(qdot)) < 1e-6
+
+
+def test_hypotheses_reset_forgets_the_face_for_a_new_detection() -> None:
+    # An unconfirmed first detection is dropped and the top object detected again.
+    hyps = RadiusHypotheses(CFG, K, oracle=True, radii=(RADIUS,))
+    first = _observation(0.0, [_on_belt(0.0)])
+    hyps.start(first, first.candidates[0])
+    assert hyps.offer(_observation(FRAME_DT, [_on_belt(FRAME_DT)])) and hyps.initialised
+    hyps.reset()
+    assert not hyps.initialised and hyps.fused == 0 and hyps.last_fused_time is None
+    other = FACE + np.array([0.03, 0.0, 0.0])
+    again = _observation(0.2, [_on_belt(0.2, other)])
+    hyps.start(again, again.candidates[0])
+    assert hyps.offer(_observation(0.2 + FRAME_DT, [_on_belt(0.2 + FRAME_DT, other)]))
+    assert np.linalg.norm(hyps.state(0.3, _look_pose()).centre[:2]
+                          - _on_belt(0.3, other)[:2]) < 1e-3

@@ -31,7 +31,14 @@ class RadiusHypotheses:
     def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
                  radii: tuple[float, ...]) -> None:
         self._radii = radii
+        self._args = (cfg, intrinsics, oracle)
         self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in radii]
+        self.active = self.hypotheses[0]
+
+    def reset(self) -> None:
+        """Forget the face: back to the state before :meth:`start`."""
+        cfg, intrinsics, oracle = self._args
+        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in self._radii]
         self.active = self.hypotheses[0]
 
     def start(self, obs: Observation, cand: Candidate) -> None:

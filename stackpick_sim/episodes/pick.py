@@ -3,7 +3,8 @@
 A mixin of :class:`stackpick_sim.episodes.phases.PhaseLogic` (which holds the state and the
 look/detect/track phases). The tool approaches along a *commanded* axis: the face normal,
 or, where the arm cannot reach that at the servo standoff, a share of its tilt that grows
-to the full normal during the descent (:mod:`stackpick_sim.control.reach`). The descent is
+during the descent to the full normal, or to the share the arm can take where the face will
+be at the grasp (:mod:`stackpick_sim.control.reach`). The descent is
 blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
 turns the tool upright as it rises.
 """
@@ -18,6 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.control.reach import (
+    GRASP_JOINT_MARGIN,
+    GRASP_SELF_CLEARANCE,
     ReachChecker,
     descent_tilt_share,
     tilted_axis,
@@ -62,6 +65,7 @@ class ArmPhases:
     done: bool
     _standoff: float
     _tilt_share: float
+    _face_share: float
     _at_floor: float
     _last_lateral: float
     _settled: int
@@ -84,9 +88,18 @@ class ArmPhases:
         ep = self.ep
         cell = ep.scene.cell
         state = ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data))
-        share, margin, clearance = ReachChecker(cell.model).tilt_share(
+        checker = ReachChecker(cell.model)
+        share, margin, clearance = checker.tilt_share(
             ep.arm.full_qpos(), state.centre, state.normal, self._standoff,
             ep.arm.command_world_T_tool())
+        cfg = cell.cfg.episode
+        # Where the face will be when the cup meets it (the descent's nominal duration on).
+        lead = REACH_LEAD_S + cfg.standoff / max(cfg.descend_speed, 1e-6)
+        grasp = ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data))
+        self._face_share = max(share, checker.tilt_share(
+            ep.arm.full_qpos(), grasp.centre, grasp.normal, 0.0, ep.arm.command_world_T_tool(),
+            margin=GRASP_JOINT_MARGIN, clearance=GRASP_SELF_CLEARANCE)[0])
+        ep.record.grasp_tilt_share = self._face_share
         self._tilt_share = share
         ep.record.servo_tilt_share = share
         if math.isfinite(margin):
@@ -95,10 +108,10 @@ class ArmPhases:
 
     def _commanded(self, state: TargetState, standoff: float) -> TargetState:
         """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
-        if self._tilt_share >= 1.0:
+        if self._tilt_share >= 1.0 and self._face_share >= 1.0:
             return state
         share = descent_tilt_share(self._tilt_share, standoff,
-                                   self.ep.scene.cell.cfg.episode.standoff)
+                                   self.ep.scene.cell.cfg.episode.standoff, self._face_share)
         return replace(state, normal=tilted_axis(state.normal, share))
 
     def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:

@@ -41,7 +41,7 @@ from stackpick_sim.estimation import (
     project_to_pixels,
     transfer_via_plane,
 )
-from stackpick_sim.geometry import CameraIntrinsics, project_circle
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
 
 FloatArray = NDArray[np.float64]
 
@@ -89,6 +89,16 @@ REACQUIRE_GATE = 0.008
 #: count towards a lost track (the tracked face may be cut by the image border while a
 #: neighbour is in view). Half the small face radius.
 ASSOCIATION_MAX = 0.0125
+#: A candidate whose ellipse's semi-major axis differs from the tracked face's predicted one
+#: by more than this share is another face (a smaller one, a side wall, a fragment of an
+#: outline): the major axis is set by the face's radius and depth, which the track knows to
+#: a few per cent (the detector's axes to 1-2 px of ~30-50). Placeholder with margin.
+SIZE_TOLERANCE = 0.25
+#: Once tracked, a face cut by the image border is still used while its ellipse's centre is
+#: in the image, with this many times the pixel noise: a fit on a partial outline, its size
+#: checked against the track's (SIZE_TOLERANCE). The approach and the servo often carry a
+#: face near the border. Placeholder.
+CUT_STD_FACTOR = 3.0
 #: Two face normals within this angle (deg) agree; the normal estimate is the mean of the
 #: largest agreeing group, so an occasional flip of the pose's two-fold ambiguity is outvoted.
 NORMAL_AGREEMENT_DEG = 10.0
@@ -189,22 +199,29 @@ class TargetEstimator:
             predicted = self._predicted_measurement(obs)
         except EstimationError:
             return False
-        shift = self._centre_shift(obs) if self.correct_centres else None
+        expected = self._expected_ellipse(obs)
+        shift = None
+        if expected is not None and self.correct_centres:
+            shift = np.asarray(expected[1] - np.array([expected[0].cx, expected[0].cy]))
         scored = []
         for cand in obs.candidates:
             e = cand.ellipse
-            if e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX):
+            cut = e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX)
+            if cut and (e is None or expected is None or not self._usable_cut(e)):
                 continue  # a face cut by the image border gives a biased ellipse
+            if (e is not None and expected is not None
+                    and abs(e.a - expected[0].a) > SIZE_TOLERANCE * expected[0].a):
+                continue  # not the tracked face's size: a smaller face, a wall, a fragment
             if shift is not None and cand.ellipse is not None:
                 cand = replace(cand, pixel=np.array([cand.ellipse.cx, cand.ellipse.cy]) + shift)
             try:
                 z = self._measurement(obs, cand.pixel)
             except EstimationError:
                 continue
-            scored.append((float(np.linalg.norm(z - predicted)), cand))
+            scored.append((float(np.linalg.norm(z - predicted)), cut, cand))
         if not scored:
             return False
-        distance, best = min(scored, key=lambda s: s[0])
+        distance, cut, best = min(scored, key=lambda s: s[0])
         distance *= self._metres_per_unit(obs.world_T_cam, predicted)
         if not self.tracker.initialised and distance > INIT_GATE:
             self.missed_last = True
@@ -212,11 +229,13 @@ class TargetEstimator:
         if distance > ASSOCIATION_MAX:
             self.missed_last = True
             return False  # another object's face: neither a measurement nor a rejection
-        return self._fuse(obs, best)
+        return self._fuse(obs, best, CUT_STD_FACTOR * self.pixel_std if cut else None)
 
-    def _centre_shift(self, obs: Observation) -> FloatArray | None:
-        """(2,) px from the face's ellipse centre to its centre's image, from the estimate.
+    def _expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
+        """The tracked face as ``obs``'s camera should see it: its ellipse and the (2,) pixel
+        of its centre, from the estimate; None before the filter is set.
 
+        The ellipse's size tells the tracked face from other faces near the prediction.
         Perspective moves an ellipse's centre off the image of the circle's centre; with
         the tracked normal (a consensus over frames) this shift is steadier than each
         frame's own pose.
@@ -230,7 +249,7 @@ class TargetEstimator:
             e = project_circle(c_cam, n_cam, self.radius, self.k)
         except ValueError:
             return None
-        return np.asarray(self.k.project(c_cam)[0] - np.array([e.cx, e.cy]))
+        return e, np.asarray(self.k.project(c_cam)[0])
 
     def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
         """The face predicted at sim time ``t`` s (Eq. 4); needs :attr:`initialised`."""
@@ -304,19 +323,26 @@ class TargetEstimator:
         return backproject_to_plane(np.reshape(pixel, (1, 2)), self.k, obs.world_T_cam,
                                     plane)[0, :2]
 
-    def _fuse(self, obs: Observation, cand: Candidate) -> bool:
+    def _usable_cut(self, e: Ellipse) -> bool:
+        """Whether a face cut by the image border still has its centre well inside the image
+        (at least about half its outline in view, enough for a fit of known size)."""
+        m = EDGE_MARGIN_PX
+        return (m <= e.cx <= self.k.width - 1 - m and m <= e.cy <= self.k.height - 1 - m)
+
+    def _fuse(self, obs: Observation, cand: Candidate, pixel_std: float | None = None) -> bool:
         first = not self._zs and cand.centre_cam is not None
         if first:
             self._add_pose(obs, cand)  # the plane height is needed to back-project
         z = self._measurement(obs, cand.pixel)
+        sigma = self.pixel_std if pixel_std is None else pixel_std
         if self.frame == "belt":
             g = plane_backprojection_jacobian(cand.pixel, self.k, obs.world_T_cam,
                                               np.array([0.0, 0.0, self.face_z]))[:2]
-            r = self.pixel_std**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
+            r = sigma**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
         else:
             px_per_m = np.linalg.inv(plane_backprojection_jacobian(
                 cand.pixel, self.k, obs.world_T_cam, self._plane())[:2])
-            r = self.pixel_std**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
+            r = sigma**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
             self._into_view(obs)
         if self.frame == "image" and not self.tracker.initialised and self._first is not None:
             # The two-point start differences pixels: both must be of this frame's pose.
@@ -343,8 +369,8 @@ class TargetEstimator:
             self._last = (obs.capture_time, z)
             self.fused += 1
             self.last_fused_time = obs.capture_time
-            if not first:
-                self._add_pose(obs, cand)
+            if not first and pixel_std is None:  # a pose fitted on a partial outline is not
+                self._add_pose(obs, cand)        # trusted for the face's height and normal
         return accepted
 
     def _reacquire(self) -> bool:
