@@ -27,7 +27,7 @@ from stackpick_sim.episodes.sensing import (
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
 from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.exceptions import EpisodeError
-from stackpick_sim.geometry import project_circle, tilt_angles
+from stackpick_sim.geometry import Ellipse, project_circle, tilt_angles
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
 
 if TYPE_CHECKING:
@@ -111,6 +111,8 @@ class PhaseLogic(ArmPhases):
     def before_capture(self, t: float) -> None:
         """Decide whether the frame is worth processing; ground truth of detection frames."""
         self.ep.sensor.process = self._frame_needed()
+        self.ep.sensor.expected_ellipse = (self._predicted_ellipse()
+                                           if self.phase not in ("look", "detect") else None)
         if self.phase in ("look", "detect"):
             start = time.perf_counter()
             assert self.ep.camera is not None
@@ -134,17 +136,23 @@ class PhaseLogic(ArmPhases):
             return False
         if self.phase != "descend":
             return True
+        e = self._predicted_ellipse()
+        return e is not None and ellipse_inside(e, self.ep.scene.cell.intrinsics, EDGE_MARGIN_PX)
+
+    def _predicted_ellipse(self) -> Ellipse | None:
+        """The tracked face's ellipse as the camera sees it now (None before tracking)."""
         ep = self.ep
+        if not ep.estimator.initialised:
+            return None
         cell = ep.scene.cell
         world_T_cam = ep.arm.eih.world_T_cam(cell.data)
         state = ep.estimator.state(self._now, world_T_cam)
         r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
         try:
-            e = project_circle(r.T @ (state.centre - p), r.T @ state.normal,
-                               ep.estimator.radius or 0.0, cell.intrinsics)
+            return project_circle(r.T @ (state.centre - p), r.T @ state.normal,
+                                  ep.estimator.radius or 0.0, cell.intrinsics)
         except ValueError:
-            return False
-        return ellipse_inside(e, cell.intrinsics, EDGE_MARGIN_PX)
+            return None
 
     # -- the machine -----------------------------------------------------------------------
     def tick(self, t: float, dt: float, observations: list[Observation]) -> ServoErrors | None:
