@@ -26,6 +26,7 @@ from stackpick_sim.geometry import CameraIntrinsics, project_circle
 from stackpick_sim.sim import robot
 from stackpick_sim.sim.cell import build_cell
 from stackpick_sim.sim.ik import tool_down_pose
+from stackpick_sim.vision import circle_poses
 
 DOWN = np.array([0.0, 0.0, -1.0])
 #: A face 0.4 m out from the robot's base at belt-pile height (the look point's x), m.
@@ -257,3 +258,63 @@ def test_hypotheses_reset_forgets_the_face_for_a_new_detection() -> None:
     assert hyps.offer(_observation(0.2 + FRAME_DT, [_on_belt(0.2 + FRAME_DT, other)]))
     assert np.linalg.norm(hyps.state(0.3, _look_pose()).centre[:2]
                           - _on_belt(0.3, other)[:2]) < 1e-3
+
+
+def test_the_normal_is_the_pose_solution_all_views_share() -> None:
+    # A face tilted 25 deg; the first detection picked the wrong one of its pose's two
+    # solutions. As the camera moves the wrong solution turns with the line of sight and
+    # the right one stays: the tracked normal settles on the right one.
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    est = TargetEstimator(cfg, K, oracle=False)
+    true_n = _inward_normal(25.0, 60.0)
+
+    def view(t: float, wrong_pose: bool) -> Observation:
+        cam = _look_pose()
+        cam[:2, 3] += [0.06 * math.sin(2.0 * math.pi * t / 0.8), BELT_SPEED * t]
+        r, p = cam[:3, :3], cam[:3, 3]
+        c_cam, n_cam = r.T @ (_on_belt(t) - p), r.T @ true_n
+        ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+        normal = centre = None
+        if wrong_pose:
+            sols = circle_poses(ellipse, K, RADIUS)
+            wrong = min(sols, key=lambda s: float(s.normal_cam @ n_cam))
+            normal, centre = np.asarray(wrong.normal_cam), np.asarray(wrong.centre_cam)
+        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=normal, centre_cam=centre,
+                         radius=RADIUS, is_top=wrong_pose, ellipse=ellipse)
+        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                           candidates=(cand,), detection=None, image=None)
+
+    first = view(0.0, True)
+    est.start(first, first.candidates[0])
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) > 20.0
+    for i in range(1, 16):
+        est.offer(view(i * FRAME_DT, i < 3))
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) < 1.0
+
+
+def test_views_along_one_line_of_sight_cast_one_vote_on_the_normal() -> None:
+    # From a still camera the detector's pick between the pose's two solutions flips to the
+    # wrong one in later frames: no new line of sight, no new evidence; the normal stays.
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    est = TargetEstimator(cfg, K, oracle=False)
+    true_n = _inward_normal(25.0, 60.0)
+    cam = _look_pose()
+    r, p = cam[:3, :3], cam[:3, 3]
+
+    def view(t: float, right: bool) -> Observation:
+        # The face stays still: only the camera's line of sight could tell the solutions.
+        c_cam, n_cam = r.T @ (FACE - p), r.T @ true_n
+        ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+        sols = sorted(circle_poses(ellipse, K, RADIUS), key=lambda s: -float(s.normal_cam @ n_cam))
+        pose = sols[0] if right else sols[1]
+        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=np.asarray(pose.normal_cam),
+                         centre_cam=np.asarray(pose.centre_cam), radius=RADIUS, is_top=True,
+                         ellipse=ellipse)
+        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                           candidates=(cand,), detection=None, image=None)
+
+    first = view(0.0, True)
+    est.start(first, first.candidates[0])
+    for i in range(1, 12):
+        est.offer(view(i * FRAME_DT, False))
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) < 1.0

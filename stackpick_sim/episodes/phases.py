@@ -69,6 +69,7 @@ class PhaseLogic(ArmPhases):
         self._cycle_end: float | None = None
         self._tilt_share = 1.0
         self._face_share = 1.0
+        self._planned_normal = np.array([0.0, 0.0, -1.0])
         self._redetections = 0
         self._at_floor = 0.0
         self._last_lateral = 0.0

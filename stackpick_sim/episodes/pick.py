@@ -42,6 +42,9 @@ SERVO_SETTLE_TICKS = 3
 #: The reach check looks at the face this far ahead of the approach's start, s: about the
 #: approach and servo time (median 0.45 s on paper scenes), when the descent begins.
 REACH_LEAD_S = 0.5
+#: The reach is planned again when the tracked face normal has turned this far since the
+#: plan, deg (the NORMAL_AGREEMENT_DEG of the normal's consensus).
+REPLAN_TURN_DEG = 10.0
 #: The descent ends in a miss once the tool is within this of its deepest command, m, or
 #: has been commanded there this long, s (the arm lags the command by up to ~60 ms at
 #: 0.35 m/s on paper scenes).
@@ -66,6 +69,7 @@ class ArmPhases:
     _standoff: float
     _tilt_share: float
     _face_share: float
+    _planned_normal: NDArray[np.float64]
     _at_floor: float
     _last_lateral: float
     _settled: int
@@ -100,11 +104,19 @@ class ArmPhases:
             ep.arm.full_qpos(), grasp.centre, grasp.normal, 0.0, ep.arm.command_world_T_tool(),
             margin=GRASP_JOINT_MARGIN, clearance=GRASP_SELF_CLEARANCE)[0])
         ep.record.grasp_tilt_share = self._face_share
+        self._planned_normal = state.normal
         self._tilt_share = share
         ep.record.servo_tilt_share = share
         if math.isfinite(margin):
             ep.record.servo_joint_margin_rad = round(margin, 4)
             ep.record.servo_self_clearance_m = round(clearance, 4)
+
+    def _replan_if_turned(self, t: float) -> None:
+        """Plan the reach again once the tracked normal has turned (the consensus of views
+        settled on the other solution of the pose's ambiguity)."""
+        n = self.ep.estimator.normal
+        if float(n @ self._planned_normal) < math.cos(math.radians(REPLAN_TURN_DEG)):
+            self._plan_reach(t)
 
     def _commanded(self, state: TargetState, standoff: float) -> TargetState:
         """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
@@ -119,6 +131,7 @@ class ArmPhases:
         cfg = ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return
+        self._replan_if_turned(t)
         lead = 1.0 / cfg.approach_gain
         now_T_tool = ep.arm.command_world_T_tool()
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
@@ -144,6 +157,7 @@ class ArmPhases:
         cfg = self.ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return None
+        self._replan_if_turned(t)
         err = self._servo_step(t, dt, cfg.standoff, 0.0)
         ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
               and err.tilt_deg < cfg.servo_tilt_tol_deg)

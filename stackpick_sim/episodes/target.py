@@ -24,6 +24,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -42,6 +43,7 @@ from stackpick_sim.estimation import (
     transfer_via_plane,
 )
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.vision import circle_poses
 
 FloatArray = NDArray[np.float64]
 
@@ -100,8 +102,13 @@ SIZE_TOLERANCE = 0.25
 #: face near the border. Placeholder.
 CUT_STD_FACTOR = 3.0
 #: Two face normals within this angle (deg) agree; the normal estimate is the mean of the
-#: largest agreeing group, so an occasional flip of the pose's two-fold ambiguity is outvoted.
+#: largest agreeing group over the views' pose solutions (see ``_add_normals``).
 NORMAL_AGREEMENT_DEG = 10.0
+#: A view votes on the normal's two-fold ambiguity only if its line of sight to the face is
+#: this far (deg) from every earlier voter's: views along one line of sight (the still look
+#: pose, the servo's and descent's views along the tool axis) see the wrong solution as
+#: steadily as the right one. Placeholder.
+VOTE_SIGHT_DEG = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,6 +143,8 @@ class TargetEstimator:
         """Image frame: the camera pose whose image the filter's pixels are in."""
         self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
+        self._normal_views: list[tuple[FloatArray, int | None]] = []
+        self._sights: list[FloatArray] = []
         self._zs: list[float] = []
         self._normal = np.array([0.0, 0.0, -1.0])
         self.correct_centres = not oracle
@@ -402,8 +411,24 @@ class TargetEstimator:
             # A monocular pose is known up to scale: put the face at this track's radius.
             scale = self.radius / cand.radius if self.radius and cand.radius > 0 else 1.0
             self._zs.append(float((r_wc @ (cand.centre_cam * scale) + p_wc)[2]))
+        if not self.correct_centres or cand.ellipse is None or not self.radius:
+            if cand.normal_cam is not None:  # exact normals (oracle): largest agreeing group
+                self._add_normal(r_wc @ cand.normal_cam)
+            return
+        e = cand.ellipse
+        sight = r_wc @ np.linalg.solve(self.k.K, np.array([e.cx, e.cy, 1.0]))
+        sight /= float(np.linalg.norm(sight))
+        if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
+            return  # a line of sight already voted: it cannot tell the two solutions apart
+        try:
+            sols = [np.asarray(sol.normal_cam) for sol in circle_poses(e, self.k, self.radius)]
+        except (ValueError, np.linalg.LinAlgError):
+            return
+        self._sights.append(sight)
+        chosen = None
         if cand.normal_cam is not None:
-            self._add_normal(r_wc @ cand.normal_cam)
+            chosen = int(np.argmax([float(n @ cand.normal_cam) for n in sols]))
+        self._add_normals(np.array([r_wc @ n for n in sols]), chosen)
 
     def _add_normal(self, n: FloatArray) -> None:
         self._normals.append(n / float(np.linalg.norm(n)))
@@ -412,3 +437,34 @@ class TargetEstimator:
         best = int(np.argmax(agree.sum(axis=1)))  # first of the largest group: deterministic
         mean = normals[agree[best]].sum(axis=0)
         self._normal = mean / float(np.linalg.norm(mean))
+
+    def _add_normals(self, normals: FloatArray, chosen: int | None) -> None:
+        """Add one view's two world normal solutions, ``chosen`` the detector's pick among
+        them (or None); update the consensus :attr:`normal`.
+
+        A face's pose from one view is two-fold ambiguous. The right normal is the same
+        from every line of sight; the wrong one turns with it. So, over views from lines of
+        sight at least VOTE_SIGHT_DEG apart, the normal is the solution the most views
+        share (within NORMAL_AGREEMENT_DEG), ties going to the one the detector picked most
+        often (its wall-colour test), then to the earliest; the mean of each view's nearest
+        agreeing solution.
+        """
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        self._normal_views.append((normals, chosen))
+        cos_min = np.cos(np.radians(NORMAL_AGREEMENT_DEG))
+        best_key: tuple[int, int] | None = None
+        best_mean = normals[0]
+        for cand in np.concatenate([v for v, _ in self._normal_views]):
+            support = picked = 0
+            total = np.zeros(3)
+            for views, pick in self._normal_views:
+                c = views @ cand
+                j = int(np.argmax(c))
+                if c[j] >= cos_min:
+                    support += 1
+                    picked += int(pick == j)
+                    total += views[j]
+            key = (support, picked)
+            if best_key is None or key > best_key:
+                best_key, best_mean = key, total
+        self._normal = best_mean / float(np.linalg.norm(best_mean))
