@@ -4,6 +4,7 @@ association, re-acquisition after a changed motion, and frames the controller do
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -17,11 +18,15 @@ from stackpick_sim.control.reach import (
     descent_tilt_share,
     tilted_axis,
 )
+from stackpick_sim.episodes.arm import ArmController
+from stackpick_sim.episodes.hypotheses import RadiusHypotheses
 from stackpick_sim.episodes.sensing import Candidate, Observation
-from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator
+from stackpick_sim.episodes.target import ASSOCIATION_MAX, TargetEstimator, TargetState
 from stackpick_sim.geometry import CameraIntrinsics, project_circle
 from stackpick_sim.sim import robot
+from stackpick_sim.sim.cell import build_cell
 from stackpick_sim.sim.ik import tool_down_pose
+from stackpick_sim.vision import circle_poses
 
 DOWN = np.array([0.0, 0.0, -1.0])
 #: A face 0.4 m out from the robot's base at belt-pile height (the look point's x), m.
@@ -47,6 +52,10 @@ def test_tilted_axis_interpolates_between_down_and_the_normal() -> None:
     assert descent_tilt_share(0.4, 0.19, 0.19) == pytest.approx(0.4)
     assert descent_tilt_share(0.4, 0.0, 0.19) == pytest.approx(1.0)
     assert descent_tilt_share(0.4, -0.002, 0.19) == pytest.approx(1.0)
+    # Where the arm cannot meet the face square-on at the grasp, the descent ends at that share.
+    assert descent_tilt_share(0.4, 0.19, 0.19, 0.7) == pytest.approx(0.4)
+    assert descent_tilt_share(0.4, 0.095, 0.19, 0.7) == pytest.approx(0.55)
+    assert descent_tilt_share(0.4, 0.0, 0.19, 0.7) == pytest.approx(0.7)
 
 
 @pytest.fixture(scope="module")
@@ -129,3 +138,183 @@ def test_far_neighbour_is_not_a_rejection_and_a_changed_motion_is_reacquired() -
     truth = _on_belt(7 * FRAME_DT, shifted, 1.3 * BELT_SPEED)
     assert np.linalg.norm(state.centre[:2] - truth[:2]) < 1e-3
     assert state.velocity[1] == pytest.approx(1.3 * BELT_SPEED, rel=0.05)
+
+
+def _moving_observation(t: float, centre: np.ndarray, rng: np.random.Generator,
+                        pixel_std: float) -> Observation:
+    """A noisy detection of a flat face at ``centre`` by the look camera following the belt
+    and swinging 30 mm to and fro across it (the parallax tells the face's height)."""
+    cam = _look_pose()
+    cam[:2, 3] += [0.03 * math.sin(2.0 * math.pi * t / 0.8), BELT_SPEED * t]
+    r, p = cam[:3, :3], cam[:3, 3]
+    c_cam, n_cam = r.T @ (centre - p), r.T @ DOWN
+    ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+    noise = rng.normal(0.0, pixel_std, 2)
+    ellipse = replace(ellipse, cx=ellipse.cx + noise[0], cy=ellipse.cy + noise[1])
+    cand = Candidate(pixel=K.project(c_cam)[0] + noise, normal_cam=n_cam, centre_cam=c_cam,
+                     radius=RADIUS, is_top=True, ellipse=ellipse)
+    return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                       candidates=(cand,), detection=None, image=None)
+
+
+def test_a_radius_hypothesis_that_lost_the_face_never_takes_over() -> None:
+    # The wrong radius (20 mm for 35) puts the face 86 mm too high: once the camera moves,
+    # its track drifts off the face and stops associating. The right one goes on paying
+    # each measurement's noise in NIS; it must stay active (the wrong one is charged for the
+    # frames it missed, and one that lost the face may not take over anyway).
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    hyps = RadiusHypotheses(cfg, K, oracle=False, radii=(0.02, RADIUS))
+    rng = np.random.default_rng(7)
+    first = _moving_observation(0.0, _on_belt(0.0), rng, 0.0)
+    hyps.start(first, first.candidates[0])
+    wrong = hyps.hypotheses[0]
+    for i in range(1, 90):
+        t = i * FRAME_DT
+        hyps.offer(_moving_observation(t, _on_belt(t), rng, 0.5))
+        assert hyps.radius == RADIUS, f"switched to the wrong radius at frame {i}"
+    assert wrong.last_fused_time is not None and wrong.last_fused_time < 10 * FRAME_DT
+    assert hyps.last_fused_time == pytest.approx(89 * FRAME_DT)
+
+
+def _face(t: float, centre: np.ndarray, radius: float) -> Candidate:
+    """An exact detection of a flat face of ``radius`` m at ``centre`` seen from the look pose."""
+    cam = _look_pose()
+    r, p = cam[:3, :3], cam[:3, 3]
+    c_cam, n_cam = r.T @ (centre - p), r.T @ DOWN
+    return Candidate(pixel=K.project(c_cam)[0], normal_cam=n_cam, centre_cam=c_cam,
+                     radius=radius, is_top=True, ellipse=project_circle(c_cam, n_cam, radius, K))
+
+
+def test_a_face_of_another_size_at_the_prediction_is_not_the_track() -> None:
+    est = TargetEstimator(CFG, K, oracle=True)
+    first = _observation(0.0, [_on_belt(0.0)])
+    est.start(first, first.candidates[0])
+    for i in range(1, 4):
+        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    # A small face 2 mm from the prediction (a lower face showing through, a fragment of an
+    # outline): the tracked face is not in this frame, so nothing is fused.
+    t = 4 * FRAME_DT
+    small = _face(t, _on_belt(t) + np.array([0.002, 0.0, 0.0]), 0.6 * RADIUS)
+    obs = replace(_observation(t, []), candidates=(small,))
+    assert not est.offer(obs)
+    assert est.tracker.consecutive_rejections == 0
+    # With the tracked face beside it, the tracked face is the one fused.
+    t = 5 * FRAME_DT
+    both = (_face(t, _on_belt(t) + np.array([0.001, 0.0, 0.0]), 0.6 * RADIUS),
+            _face(t, _on_belt(t), RADIUS))
+    assert est.offer(replace(_observation(t, []), candidates=both))
+    assert np.linalg.norm(est.state(t, _look_pose()).centre[:2] - _on_belt(t)[:2]) < 5e-4
+
+
+def test_a_tracked_face_cut_by_the_border_is_still_fused_while_its_centre_is_in_view() -> None:
+    # A face drifting across the belt (world x, image v) towards the image's lower border:
+    # once tracked, its ellipse is used while cut by the border (noise inflated).
+    est = TargetEstimator(CFG, K, oracle=True)
+    velocity = np.array([0.1, BELT_SPEED, 0.0])
+    start = FACE + np.array([0.035, -0.05, 0.0])
+    first = _observation(0.0, [start])
+    est.start(first, first.candidates[0])
+    cut_frames = 0
+    for i in range(1, 14):
+        t = i * FRAME_DT
+        obs = _observation(t, [start + velocity * t])
+        e = obs.candidates[0].ellipse
+        assert e is not None and e.cy < K.height - 1
+        assert est.offer(obs), f"frame {i} not fused"
+        cut_frames += int(e.bounds()[3] > K.height - 1)
+    assert cut_frames >= 8
+    t_end = 13 * FRAME_DT
+    assert np.linalg.norm(est.state(t_end, _look_pose()).centre[:2]
+                          - (start + velocity * t_end)[:2]) < 1e-3
+
+
+@pytest.mark.parametrize("standoff", [0.05, 0.0, -0.004])
+def test_a_tool_at_its_goal_is_left_there_whatever_the_standoff(standoff: float) -> None:
+    # The grasp presses 2 mm past the face and the descent's floor is past it too: a goal
+    # reached at a negative standoff must not make the servo back off.
+    cell = build_cell(CFG, ["large"])
+    mujoco.mj_forward(cell.model, cell.data)
+    arm = ArmController(cell)
+    tool = arm.eih.world_T_ee(cell.data)
+    axis = tool[:3, 2]
+    target = TargetState(centre=tool[:3, 3] + standoff * axis, velocity=np.zeros(3),
+                         normal=axis)
+    qdot, err = arm.servo_rate(target, standoff, 0.0, 0.01)
+    assert err.lateral < 1e-9 and abs(err.depth) < 1e-9
+    assert np.max(np.abs(qdot)) < 1e-6
+
+
+def test_hypotheses_reset_forgets_the_face_for_a_new_detection() -> None:
+    # An unconfirmed first detection is dropped and the top object detected again.
+    hyps = RadiusHypotheses(CFG, K, oracle=True, radii=(RADIUS,))
+    first = _observation(0.0, [_on_belt(0.0)])
+    hyps.start(first, first.candidates[0])
+    assert hyps.offer(_observation(FRAME_DT, [_on_belt(FRAME_DT)])) and hyps.initialised
+    hyps.reset()
+    assert not hyps.initialised and hyps.fused == 0 and hyps.last_fused_time is None
+    other = FACE + np.array([0.03, 0.0, 0.0])
+    again = _observation(0.2, [_on_belt(0.2, other)])
+    hyps.start(again, again.candidates[0])
+    assert hyps.offer(_observation(0.2 + FRAME_DT, [_on_belt(0.2 + FRAME_DT, other)]))
+    assert np.linalg.norm(hyps.state(0.3, _look_pose()).centre[:2]
+                          - _on_belt(0.3, other)[:2]) < 1e-3
+
+
+def test_the_normal_is_the_pose_solution_all_views_share() -> None:
+    # A face tilted 25 deg; the first detection picked the wrong one of its pose's two
+    # solutions. As the camera moves the wrong solution turns with the line of sight and
+    # the right one stays: the tracked normal settles on the right one.
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    est = TargetEstimator(cfg, K, oracle=False)
+    true_n = _inward_normal(25.0, 60.0)
+
+    def view(t: float, wrong_pose: bool) -> Observation:
+        cam = _look_pose()
+        cam[:2, 3] += [0.06 * math.sin(2.0 * math.pi * t / 0.8), BELT_SPEED * t]
+        r, p = cam[:3, :3], cam[:3, 3]
+        c_cam, n_cam = r.T @ (_on_belt(t) - p), r.T @ true_n
+        ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+        normal = centre = None
+        if wrong_pose:
+            sols = circle_poses(ellipse, K, RADIUS)
+            wrong = min(sols, key=lambda s: float(s.normal_cam @ n_cam))
+            normal, centre = np.asarray(wrong.normal_cam), np.asarray(wrong.centre_cam)
+        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=normal, centre_cam=centre,
+                         radius=RADIUS, is_top=wrong_pose, ellipse=ellipse)
+        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                           candidates=(cand,), detection=None, image=None)
+
+    first = view(0.0, True)
+    est.start(first, first.candidates[0])
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) > 20.0
+    for i in range(1, 16):
+        est.offer(view(i * FRAME_DT, i < 3))
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) < 1.0
+
+
+def test_views_along_one_line_of_sight_cast_one_vote_on_the_normal() -> None:
+    # From a still camera the detector's pick between the pose's two solutions flips to the
+    # wrong one in later frames: no new line of sight, no new evidence; the normal stays.
+    cfg = load_scene("paper", ["episode.detector=ours"])
+    est = TargetEstimator(cfg, K, oracle=False)
+    true_n = _inward_normal(25.0, 60.0)
+    cam = _look_pose()
+    r, p = cam[:3, :3], cam[:3, 3]
+
+    def view(t: float, right: bool) -> Observation:
+        # The face stays still: only the camera's line of sight could tell the solutions.
+        c_cam, n_cam = r.T @ (FACE - p), r.T @ true_n
+        ellipse = project_circle(c_cam, n_cam, RADIUS, K)
+        sols = sorted(circle_poses(ellipse, K, RADIUS), key=lambda s: -float(s.normal_cam @ n_cam))
+        pose = sols[0] if right else sols[1]
+        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=np.asarray(pose.normal_cam),
+                         centre_cam=np.asarray(pose.centre_cam), radius=RADIUS, is_top=True,
+                         ellipse=ellipse)
+        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
+                           candidates=(cand,), detection=None, image=None)
+
+    first = view(0.0, True)
+    est.start(first, first.candidates[0])
+    for i in range(1, 12):
+        est.offer(view(i * FRAME_DT, False))
+    assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) < 1.0

@@ -18,9 +18,12 @@ clearance between the forearm links and the flange-side bodies (:data:`SELF_CLEA
 So the tool approaches along a *commanded* axis between straight down and the face
 normal: :func:`tilted_axis` with share ``alpha`` of the tilt (1: the face normal). At the
 servo standoff ``alpha`` is the largest share whose IK solution keeps every joint
-:data:`JOINT_MARGIN` inside its range (:func:`reachable_tilt_share`); during the descent it
+:data:`JOINT_MARGIN` inside its range (:meth:`ReachChecker.tilt_share`); during the descent it
 grows linearly to 1 at the face (:func:`descent_tilt_share`), so the cup meets the face
-square-on, where the wrist centre has come close enough.
+square-on, where the wrist centre has come close enough. On a fast belt the face travels
+on during the descent (0.3 m/s: ~16 cm) to where even the face itself may be out of reach
+square-on; the share at the face is then checked too, at the predicted grasp time and place
+(with the smaller :data:`GRASP_JOINT_MARGIN`), and the descent grows to that share only.
 """
 
 from __future__ import annotations
@@ -45,6 +48,11 @@ JOINT_MARGIN = 0.2
 #: pose, m: J5 drifting by ~0.1 rad moves the J6 link ~5 mm at its ~50 mm lever; with
 #: margin, placeholder.
 SELF_CLEARANCE = 0.012
+#: Margins at the grasp pose itself, rad and m: no servo drift is left to come there, only
+#: the tracking error of the last millimetres. Placeholders, a quarter and a third of the
+#: servo pose's.
+GRASP_JOINT_MARGIN = 0.05
+GRASP_SELF_CLEARANCE = 0.004
 #: Bodies on either side of the wrist whose collision geoms must keep SELF_CLEARANCE apart.
 FOREARM_BODIES = ("j3_link", "j4_link")
 FLANGE_BODIES = ("j6_link", "bracket_link", "cup_link", "camera_link")
@@ -74,15 +82,17 @@ def tilted_axis(normal: FloatArray, share: float) -> FloatArray:
     return np.asarray(a / float(np.linalg.norm(a)))
 
 
-def descent_tilt_share(share_at_standoff: float, standoff: float, servo_standoff: float) -> float:
+def descent_tilt_share(share_at_standoff: float, standoff: float, servo_standoff: float,
+                       share_at_face: float = 1.0) -> float:
     """Share of the tilt at a tool-to-face distance ``standoff`` m during the descent.
 
-    Linear in the distance: ``share_at_standoff`` at ``servo_standoff`` m, 1 at the face.
+    Linear in the distance: ``share_at_standoff`` at ``servo_standoff`` m, ``share_at_face``
+    (1 unless the arm cannot take the whole tilt where the face will be grasped) at the face.
     """
     if servo_standoff <= 0.0:
-        return 1.0
+        return share_at_face
     frac = min(1.0, max(0.0, standoff / servo_standoff))
-    return 1.0 - (1.0 - share_at_standoff) * frac
+    return share_at_face - (share_at_face - share_at_standoff) * frac
 
 
 def tool_pose_on_axis(centre: FloatArray, axis: FloatArray, standoff: float,

@@ -149,8 +149,10 @@ class ArmController:
         n_cam = r.T @ target.normal
         s = circle_pose_features(c_cam, n_cam)
         s_star = desired_circle_pose_features(self.cam_T_tool, standoff)
-        s_next = desired_circle_pose_features(self.cam_T_tool, max(standoff + standoff_rate * dt,
-                                                                   0.0))
+        # The goal's own motion, unclamped: the standoff goes below 0 at the end of a descent
+        # and in the grasp's preload, and a goal rate computed against a clamped next goal
+        # asked the arm to back off at up to overtravel / dt (0.6 m/s) there.
+        s_next = desired_circle_pose_features(self.cam_T_tool, standoff + standoff_rate * dt)
         ds_star = (s_next - s_star) / dt
         interaction = circle_pose_interaction(c_cam, n_cam)
         jac = self.eih.image_jacobian(interaction, data)

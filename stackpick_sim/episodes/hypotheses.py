@@ -31,7 +31,14 @@ class RadiusHypotheses:
     def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
                  radii: tuple[float, ...]) -> None:
         self._radii = radii
+        self._args = (cfg, intrinsics, oracle)
         self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in radii]
+        self.active = self.hypotheses[0]
+
+    def reset(self) -> None:
+        """Forget the face: back to the state before :meth:`start`."""
+        cfg, intrinsics, oracle = self._args
+        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in self._radii]
         self.active = self.hypotheses[0]
 
     def start(self, obs: Observation, cand: Candidate) -> None:
@@ -41,9 +48,25 @@ class RadiusHypotheses:
         self.active = min(self.hypotheses, key=lambda h: abs((h.radius or 0) - cand.radius))
 
     def offer(self, obs: Observation) -> bool:
-        """Fuse ``obs`` into every hypothesis; switch to the most consistent one."""
+        """Fuse ``obs`` into every hypothesis; switch to the most consistent one.
+
+        The summed NIS compares hypotheses only over the same measurements: a frame that
+        some hypothesis fused and another could not associate at all (its prediction too far
+        from every face) costs the latter the gate's worth, as a gated-out measurement does.
+        Otherwise a wrong height, whose track drifts off the face within a few frames,
+        would stop accruing NIS and soon look better than the right one, which goes on
+        paying for every measurement's noise. Only a hypothesis that fused at least as
+        recently as the active one may take over: one that lost the face is no alternative.
+        """
         used = [h.offer(obs) for h in self.hypotheses]
-        best = min(self.hypotheses, key=lambda h: (h.nis, h is not self.active))
+        if any(used):
+            for h, u in zip(self.hypotheses, used, strict=True):
+                if not u and h.missed_last:
+                    h.nis += h.tracker.config.gate_chi2
+        latest = self.active.last_fused_time or 0.0
+        alive = [h for h in self.hypotheses
+                 if h.initialised and (h.last_fused_time or 0.0) >= latest - 1e-9]
+        best = min(alive, key=lambda h: (h.nis, h is not self.active), default=self.active)
         if best.nis + NIS_SWITCH_MARGIN < self.active.nis:
             self.active = best
         return used[self.hypotheses.index(self.active)]

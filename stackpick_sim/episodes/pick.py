@@ -3,7 +3,8 @@
 A mixin of :class:`stackpick_sim.episodes.phases.PhaseLogic` (which holds the state and the
 look/detect/track phases). The tool approaches along a *commanded* axis: the face normal,
 or, where the arm cannot reach that at the servo standoff, a share of its tilt that grows
-to the full normal during the descent (:mod:`stackpick_sim.control.reach`). The descent is
+during the descent to the full normal, or to the share the arm can take where the face will
+be at the grasp (:mod:`stackpick_sim.control.reach`). The descent is
 blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
 turns the tool upright as it rises.
 """
@@ -18,6 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.control.reach import (
+    GRASP_JOINT_MARGIN,
+    GRASP_SELF_CLEARANCE,
     ReachChecker,
     descent_tilt_share,
     tilted_axis,
@@ -39,6 +42,9 @@ SERVO_SETTLE_TICKS = 3
 #: The reach check looks at the face this far ahead of the approach's start, s: about the
 #: approach and servo time (median 0.45 s on paper scenes), when the descent begins.
 REACH_LEAD_S = 0.5
+#: The reach is planned again when the tracked face normal has turned this far since the
+#: plan, deg (the NORMAL_AGREEMENT_DEG of the normal's consensus).
+REPLAN_TURN_DEG = 10.0
 #: The descent ends in a miss once the tool is within this of its deepest command, m, or
 #: has been commanded there this long, s (the arm lags the command by up to ~60 ms at
 #: 0.35 m/s on paper scenes).
@@ -62,6 +68,8 @@ class ArmPhases:
     done: bool
     _standoff: float
     _tilt_share: float
+    _face_share: float
+    _planned_normal: NDArray[np.float64]
     _at_floor: float
     _last_lateral: float
     _settled: int
@@ -84,21 +92,38 @@ class ArmPhases:
         ep = self.ep
         cell = ep.scene.cell
         state = ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data))
-        share, margin, clearance = ReachChecker(cell.model).tilt_share(
+        checker = ReachChecker(cell.model)
+        share, margin, clearance = checker.tilt_share(
             ep.arm.full_qpos(), state.centre, state.normal, self._standoff,
             ep.arm.command_world_T_tool())
+        cfg = cell.cfg.episode
+        # Where the face will be when the cup meets it (the descent's nominal duration on).
+        lead = REACH_LEAD_S + cfg.standoff / max(cfg.descend_speed, 1e-6)
+        grasp = ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data))
+        self._face_share = max(share, checker.tilt_share(
+            ep.arm.full_qpos(), grasp.centre, grasp.normal, 0.0, ep.arm.command_world_T_tool(),
+            margin=GRASP_JOINT_MARGIN, clearance=GRASP_SELF_CLEARANCE)[0])
+        ep.record.grasp_tilt_share = self._face_share
+        self._planned_normal = state.normal
         self._tilt_share = share
         ep.record.servo_tilt_share = share
         if math.isfinite(margin):
             ep.record.servo_joint_margin_rad = round(margin, 4)
             ep.record.servo_self_clearance_m = round(clearance, 4)
 
+    def _replan_if_turned(self, t: float) -> None:
+        """Plan the reach again once the tracked normal has turned (the consensus of views
+        settled on the other solution of the pose's ambiguity)."""
+        n = self.ep.estimator.normal
+        if float(n @ self._planned_normal) < math.cos(math.radians(REPLAN_TURN_DEG)):
+            self._plan_reach(t)
+
     def _commanded(self, state: TargetState, standoff: float) -> TargetState:
         """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
-        if self._tilt_share >= 1.0:
+        if self._tilt_share >= 1.0 and self._face_share >= 1.0:
             return state
         share = descent_tilt_share(self._tilt_share, standoff,
-                                   self.ep.scene.cell.cfg.episode.standoff)
+                                   self.ep.scene.cell.cfg.episode.standoff, self._face_share)
         return replace(state, normal=tilted_axis(state.normal, share))
 
     def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:
@@ -106,6 +131,7 @@ class ArmPhases:
         cfg = ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return
+        self._replan_if_turned(t)
         lead = 1.0 / cfg.approach_gain
         now_T_tool = ep.arm.command_world_T_tool()
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
@@ -131,6 +157,7 @@ class ArmPhases:
         cfg = self.ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return None
+        self._replan_if_turned(t)
         err = self._servo_step(t, dt, cfg.standoff, 0.0)
         ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
               and err.tilt_deg < cfg.servo_tilt_tol_deg)

@@ -78,7 +78,13 @@ class EpisodeRecord:
     """|predicted - actual| face centre at the pick moment, 3-D, mm."""
     servo_tilt_share: float | None = None
     """Share of the face's tilt the tool axis took at the servo standoff (1: along the face
-    normal; less when the arm could not reach it there; the descent turns it to 1)."""
+    normal; less when the arm could not reach it there; the descent turns it to
+    ``grasp_tilt_share``)."""
+    redetections: int = 0
+    """Times the first detection went unconfirmed and the top object was detected again."""
+    grasp_tilt_share: float | None = None
+    """Share of the tilt the tool takes at the face where it is predicted at the grasp (1
+    unless the arm cannot meet the face square-on there)."""
     servo_joint_margin_rad: float | None = None
     """Smallest joint distance from a range end the reach check found at that pose, rad."""
     servo_self_clearance_m: float | None = None

@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.episodes.moving_edges import track_outline
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.cell import Cell, ObjectInfo
@@ -36,6 +37,12 @@ FloatArray = NDArray[np.float64]
 #: Expected depth of a top face at the look pose, as fractions of the look height: from the
 #: belt surface (1.0) up to a stack about 0.1 m tall at 0.3 m (0.65), with a margin.
 LOOK_DEPTH_RANGE = (0.62, 1.03)
+#: How far (px) the tracked face's outline is searched for around its predicted ellipse
+#: (prediction error plus the face's motion between the tick of the prediction and the
+#: capture: ~3 px at 0.3 m/s). Placeholder.
+TRACKED_SEARCH_PX = 6.0
+#: Faces smaller than this (semi-major axis, px) are not searched for: too few pixels.
+MIN_TRACKED_AXIS_PX = 8.0
 #: Once a face is tracked its depth is predicted; the detector is told this range around it.
 TRACKED_DEPTH_MARGIN = 0.25
 
@@ -144,6 +151,10 @@ class Sensor:
         self.expected_depth: float | None = None
         """Predicted depth of the tracked face, m (narrows the detector's depth range)."""
         self.reference_normal_cam: FloatArray | None = None
+        self.expected_ellipse: Ellipse | None = None
+        """The tracked face's predicted ellipse in the next frame (set before its capture):
+        where the detector misses it, its outline is searched for around this
+        (:func:`~stackpick_sim.episodes.moving_edges.track_outline`)."""
         self.frames = 0
         self.processed = 0
         """Frames rendered and run through the detector (or the oracle)."""
@@ -194,11 +205,33 @@ class Sensor:
             cands = detection_candidates(detection, self._cell.intrinsics, self.radius,
                                          self.reference_normal_cam)
             reason = detection.reason
+            tracked = self._tracked_outline(image, cands)
+            if tracked is not None:
+                cands = (*cands, tracked)
         self.wall["vision"] += time.perf_counter() - start
         self._pending.append(Observation(
             capture_time=t, available_time=t + self.latency, world_T_cam=world_T_cam.copy(),
             candidates=cands, detection=detection,
             image=image if self.keep_images else None, reason=reason))
+
+    def _tracked_outline(self, image: NDArray[np.uint8],
+                         cands: tuple[Candidate, ...]) -> Candidate | None:
+        """A candidate from the predicted face's outline, when no detection resembles it."""
+        e = self.expected_ellipse
+        if e is None or e.a < MIN_TRACKED_AXIS_PX:
+            return None
+        for c in cands:
+            d = c.ellipse
+            if (d is not None and math.hypot(d.cx - e.cx, d.cy - e.cy) < TRACKED_SEARCH_PX
+                    and abs(d.a - e.a) < TRACKED_SEARCH_PX):
+                return None  # the detector found it: its fit is the better one
+        gray = np.asarray(cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+                                           .astype(np.float32), (3, 3), 0), dtype=np.float32)
+        fit = track_outline(gray, e, TRACKED_SEARCH_PX)
+        if fit is None:
+            return None
+        return Candidate(pixel=np.array([fit.cx, fit.cy]), normal_cam=None, centre_cam=None,
+                         radius=self.radius or 0.0, is_top=False, ellipse=fit)
 
     def ready(self, t: float) -> list[Observation]:
         """Observations whose detection is usable at sim time ``t`` s, oldest first."""

@@ -24,6 +24,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -41,7 +42,8 @@ from stackpick_sim.estimation import (
     project_to_pixels,
     transfer_via_plane,
 )
-from stackpick_sim.geometry import CameraIntrinsics, project_circle
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.vision import circle_poses
 
 FloatArray = NDArray[np.float64]
 
@@ -89,9 +91,24 @@ REACQUIRE_GATE = 0.008
 #: count towards a lost track (the tracked face may be cut by the image border while a
 #: neighbour is in view). Half the small face radius.
 ASSOCIATION_MAX = 0.0125
+#: A candidate whose ellipse's semi-major axis differs from the tracked face's predicted one
+#: by more than this share is another face (a smaller one, a side wall, a fragment of an
+#: outline): the major axis is set by the face's radius and depth, which the track knows to
+#: a few per cent (the detector's axes to 1-2 px of ~30-50). Placeholder with margin.
+SIZE_TOLERANCE = 0.25
+#: Once tracked, a face cut by the image border is still used while its ellipse's centre is
+#: in the image, with this many times the pixel noise: a fit on a partial outline, its size
+#: checked against the track's (SIZE_TOLERANCE). The approach and the servo often carry a
+#: face near the border. Placeholder.
+CUT_STD_FACTOR = 3.0
 #: Two face normals within this angle (deg) agree; the normal estimate is the mean of the
-#: largest agreeing group, so an occasional flip of the pose's two-fold ambiguity is outvoted.
+#: largest agreeing group over the views' pose solutions (see ``_add_normals``).
 NORMAL_AGREEMENT_DEG = 10.0
+#: A view votes on the normal's two-fold ambiguity only if its line of sight to the face is
+#: this far (deg) from every earlier voter's: views along one line of sight (the still look
+#: pose, the servo's and descent's views along the tool axis) see the wrong solution as
+#: steadily as the right one. Placeholder.
+VOTE_SIGHT_DEG = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -126,6 +143,8 @@ class TargetEstimator:
         """Image frame: the camera pose whose image the filter's pixels are in."""
         self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
+        self._normal_views: list[tuple[FloatArray, int | None]] = []
+        self._sights: list[FloatArray] = []
         self._zs: list[float] = []
         self._normal = np.array([0.0, 0.0, -1.0])
         self.correct_centres = not oracle
@@ -138,6 +157,8 @@ class TargetEstimator:
         self.last_fused_time: float | None = None
         self.nis = 0.0
         """Sum of the measurements' normalised innovations squared (capped at the gate)."""
+        self.missed_last = False
+        """The last :meth:`offer` found faces in the frame but none to associate."""
 
     @property
     def initialised(self) -> bool:
@@ -175,39 +196,55 @@ class TargetEstimator:
         self._fuse(obs, cand)
 
     def offer(self, obs: Observation) -> bool:
-        """Associate the nearest candidate of ``obs`` with the track and fuse it; True if used."""
+        """Associate the nearest candidate of ``obs`` with the track and fuse it; True if used.
+
+        :attr:`missed_last` tells afterwards whether usable faces were in the frame but none
+        near enough the prediction to be associated (the NIS did not count that frame).
+        """
+        self.missed_last = False
         if not obs.candidates:
             return False
         try:
             predicted = self._predicted_measurement(obs)
         except EstimationError:
             return False
-        shift = self._centre_shift(obs) if self.correct_centres else None
+        expected = self._expected_ellipse(obs)
+        shift = None
+        if expected is not None and self.correct_centres:
+            shift = np.asarray(expected[1] - np.array([expected[0].cx, expected[0].cy]))
         scored = []
         for cand in obs.candidates:
             e = cand.ellipse
-            if e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX):
+            cut = e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX)
+            if cut and (e is None or expected is None or not self._usable_cut(e)):
                 continue  # a face cut by the image border gives a biased ellipse
+            if (e is not None and expected is not None
+                    and abs(e.a - expected[0].a) > SIZE_TOLERANCE * expected[0].a):
+                continue  # not the tracked face's size: a smaller face, a wall, a fragment
             if shift is not None and cand.ellipse is not None:
                 cand = replace(cand, pixel=np.array([cand.ellipse.cx, cand.ellipse.cy]) + shift)
             try:
                 z = self._measurement(obs, cand.pixel)
             except EstimationError:
                 continue
-            scored.append((float(np.linalg.norm(z - predicted)), cand))
+            scored.append((float(np.linalg.norm(z - predicted)), cut, cand))
         if not scored:
             return False
-        distance, best = min(scored, key=lambda s: s[0])
+        distance, cut, best = min(scored, key=lambda s: s[0])
         distance *= self._metres_per_unit(obs.world_T_cam, predicted)
         if not self.tracker.initialised and distance > INIT_GATE:
+            self.missed_last = True
             return False
         if distance > ASSOCIATION_MAX:
+            self.missed_last = True
             return False  # another object's face: neither a measurement nor a rejection
-        return self._fuse(obs, best)
+        return self._fuse(obs, best, CUT_STD_FACTOR * self.pixel_std if cut else None)
 
-    def _centre_shift(self, obs: Observation) -> FloatArray | None:
-        """(2,) px from the face's ellipse centre to its centre's image, from the estimate.
+    def _expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
+        """The tracked face as ``obs``'s camera should see it: its ellipse and the (2,) pixel
+        of its centre, from the estimate; None before the filter is set.
 
+        The ellipse's size tells the tracked face from other faces near the prediction.
         Perspective moves an ellipse's centre off the image of the circle's centre; with
         the tracked normal (a consensus over frames) this shift is steadier than each
         frame's own pose.
@@ -221,7 +258,7 @@ class TargetEstimator:
             e = project_circle(c_cam, n_cam, self.radius, self.k)
         except ValueError:
             return None
-        return np.asarray(self.k.project(c_cam)[0] - np.array([e.cx, e.cy]))
+        return e, np.asarray(self.k.project(c_cam)[0])
 
     def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
         """The face predicted at sim time ``t`` s (Eq. 4); needs :attr:`initialised`."""
@@ -295,19 +332,26 @@ class TargetEstimator:
         return backproject_to_plane(np.reshape(pixel, (1, 2)), self.k, obs.world_T_cam,
                                     plane)[0, :2]
 
-    def _fuse(self, obs: Observation, cand: Candidate) -> bool:
+    def _usable_cut(self, e: Ellipse) -> bool:
+        """Whether a face cut by the image border still has its centre well inside the image
+        (at least about half its outline in view, enough for a fit of known size)."""
+        m = EDGE_MARGIN_PX
+        return (m <= e.cx <= self.k.width - 1 - m and m <= e.cy <= self.k.height - 1 - m)
+
+    def _fuse(self, obs: Observation, cand: Candidate, pixel_std: float | None = None) -> bool:
         first = not self._zs and cand.centre_cam is not None
         if first:
             self._add_pose(obs, cand)  # the plane height is needed to back-project
         z = self._measurement(obs, cand.pixel)
+        sigma = self.pixel_std if pixel_std is None else pixel_std
         if self.frame == "belt":
             g = plane_backprojection_jacobian(cand.pixel, self.k, obs.world_T_cam,
                                               np.array([0.0, 0.0, self.face_z]))[:2]
-            r = self.pixel_std**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
+            r = sigma**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
         else:
             px_per_m = np.linalg.inv(plane_backprojection_jacobian(
                 cand.pixel, self.k, obs.world_T_cam, self._plane())[:2])
-            r = self.pixel_std**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
+            r = sigma**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
             self._into_view(obs)
         if self.frame == "image" and not self.tracker.initialised and self._first is not None:
             # The two-point start differences pixels: both must be of this frame's pose.
@@ -334,8 +378,8 @@ class TargetEstimator:
             self._last = (obs.capture_time, z)
             self.fused += 1
             self.last_fused_time = obs.capture_time
-            if not first:
-                self._add_pose(obs, cand)
+            if not first and pixel_std is None:  # a pose fitted on a partial outline is not
+                self._add_pose(obs, cand)        # trusted for the face's height and normal
         return accepted
 
     def _reacquire(self) -> bool:
@@ -367,8 +411,24 @@ class TargetEstimator:
             # A monocular pose is known up to scale: put the face at this track's radius.
             scale = self.radius / cand.radius if self.radius and cand.radius > 0 else 1.0
             self._zs.append(float((r_wc @ (cand.centre_cam * scale) + p_wc)[2]))
+        if not self.correct_centres or cand.ellipse is None or not self.radius:
+            if cand.normal_cam is not None:  # exact normals (oracle): largest agreeing group
+                self._add_normal(r_wc @ cand.normal_cam)
+            return
+        e = cand.ellipse
+        sight = r_wc @ np.linalg.solve(self.k.K, np.array([e.cx, e.cy, 1.0]))
+        sight /= float(np.linalg.norm(sight))
+        if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
+            return  # a line of sight already voted: it cannot tell the two solutions apart
+        try:
+            sols = [np.asarray(sol.normal_cam) for sol in circle_poses(e, self.k, self.radius)]
+        except (ValueError, np.linalg.LinAlgError):
+            return
+        self._sights.append(sight)
+        chosen = None
         if cand.normal_cam is not None:
-            self._add_normal(r_wc @ cand.normal_cam)
+            chosen = int(np.argmax([float(n @ cand.normal_cam) for n in sols]))
+        self._add_normals(np.array([r_wc @ n for n in sols]), chosen)
 
     def _add_normal(self, n: FloatArray) -> None:
         self._normals.append(n / float(np.linalg.norm(n)))
@@ -377,3 +437,34 @@ class TargetEstimator:
         best = int(np.argmax(agree.sum(axis=1)))  # first of the largest group: deterministic
         mean = normals[agree[best]].sum(axis=0)
         self._normal = mean / float(np.linalg.norm(mean))
+
+    def _add_normals(self, normals: FloatArray, chosen: int | None) -> None:
+        """Add one view's two world normal solutions, ``chosen`` the detector's pick among
+        them (or None); update the consensus :attr:`normal`.
+
+        A face's pose from one view is two-fold ambiguous. The right normal is the same
+        from every line of sight; the wrong one turns with it. So, over views from lines of
+        sight at least VOTE_SIGHT_DEG apart, the normal is the solution the most views
+        share (within NORMAL_AGREEMENT_DEG), ties going to the one the detector picked most
+        often (its wall-colour test), then to the earliest; the mean of each view's nearest
+        agreeing solution.
+        """
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        self._normal_views.append((normals, chosen))
+        cos_min = np.cos(np.radians(NORMAL_AGREEMENT_DEG))
+        best_key: tuple[int, int] | None = None
+        best_mean = normals[0]
+        for cand in np.concatenate([v for v, _ in self._normal_views]):
+            support = picked = 0
+            total = np.zeros(3)
+            for views, pick in self._normal_views:
+                c = views @ cand
+                j = int(np.argmax(c))
+                if c[j] >= cos_min:
+                    support += 1
+                    picked += int(pick == j)
+                    total += views[j]
+            key = (support, picked)
+            if best_key is None or key > best_key:
+                best_key, best_mean = key, total
+        self._normal = best_mean / float(np.linalg.norm(best_mean))
