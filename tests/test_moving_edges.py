@@ -1,12 +1,12 @@
-"""The tracked face's outline found around its prediction (episodes/moving_edges.py)."""
+"""The tracked face's outline found around its prediction (vision/moving_edges.py)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-from stackpick_sim.episodes.moving_edges import track_outline
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.moving_edges import track_outline
 
 TRUE = Ellipse(cx=161.3, cy=118.6, a=42.0, b=37.0, angle_deg=20.0)
 

@@ -20,7 +20,7 @@ from stackpick_sim.geometry import (
 )
 from stackpick_sim.vision import __all__ as vision_all
 from stackpick_sim.vision import detector as detector_module
-from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
 from stackpick_sim.vision.edges import detect_edges
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import choose_radius, circle_poses
@@ -272,3 +272,16 @@ def test_far_rim_of_a_tilted_cylinder_is_not_reported_as_a_face() -> None:
     assert kept == [0, 2]
     top_rim = replace(choice, index=1, evidence=evidence)  # the top is never dropped
     assert 1 in detector_module._distinct([0, 1, 2], ellipses, top_rim)
+
+
+def test_object_kinds_give_colours_only_when_kinds_differ_in_colour() -> None:
+    orange, blue = (0.85, 0.6, 0.25), (0.3, 0.6, 0.85)
+    assert object_kinds([(0.025, blue), (0.035, orange)]) == ((0.035, 0.025), (orange, blue))
+    # the same kind listed twice is one kind
+    assert object_kinds([(0.035, orange), (0.035, orange)]) == ((0.035,), (orange,))
+    # two radii in one colour (or in a brighter shade of it): no colour cue
+    assert object_kinds([(0.035, orange), (0.025, (0.425, 0.3, 0.125))]) == ((0.035, 0.025), None)
+    # one radius in two colours: no colour cue either
+    assert object_kinds([(0.035, orange), (0.035, blue), (0.025, blue)])[1] is None
+    with pytest.raises(ValueError, match="no object kinds"):
+        object_kinds([])

@@ -24,19 +24,17 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.episodes.moving_edges import track_outline
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range, project_circle
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.cell import Cell, ObjectInfo
 from stackpick_sim.sim.ground_truth import top_face
 from stackpick_sim.vision import Detection, DetectorConfig, circle_poses, detect
+from stackpick_sim.vision.detector import object_kinds
+from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.pose import CirclePose
 
 FloatArray = NDArray[np.float64]
 
-#: Expected depth of a top face at the look pose, as fractions of the look height: from the
-#: belt surface (1.0) up to a stack about 0.1 m tall at 0.3 m (0.65), with a margin.
-LOOK_DEPTH_RANGE = (0.62, 1.03)
 #: How far (px) the tracked face's outline is searched for around its predicted ellipse
 #: (prediction error plus the face's motion between the tick of the prediction and the
 #: capture: ~3 px at 0.3 m/s). Placeholder.
@@ -154,7 +152,7 @@ class Sensor:
         self.expected_ellipse: Ellipse | None = None
         """The tracked face's predicted ellipse in the next frame (set before its capture):
         where the detector misses it, its outline is searched for around this
-        (:func:`~stackpick_sim.episodes.moving_edges.track_outline`)."""
+        (:func:`~stackpick_sim.vision.moving_edges.track_outline`)."""
         self.frames = 0
         self.processed = 0
         """Frames rendered and run through the detector (or the oracle)."""
@@ -162,8 +160,10 @@ class Sensor:
         """Whether the next frame is processed; the phase logic clears it for frames the
         controller would not use (after the servo, or with the tracked face out of view)."""
         self.wall = {"render": 0.0, "vision": 0.0}
-        radii = sorted({t.radius for t in cell.cfg.object_types.values()}, reverse=True)
-        self._radii = tuple(radii)
+        types = [cell.cfg.object_types[name] for name in cell.cfg.objects.types]
+        self._radii, colours = object_kinds([(t.radius, t.rgba[:3]) for t in types])
+        self._colours = None if colours is None else dict(zip(self._radii, colours, strict=True))
+        """Colour of each radius's kind, when the kinds differ in colour."""
 
     def due(self, t: float) -> bool:
         """Whether a frame is due at sim time ``t`` s."""
@@ -201,7 +201,7 @@ class Sensor:
                 reason = "" if cands else "the tracked face is not wholly in the image"
         else:
             assert image is not None
-            detection = detect(cv2.cvtColor(image, cv2.COLOR_RGB2BGR), self._config())
+            detection = detect(image, self._config())
             cands = detection_candidates(detection, self._cell.intrinsics, self.radius,
                                          self.reference_normal_cam)
             reason = detection.reason
@@ -241,14 +241,17 @@ class Sensor:
         return out
 
     def _config(self) -> DetectorConfig:
-        look = self._cell.cfg.camera.look_height
-        if self.expected_depth is None:
-            depth = (LOOK_DEPTH_RANGE[0] * look, LOOK_DEPTH_RANGE[1] * look)
+        cfg = self._cell.cfg
+        if self.expected_depth is None:  # at the look pose
+            depth = face_depth_range(cfg.camera.look_height, cfg.objects.max_face_height)
         else:
             depth = (self.expected_depth * (1 - TRACKED_DEPTH_MARGIN),
                      self.expected_depth * (1 + TRACKED_DEPTH_MARGIN))
         radii = (self.radius,) if self.radius is not None else self._radii
+        known = self._colours or {}
+        colours = tuple(known[r] for r in radii) if all(r in known for r in radii) else None
         return DetectorConfig(intrinsics=self._cell.intrinsics, radii_m=radii,
+                              kind_colours=colours,
                               depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)))
 
 

@@ -6,7 +6,8 @@ from consistent gradients),
 :mod:`occlusion` (the top-object rule, usable on any detector's ellipses), :mod:`pose` (with
 :mod:`wall`: the wall-colour test that resolves the tilt ambiguity); :mod:`roi` crops to the pile;
 :mod:`detector` runs them, :mod:`detection` holds the result, :mod:`synthetic` renders test
-stacks with ground truth.
+stacks with ground truth. :mod:`moving_edges` finds an already tracked face's outline around
+its predicted ellipse (tracking mode, used by the episodes when the detector misses it).
 """
 
 from stackpick_sim.vision.detection import DetectedEllipse, Detection

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -84,6 +84,9 @@ RIM_ANGLE_DEG = 20.0
 #: Margin (px) beyond the profile search of the window whose unblurred gradients the top
 #: face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour.
 PROFILE_WINDOW_MARGIN_PX = 3
+#: Object kinds whose colours' chromaticities (r, g, b over their sum) differ by less than
+#: this (L1 distance) cannot be told apart by colour: the radius is then not read from it.
+MIN_KIND_CHROMA_DISTANCE = 0.1
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 
@@ -227,6 +230,30 @@ class TopObjectDetector:
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection
+
+
+def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float]]]
+                 ) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...] | None]:
+    """``radii_m`` and ``kind_colours`` for a DetectorConfig from a scene's object kinds,
+    (radius m, RGB 0-1) pairs: each radius once, largest first, with its colour; the colours
+    are None when the kinds cannot be told apart by colour (one radius in two colours, or two
+    radii in colours within MIN_KIND_CHROMA_DISTANCE). ValueError for no kinds."""
+    if not kinds:
+        raise ValueError("no object kinds given")
+    by_radius: dict[float, set[tuple[float, float, float]]] = {}
+    for radius, rgb in kinds:
+        by_radius.setdefault(float(radius), set()).add((float(rgb[0]), float(rgb[1]),
+                                                        float(rgb[2])))
+    radii = tuple(sorted(by_radius, reverse=True))
+    if any(len(c) > 1 for c in by_radius.values()):
+        return radii, None
+    colours = tuple(next(iter(by_radius[r])) for r in radii)
+    chroma = np.asarray(colours) / np.maximum(np.sum(colours, axis=1, keepdims=True), 1e-9)
+    apart = np.abs(chroma[:, None, :] - chroma[None, :, :]).sum(axis=2)
+    np.fill_diagonal(apart, np.inf)
+    if float(apart.min(initial=np.inf)) < MIN_KIND_CHROMA_DISTANCE:
+        return radii, None
+    return radii, colours
 
 
 def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],

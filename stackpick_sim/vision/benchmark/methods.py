@@ -34,6 +34,7 @@ from stackpick_sim.vision.detector import (
     DEFAULT_RADII_M,
     DetectorConfig,
     TopObjectDetector,
+    object_kinds,
     radius_by_colour,
 )
 from stackpick_sim.vision.edges import edge_image
@@ -55,11 +56,10 @@ class Method:
 def run_ours(frame: BenchFrame) -> MethodOutput:
     """Our detector on one frame, with the frame's intrinsics, depth range and object kinds
     (radii and colours) when known."""
-    kinds = frame.kinds
+    radii, colours = object_kinds(frame.kinds) if frame.kinds else (DEFAULT_RADII_M, None)
     det = TopObjectDetector(DetectorConfig(
-        intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
-        radii_m=tuple(r for r, _ in kinds) if kinds else DEFAULT_RADII_M,
-        kind_colours=tuple(c for _, c in kinds) if kinds else None))
+        intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m, radii_m=radii,
+        kind_colours=colours))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
@@ -83,9 +83,9 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         t1 = time.perf_counter()
         ellipses = tuple(s.ellipse for s in found)
         grad = edge_image(rgb)
-        radii = tuple(r for r, _ in frame.kinds) if frame.kinds else DEFAULT_RADII_M
-        radius_of = (radius_by_colour(rgb, radii, tuple(c for _, c in frame.kinds))
-                     if frame.kinds else None)
+        radii, colours = (object_kinds(frame.kinds) if frame.kinds
+                          else (DEFAULT_RADII_M, None))
+        radius_of = None if colours is None else radius_by_colour(rgb, radii, colours)
         choice = select_top(ellipses, grad, frame.intrinsics, radius_of)
         pose = None
         top = None
