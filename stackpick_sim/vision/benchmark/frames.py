@@ -115,26 +115,36 @@ def _kinds(types: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, floa
     return tuple(out)
 
 
-def dataset_kinds(directory: Path) -> tuple[tuple[float, tuple[float, float, float]], ...]:
-    """Object kinds (radius, rgb) recorded in a data set's index.json; () if absent."""
+def _recorded_scene(directory: Path) -> dict[str, Any]:
+    """The scene config recorded in a data set's index.json (JSON-shaped), {} if absent."""
     index = directory / "index.json"
     if not index.exists():
-        return ()
-    types = json.loads(index.read_text()).get("scene", {}).get("object_types", {})
+        return {}
+    scene = json.loads(index.read_text()).get("scene", {})
+    return scene if isinstance(scene, dict) else {}
+
+
+def _scene_kinds(scene: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, float]], ...]:
+    types = scene.get("object_types", {})
     return _kinds(types) if isinstance(types, dict) else ()
+
+
+def dataset_kinds(directory: Path) -> tuple[tuple[float, tuple[float, float, float]], ...]:
+    """Object kinds (radius, rgb) recorded in a data set's index.json; () if absent."""
+    return _scene_kinds(_recorded_scene(directory))
 
 
 def iter_dataset(directory: Path, seeds: Sequence[int] | None,
                  cfg: SceneConfig) -> Iterator[BenchFrame]:
     """Frames of a data set directory (all present, or the given seeds that are present).
 
-    The belt height and ``objects.max_face_height`` come from the scene recorded in the data
-    set's index.json, else from ``cfg``."""
+    The object kinds, belt height and ``objects.max_face_height`` come from the scene
+    recorded in the data set's index.json (the latter two else from ``cfg``)."""
     present = dataset_seeds(directory)
-    wanted = present if seeds is None else [s for s in seeds if s in set(present)]
-    kinds = dataset_kinds(directory)
-    index = directory / "index.json"
-    scene = json.loads(index.read_text()).get("scene", {}) if index.exists() else {}
+    have = set(present)
+    wanted = present if seeds is None else [s for s in seeds if s in have]
+    scene = _recorded_scene(directory)
+    kinds = _scene_kinds(scene)
     belt_top_z = float(scene.get("conveyor", {}).get("top_z", cfg.conveyor.top_z))
     max_face_height = float(scene.get("objects", {}).get("max_face_height",
                                                           cfg.objects.max_face_height))
