@@ -216,8 +216,9 @@ def _placement_problem(cell: Cell, upto: int) -> str | None:
 
 
 def _face_problems(cell: Cell, upto: int) -> dict[int, str]:
-    """Objects among the first ``upto`` whose top face leaves the look-pose image or overlaps
-    no other object's silhouette there: index -> problem."""
+    """Objects among the first ``upto`` whose top face is not in front of the look-pose
+    camera, lies above ``objects.max_face_height``, leaves the image or overlaps no other
+    object's silhouette there: index -> problem (the first that applies)."""
     world_T_cam = cell.world_T_cam()
     r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
     k = cell.intrinsics
