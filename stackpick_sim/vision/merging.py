@@ -16,6 +16,7 @@ computed together.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -23,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision.contrast import outline, outlines
+from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     distances,
@@ -73,8 +74,16 @@ def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
 
 def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
-    """(n, 2) points about 1 px apart along the ellipse (Ramanujan's perimeter)."""
-    return outline(ellipse)[0]
+    """(n, 2) points about 1 px apart along the ellipse (Ramanujan's perimeter): the points
+    of :func:`~stackpick_sim.vision.contrast.outline`, without its normals."""
+    ct, st = unit_circle(max(16, math.ceil(perimeter_px(ellipse))))
+    th = math.radians(ellipse.angle_deg)
+    c, s = math.cos(th), math.sin(th)
+    x, y = ellipse.a * ct, ellipse.b * st
+    pts = np.empty((ct.shape[0], 2))
+    pts[:, 0] = ellipse.cx + c * x - s * y
+    pts[:, 1] = ellipse.cy + s * x + c * y
+    return pts
 
 
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:
@@ -91,14 +100,23 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
     if not ellipses:
         return np.zeros(0)
-    lines = outlines(ellipses)  # the boundary_samples of each ellipse
-    pts = np.rint(lines.points).astype(np.int64)
+    counts = [max(16, math.ceil(perimeter_px(e))) for e in ellipses]
+    tables = [unit_circle(n) for n in counts]
+    ct = np.concatenate([t[0] for t in tables])
+    st = np.concatenate([t[1] for t in tables])
+    owner = np.repeat(np.arange(len(ellipses)), counts)
+    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+                     math.sin(math.radians(e.angle_deg))] for e in ellipses])[owner]
+    cx, cy, a, b, c, s = geo.T
+    x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
+    u = np.rint(cx + c * x - s * y).astype(np.int64)
+    v = np.rint(cy + s * x + c * y).astype(np.int64)
     h, w = support.shape
-    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
-    ok = np.zeros(pts.shape[0], bool)
-    ok[inside] = support[pts[inside, 1], pts[inside, 0]] > 0
-    return np.asarray(np.bincount(lines.owner, weights=ok, minlength=len(ellipses))
-                      / lines.counts, np.float64)
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    ok = np.zeros(u.shape[0], bool)
+    ok[inside] = support[v[inside], u[inside]] > 0
+    return np.asarray(np.bincount(owner, weights=ok, minlength=len(ellipses))
+                      / np.asarray(counts), np.float64)
 
 
 def _pertain_matrix(on: NDArray[np.bool_], owner: NDArray[np.int64], n_groups: int

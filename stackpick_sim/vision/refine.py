@@ -141,6 +141,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                         & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
     # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
     columns = (points[pm, 0], points[pm, 1], grads[pm, 0], grads[pm, 1])
+    # The fits' input, built once: pixel coordinates are exact in float32.
+    pair_points = points[pm].astype(np.float32)
     active = np.ones(len(current), bool)
     previous: dict[int, NDArray[np.int64]] = {}
     for tol in TOLERANCES_PX:
@@ -157,8 +159,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
             if e in previous and np.array_equal(mine, previous[e]):
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = mine
-            fit = (fit_ellipse(np.stack([columns[0][mine], columns[1][mine]], axis=1))
-                   if mine.size >= MIN_PIXELS else None)
+            fit = fit_ellipse(pair_points[mine]) if mine.size >= MIN_PIXELS else None
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
