@@ -14,7 +14,7 @@ from stackpick_sim.vision.pose import choose_by_band, circle_poses
 from stackpick_sim.vision.refine import edge_points, refine_on_profile, refine_subpixel, subpixel
 from stackpick_sim.vision.roi import find_roi
 from stackpick_sim.vision.synthetic import draw_ellipses, render_cylinders
-from stackpick_sim.vision.wall import WallEvidence, wall_evidence
+from stackpick_sim.vision.wall import WallEvidence, face_colour, wall_evidence, wall_evidences
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 
@@ -37,6 +37,10 @@ def test_true_solution_band_shows_the_wall_colour(tilt: tuple[float, float]) -> 
     assert ev[true_i].samples > 20 and ev[true_i].share > 0.8
     assert ev[1 - true_i].share < 0.2
     assert choose_by_band(ev) == true_i
+    # The batched form gives the same evidence.
+    both = wall_evidences([(s.normal_cam, s.centre_cam) for s in sols], ellipse, K, image,
+                          face_colour(ellipse, image))
+    assert both == ev
 
 
 def test_band_rule_tie_and_lone_band() -> None:

@@ -34,6 +34,10 @@ MAX_RESIDUAL_PX = 0.6
 MIN_AXIS_PX = 5.0
 #: Largest semi-major axis as a multiple of the image diagonal (beyond: a near-line fit).
 MAX_AXIS_DIAGONALS = 1.0
+#: Squared axis ratio above which a fit's Eq. 2 condition is evaluated (below it the
+#: condition holds with a margin far beyond float64 rounding: the terms are ~ratio^2 and
+#: carry a relative error of ~1e-16, the result is the ratio itself).
+EQ2_CHECKED_RATIO_SQ = 1e6
 
 
 def fit_ellipse(points: NDArray) -> Ellipse | None:
@@ -50,7 +54,9 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
         a, b, ang = h / 2.0, w / 2.0, angle + 90.0
     ellipse = Ellipse(cx=float(cx), cy=float(cy), a=float(a), b=float(b),
                       angle_deg=float(ang % 180.0))
-    if not satisfies_eq2(ellipse):
+    # Eq. 2's AB - H^2 equals (a / b)^2 > 0 up to rounding of terms of its square's size:
+    # it can only fail on extreme axis ratios (the degenerate fits), so only those are checked.
+    if (a / b) ** 2 > EQ2_CHECKED_RATIO_SQ and not satisfies_eq2(ellipse):
         return None
     return ellipse
 

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
-from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidence
+from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidences
 
 #: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
 #: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.
@@ -239,8 +239,8 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     scores = [0.0, 0.0]
     if image is not None:
         face = face_colour(ellipse, image)
-        evidence = [wall_evidence(s.normal_cam, s.centre_cam, ellipse, intrinsics, image, face)
-                    for s in unit]
+        evidence = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], ellipse,
+                                  intrinsics, image, face)
         scores = [e.share for e in evidence]
         best = choose_by_band(evidence)
     elif support is not None:

@@ -22,6 +22,7 @@ unit-radius solutions are used throughout.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,14 +153,60 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     face_sum = max(float(colour.sum()), 1.0)
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
+    brightest = (_tan_tilt(normal_cam, centre_cam) + WALL_BRIGHTNESS_MARGIN) * face_sum
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+          & (sums <= brightest))
+    return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))
+
+
+def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                   ellipse: Ellipse, intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
+                   face: NDArray[np.float64]) -> list[WallEvidence]:
+    """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
+    of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
+    bases = [plane_basis(n) for n, _ in solutions]
+    normal = np.array([np.asarray(n, np.float64) for n, _ in solutions])  # (S, 3)
+    centre = np.array([np.asarray(c, np.float64) for _, c in solutions])
+    u = np.array([b[0] for b in bases])
+    v = np.array([b[1] for b in bases])
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    rim = centre[:, None, :] + ct[None, :, None] * u[:, None, :] + st[None, :, None] * v[:, None, :]
+    depth = np.asarray(WALL_DEPTH_FRACTIONS)[None, :, None, None]
+    band = (rim[:, None, :, :] + depth * normal[:, None, None, :]).reshape(-1, 3)
+    pu = intrinsics.fx * band[:, 0] / band[:, 2] + intrinsics.cx
+    pv = intrinsics.fy * band[:, 1] / band[:, 2] + intrinsics.cy
+    th = math.radians(ellipse.angle_deg)
+    du, dv = pu - ellipse.cx, pv - ellipse.cy
+    x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
+    y = (-math.sin(th) * du + math.cos(th) * dv) / ellipse.b
+    rho = np.sqrt(x * x + y * y)
+    outside = (rho - 1.0) * np.hypot(x * ellipse.a, y * ellipse.b) / np.maximum(rho, 1e-9)
+    h, w = image.shape[:2]
+    qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
+    keep = (outside > WALL_MARGIN_PX) & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)
+    owner = np.repeat(np.arange(len(solutions)), band.shape[0] // len(solutions))[keep]
+    counts = np.bincount(owner, minlength=len(solutions))
+    colour = face.reshape(-1)
+    face_sum = max(float(colour.sum()), 1.0)
+    cols = image[qv[keep], qu[keep]].astype(np.float64)
+    cols = cols[:, None] if cols.ndim == 1 else cols
+    sums = cols.sum(axis=1)
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
+    brightest = np.array([(_tan_tilt(n, c) + WALL_BRIGHTNESS_MARGIN) * face_sum
+                          for n, c in solutions])
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+          & (sums <= brightest[owner]))
+    hits = np.bincount(owner, weights=ok, minlength=len(solutions))
+    return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
+            for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
+
+
+def _tan_tilt(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]) -> float:
+    """tan of the angle between the face normal and the viewing ray to the face centre."""
     # Three-vectors: Python floats (numpy's norm and dot cost more than the arithmetic).
     c0, c1, c2 = (float(x) for x in centre_cam)
     n0, n1, n2 = (float(x) for x in normal_cam)
     c_norm = max(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2), 1e-12)
     n_norm = max(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2), 1e-12)
     cos_tilt = min(1.0, abs((n0 * c0 + n1 * c1 + n2 * c2) / c_norm) / n_norm)
-    tan_tilt = math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
-    brightest = (tan_tilt + WALL_BRIGHTNESS_MARGIN) * face_sum
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
-          & (sums <= brightest))
-    return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))
+    return math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
