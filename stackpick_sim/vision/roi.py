@@ -65,11 +65,12 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])
     belt = float(column_median(border))
     fg = cv2.absdiff(level, np.full_like(level, round(belt))) > FOREGROUND_DELTA
-    vv, uu = np.nonzero(fg)
-    if uu.size == 0:
+    # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
+    bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
+    if bw == 0 or bh == 0:
         return whole
-    u0 = max(0, int(uu.min()) * DECIMATION - MARGIN_PX)
-    v0 = max(0, int(vv.min()) * DECIMATION - MARGIN_PX)
-    u1 = min(w, (int(uu.max()) + 1) * DECIMATION + MARGIN_PX)
-    v1 = min(h, (int(vv.max()) + 1) * DECIMATION + MARGIN_PX)
+    u0 = max(0, bu * DECIMATION - MARGIN_PX)
+    v0 = max(0, bv * DECIMATION - MARGIN_PX)
+    u1 = min(w, (bu + bw) * DECIMATION + MARGIN_PX)
+    v1 = min(h, (bv + bh) * DECIMATION + MARGIN_PX)
     return Roi(u0=u0, v0=v0, u1=u1, v1=v1)
