@@ -114,7 +114,6 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                        ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
-    radius = 1.0
     k = intrinsics.K
     conic = _conic(ellipse)
     q = k.T @ conic @ k
@@ -123,30 +122,49 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     if np.count_nonzero(evals > 0) == 1:
         q, evals, evecs = -q, -evals[::-1], evecs[:, ::-1]
     # Now evals ascending with evals[0] < 0 < evals[1] <= evals[2].
-    l3, l2, l1 = evals
-    e3, e1 = evecs[:, 0], evecs[:, 2]
+    l3, l2, l1 = evals.tolist()
+    e3, e1 = evecs[:, 0].tolist(), evecs[:, 2].tolist()
     g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
     h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
-    # K^-1 of a pinhole, written out (numpy's inv and solve cost ~20 us each on 3x3).
+    # Three-vectors and 3x3 forms on Python floats from here (numpy's inv, matmul and array
+    # construction cost more than the arithmetic on this size).
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-    k_inv_t = np.array([[1.0 / fx, 0.0, 0.0], [0.0, 1.0 / fy, 0.0],
-                        [-cx / fx, -cy / fy, 1.0]])
-    conic_inv = np.linalg.inv(conic)
+    (q00, q01, q02), (_, q11, q12), (_, _, q22) = q.tolist()
+
+    def form(x: tuple[float, float, float]) -> float:
+        """x^T q x."""
+        return (q00 * x[0] * x[0] + q11 * x[1] * x[1] + q22 * x[2] * x[2]
+                + 2.0 * (q01 * x[0] * x[1] + q02 * x[0] * x[2] + q12 * x[1] * x[2]))
+
+    # The conic's inverse, written out: for C = [[M, -M c], [-c^T M, c^T M c - 1]] (c the
+    # ellipse centre), C^-1 = [[M^-1 - c c^T, -c], [-c^T, -1]], M^-1 = R diag(a^2, b^2) R^T.
+    t = math.radians(ellipse.angle_deg)
+    ct, st = math.cos(t), math.sin(t)
+    a2, b2 = ellipse.a ** 2, ellipse.b ** 2
+    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
+    ex, ey = ellipse.cx, ellipse.cy
     out = []
     for sign in (1.0, -1.0):
-        n = sign * g * e1 + h * e3
-        n = n if n[2] > 0 else -n
-        centre_px = conic_inv @ (k_inv_t @ n)
-        pu, pv = float(centre_px[0] / centre_px[2]), float(centre_px[1] / centre_px[2])
-        ray = np.array([(pu - cx) / fx, (pv - cy) / fy, 1.0])
-        x0 = ray / float(n @ ray)  # circle centre on the plane n . X = 1
-        u, _ = plane_basis(n)
-        s2 = -float(x0 @ (q @ x0)) / float(u @ (q @ u))
-        scale = radius / math.sqrt(max(s2, 1e-300))
-        centre = x0 * scale
-        n.setflags(write=False)
+        n = [sign * g * e1[i] + h * e3[i] for i in range(3)]
+        n = n if n[2] > 0 else [-n[0], -n[1], -n[2]]
+        # The pole of the plane's vanishing line, C^-1 K^-T n.
+        m0, m1 = n[0] / fx, n[1] / fy
+        m2 = -cx / fx * n[0] - cy / fy * n[1] + n[2]
+        cm = ex * m0 + ey * m1
+        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
+        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
+        p2 = -cm - m2
+        ray = ((p0 / p2 - cx) / fx, (p1 / p2 - cy) / fy, 1.0)
+        along = n[0] * ray[0] + n[1] * ray[1] + n[2]
+        x0 = (ray[0] / along, ray[1] / along, 1.0 / along)  # centre on the plane n . X = 1
+        u, _ = plane_basis(np.array(n))
+        s2 = -form(x0) / form((float(u[0]), float(u[1]), float(u[2])))
+        scale = 1.0 / math.sqrt(max(s2, 1e-300))
+        normal = np.array(n)
+        centre = np.array([x0[0] * scale, x0[1] * scale, x0[2] * scale])
+        normal.setflags(write=False)
         centre.setflags(write=False)
-        out.append(CirclePose(normal_cam=n, centre_cam=centre))
+        out.append(CirclePose(normal_cam=normal, centre_cam=centre))
     return out[0], out[1]
 
 
