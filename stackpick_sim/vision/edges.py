@@ -95,11 +95,21 @@ def colour_gradients(blurred: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDA
     between two colours of equal brightness is as strong as in the channel that separates
     them.
     """
+    return _plane_gradients(_planes(blurred))
+
+
+def _planes(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], ...]:
+    """The channels of an (H, W) or (H, W, C) uint8 image, each (H, W) contiguous."""
+    if image.ndim == 2:
+        return (image,)
+    return tuple(cv2.extractChannel(image, c) for c in range(image.shape[2]))
+
+
+def _plane_gradients(planes: tuple[NDArray[np.uint8], ...]
+                     ) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
+    """:func:`colour_gradients` of an image given as its (H, W) uint8 channels."""
     # One channel at a time: extractChannel and spatialGradient (the 3x3 Sobel pair, same
     # border) cost a third of split and two Sobel calls.
-    channels = blurred.shape[2] if blurred.ndim == 3 else 1
-    planes = ((blurred,) if channels == 1 else
-              tuple(cv2.extractChannel(blurred, c) for c in range(channels)))
     best_x, best_y = cv2.spatialGradient(planes[0])
     best_m = _l1(best_x, best_y)
     for plane in planes[1:]:
@@ -217,9 +227,11 @@ class EdgeImage:
 
 def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
     """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image."""
-    blurred = np.asarray(cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE),
-                                          GAUSSIAN_SIGMA_PX), np.uint8)
-    gx, gy = colour_gradients(blurred)
+    # Channel by channel (the same values as blurring the colour image): the blur of single
+    # planes costs less, and the gradients need the planes anyway.
+    gx, gy = _plane_gradients(tuple(
+        np.asarray(cv2.GaussianBlur(p, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE), GAUSSIAN_SIGMA_PX),
+                   np.uint8) for p in _planes(image)))
     low, high, noise = adaptive_thresholds(gx, gy)
     edges = remove_stairs(np.asarray(cv2.Canny(gx, gy, low, high, L2gradient=True), np.uint8))
     return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)
