@@ -237,10 +237,10 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         """RMS residual of each (ellipse, segments) pair, all in one pass."""
         if not pairs:
             return []
-        chosen = np.zeros((len(pairs), len(chains)), bool)
-        for k, (_, segs) in enumerate(pairs):
-            chosen[k, segs] = True
-        which, at = np.nonzero(chosen[:, seg_id])
+        # Each pair's pixels in ascending order (the order of the sums does not change).
+        idx = [pixels(sorted(set(segs))) for _, segs in pairs]
+        which = np.repeat(np.arange(len(pairs)), [i.shape[0] for i in idx])
+        at = np.concatenate(idx)
         d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which, at)
         return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
                        / np.bincount(which, minlength=len(pairs))).tolist()
