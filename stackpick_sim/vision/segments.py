@@ -101,34 +101,44 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     faces has a reflex corner where it passes from one to the other, even when Canny left no
     junction pixel there; S-bends flip too.
     """
-    poly = cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX, closed)[:, 0, :]
-    if poly.shape[0] < 3:
+    poly = cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX, closed).reshape(-1, 2)
+    count = poly.shape[0]
+    if count < 3:
         return [chain]
-    # A handful of vertices: plain Python beats numpy's per-call cost here.
+    # A handful of vertices: plain Python beats numpy's per-call cost here, in one pass for
+    # the turns. mag[k], sign[k]: the turn at poly[k] if closed, at poly[k + 1] if open.
     pl = poly.tolist()
-    verts = [pl[-1], *pl, pl[0]] if closed else pl
-    sides = [(q[0] - p[0], q[1] - p[1]) for p, q in itertools.pairwise(verts)]
-    turn = [math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
-            for (x0, y0), (x1, y1) in itertools.pairwise(sides)]
-    # turn[k] is the turn at poly[k] if closed, at poly[k + 1] if open.
-    mag = [abs(t) for t in turn]
-    sign = [0 if m < MIN_SIGNED_TURN_DEG else (1 if t > 0 else -1)
-            for t, m in zip(turn, mag, strict=True)]
-    count = len(mag)
     if closed:
-        before = [mag[k - 1] for k in range(count)]
-        after = [mag[(k + 1) % count] for k in range(count)]
+        verts = [pl[-1], *pl, pl[0]]
     else:
-        before = [0.0, *mag[:-1]]
-        after = [*mag[1:], 0.0]
-    cut = [m > CORNER_ANGLE_DEG or (m > SPIKE_MIN_DEG and m > SPIKE_RATIO * max(p, q))
-           for m, p, q in zip(mag, before, after, strict=True)]
-    signed = [k for k in range(count) if sign[k]]
-    for p, q in itertools.pairwise(signed):
-        if sign[q] != sign[p]:
-            cut[q] = True
-    shift = 0 if closed else 1
-    at = [k + shift for k in range(count) if cut[k]]
+        verts = pl
+        count -= 2
+    mag: list[float] = []
+    sign: list[int] = []
+    (qx, qy), (rx, ry) = verts[0], verts[1]
+    x0, y0 = rx - qx, ry - qy
+    for rx1, ry1 in verts[2:]:
+        x1, y1 = rx1 - rx, ry1 - ry
+        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        m = abs(t)
+        mag.append(m)
+        sign.append(0 if m < MIN_SIGNED_TURN_DEG else (1 if t > 0 else -1))
+        rx, ry, x0, y0 = rx1, ry1, x1, y1
+    at = []
+    last = 0  # the sign of the previous signed vertex
+    for k in range(count):
+        m = mag[k]
+        if closed:
+            before, after = mag[k - 1], mag[(k + 1) % count]
+        else:
+            before = mag[k - 1] if k else 0.0
+            after = mag[k + 1] if k + 1 < count else 0.0
+        cut = m > CORNER_ANGLE_DEG or (m > SPIKE_MIN_DEG and m > SPIKE_RATIO * max(before, after))
+        if sign[k]:
+            cut = cut or (last != 0 and sign[k] != last)
+            last = sign[k]
+        if cut:
+            at.append(k if closed else k + 1)
     if not at:
         return [chain]
     cuts = sorted({_vertex_index(chain, poly[k]) for k in at})
@@ -150,11 +160,19 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     chains: list[NDArray[np.int32]] = []
     if hierarchy is None:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
-    for contour, link in zip(contours, hierarchy[0], strict=True):
-        if link[3] != -1 or contour.shape[0] < MIN_CHAIN_PX:
-            continue  # hole boundaries repeat their outer contour's pixels
-        pts = np.asarray(contour[:, 0, :], np.int32)
-        ends = is_end[pts[:, 1], pts[:, 0]]
+    # Hole boundaries (with a parent) repeat their outer contour's pixels.
+    kept = [c.reshape(-1, 2) for c, parent in zip(contours, hierarchy[0][:, 3].tolist(),
+                                                  strict=True)
+            if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
+    if not kept:
+        return EdgeSegments(chains=(), junctions=junctions, edges=edges)
+    # The end-point test of all contour pixels at once, then each contour's share of it.
+    every = np.concatenate(kept)
+    is_end_px = is_end[every[:, 1], every[:, 0]]
+    start = 0
+    for pts in kept:
+        ends = is_end_px[start:start + pts.shape[0]]
+        start += pts.shape[0]
         chain = _order_chain(pts, ends)
         for arc in split_chain(chain, closed=not ends.any()):
             if arc.shape[0] >= MIN_CHAIN_PX:
