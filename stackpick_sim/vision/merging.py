@@ -27,7 +27,7 @@ from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
-    distances,
+    ellipse_distances,
     ellipse_params,
     fit_ellipse,
     pair_distances,
@@ -174,7 +174,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             in_union = (owner == gi) | (owner == gj)
             merged = fit_ellipse(points[in_union])
             d = (None if merged is None or not plausible(merged, shape)
-                 else distances(ellipse_params([merged]), points)[0])
+                 else ellipse_distances(merged, points))
             if (merged is None or d is None
                     or float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
                     or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, (gi, gj))):

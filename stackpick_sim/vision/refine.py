@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_threshold, outline
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_ellipse, plausible
+from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
 from stackpick_sim.vision.wall import column_median
 
 #: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
@@ -46,18 +46,27 @@ def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Bilinear samples (N,) of two (H, W) images of one shape at (N, 2) points (u, v),
     clamped inside; the weights and indices are computed once for both."""
+    return _bilinear_uv(gx, gy, pts[:, 0], pts[:, 1])
+
+
+def _bilinear_uv(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np.float64],
+                 v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_bilinear_pair` at points given as (N,) columns ``u``, ``v``."""
     h, w = gx.shape
-    u = np.clip(pts[:, 0], 0.0, w - 1.001)
-    v = np.clip(pts[:, 1], 0.0, h - 1.001)
+    u = np.clip(u, 0.0, w - 1.001)
+    v = np.clip(v, 0.0, h - 1.001)
     u0, v0 = u.astype(np.int64), v.astype(np.int64)
     fu, fv = u - u0, v - v0
     i00 = v0 * w + u0
-    idx = i00[None, :] + np.array([0, 1, w, w + 1])[:, None]
+    i01 = i00 + w
     gu, gv = 1 - fu, 1 - fv
-    wts = np.stack([gu * gv, fu * gv, gu * fv, fu * fv])
+    w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
     out = []
     for img in (gx, gy):
-        out.append(np.asarray((img.ravel()[idx] * wts).sum(axis=0), np.float64))
+        flat = img.ravel()
+        # The four corners summed in this order, as a sum over a stacked axis would.
+        out.append(flat[i00] * w00 + flat[i00 + 1] * w10 + flat[i01] * w01
+                   + flat[i01 + 1] * w11)
     return out[0], out[1]
 
 
@@ -66,8 +75,10 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     """(N, 2) edge pixels (u, v) moved to the gradient-magnitude peak along (N, 2) unit
     gradient directions: a parabola through the magnitudes one pixel either side
     (Devernay's sub-pixel Canny, with bilinear sampling)."""
-    q = np.concatenate([pts + step * dirs for step in (-1.0, 0.0, 1.0)])
-    before, centre, after = np.hypot(*_bilinear_pair(image.gx, image.gy, q)).reshape(3, -1)
+    steps = np.array([-1.0, 0.0, 1.0])[:, None]
+    qu = (pts[:, 0] + steps * dirs[:, 0]).ravel()
+    qv = (pts[:, 1] + steps * dirs[:, 1]).ravel()
+    before, centre, after = np.hypot(*_bilinear_uv(image.gx, image.gy, qu, qv)).reshape(3, -1)
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
     shift = np.zeros(pts.shape[0])
@@ -196,6 +207,9 @@ def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
 #: steps: covers the sub-pixel refit's error on a face whose faint arcs Canny dropped.
 PROFILE_REACH_PX = 2.0
 PROFILE_STEP_PX = 0.5
+#: The search offsets, px.
+PROFILE_STEPS = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
+PROFILE_STEPS.setflags(write=False)
 #: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
 #: from the sub-pixel refit, already within a fraction of a pixel (a second round did not
 #: help on the development seeds).
@@ -221,14 +235,15 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     arcs only. Returns ``ellipse`` when too little of the outline shows a peak.
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
-    steps = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
+    steps = PROFILE_STEPS
     current = ellipse
     for round_ in range(PROFILE_ROUNDS):
         pts, normals = outline(current)
-        q = pts[:, None, :] + steps[None, :, None] * normals[:, None, :]  # (n, k, 2)
-        bx, by = _bilinear_pair(image.gx, image.gy, q.reshape(-1, 2))
-        g = np.abs(bx.reshape(q.shape[:2]) * normals[:, 0:1]
-                   + by.reshape(q.shape[:2]) * normals[:, 1:2])
+        nu, nv = normals[:, 0:1], normals[:, 1:2]
+        # The (n, k) sample grid across the outline, one coordinate at a time.
+        qu, qv = pts[:, 0:1] + steps[None, :] * nu, pts[:, 1:2] + steps[None, :] * nv
+        bx, by = _bilinear_uv(image.gx, image.gy, qu.ravel(), qv.ravel())
+        g = np.abs(bx.reshape(qu.shape) * nu + by.reshape(qu.shape) * nv)
         best = np.argmax(g[:, 1:-1], axis=1) + 1
         rows = np.arange(best.size)
         before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
@@ -246,7 +261,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
         if fit is None or not plausible(fit, shape):
             return current
         if round_ == PROFILE_ROUNDS - 1:
-            d = distances(ellipse_params([fit]), peaks)[0]
+            d = ellipse_distances(fit, peaks)
             inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
             if np.count_nonzero(inliers) >= PROFILE_MIN_SHARE * ok.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
