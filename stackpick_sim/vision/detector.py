@@ -183,7 +183,8 @@ class TopObjectDetector:
         t = lap("merging", t)
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)
-        merged = [replace(m, ellipse=e) for m, e in zip(merged, refined, strict=True)]
+        merged = [MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
+                                support=m.support) for m, e in zip(merged, refined, strict=True)]
         k = self._intrinsics(shape)
         gate = self._axis_range(k)
         if gate is not None:
@@ -359,7 +360,7 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -
     if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
         return ellipse
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
-    box = replace(grad, edges=grad.edges[r0:r1, c0:c1])
+    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
     raw = unblurred_gradients(window, box)
     fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
     return _moved(fit, c0, r0)
@@ -369,7 +370,9 @@ def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:
     """``ellipse`` shifted by (du, dv) px (from ROI to frame coordinates)."""
     if du == dv == 0:
         return ellipse
-    return replace(ellipse, cx=ellipse.cx + du, cy=ellipse.cy + dv)
+    # Built directly: dataclasses.replace costs several times the constructor.
+    return Ellipse(cx=ellipse.cx + du, cy=ellipse.cy + dv, a=ellipse.a, b=ellipse.b,
+                   angle_deg=ellipse.angle_deg)
 
 
 def detect(image: NDArray, config: DetectorConfig | None = None) -> Detection:

@@ -211,7 +211,7 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             else:
                 fitted.append(((p[0], p[1]), p[2], e))
         if fitted:
-            pts = np.vstack([f[1] for f in fitted]).astype(np.float64)
+            pts = np.concatenate([f[1] for f in fitted]).astype(np.float64)
             which = np.repeat(np.arange(len(fitted)), [f[1].shape[0] for f in fitted])
             d = pair_distances(ellipse_params([f[2] for f in fitted]), pts, which,
                                np.arange(pts.shape[0]))
@@ -236,7 +236,7 @@ def _bows(pieces: list[NDArray]) -> list[float]:
     """:func:`bow_px` of each piece (N_i, 2), in one pass."""
     if not pieces:
         return []
-    p = np.vstack(pieces).astype(np.float64)
+    p = np.concatenate(pieces).astype(np.float64)
     counts = np.array([q.shape[0] for q in pieces])
     which = np.repeat(np.arange(len(pieces)), counts)
     mean_u = np.bincount(which, weights=p[:, 0]) / counts

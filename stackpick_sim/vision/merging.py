@@ -147,7 +147,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     members: list[list[int]] = [[i] for i, _ in fits]
     ellipses: list[Ellipse | None] = [e for _, e in fits]
     seg_of_piece = np.array([i for i, _ in fits])
-    points = np.vstack([chains[i] for i in seg_of_piece]).astype(np.float64)
+    points = np.concatenate([chains[i] for i in seg_of_piece]).astype(np.float64)
     owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
     on = within(ellipse_params([e for _, e in fits]), points, MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
@@ -166,7 +166,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             if remap[i] >= 0 and remap[j] >= 0:
                 c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
         while True:
-            best = int(np.argmax(c))
+            best = int(c.argmax())
             bi, bj = divmod(best, len(alive))
             if c[bi, bj] <= MERGE_K:
                 break
@@ -215,7 +215,7 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
-    all_points = np.vstack(chains).astype(np.float64)
+    all_points = np.concatenate(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
     params = ellipse_params([e for _, e in groups])
     if known is None:
@@ -246,8 +246,10 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                        / np.bincount(which, minlength=len(pairs))).tolist()
 
     # Refit each group with the segments lying on it; residuals of all refits at once.
-    extras = [[int(s) for s in np.flatnonzero(frac[g] >= ABSORB_FRACTION) if s not in segs]
-              for g, (segs, _) in enumerate(groups)]
+    lying: list[list[int]] = [[] for _ in groups]
+    for g, s in zip(*(frac >= ABSORB_FRACTION).nonzero(), strict=True):
+        lying[g].append(int(s))
+    extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     refits: dict[int, Ellipse | None] = {}
     for g, (segs, _) in enumerate(groups):
         if extras[g]:

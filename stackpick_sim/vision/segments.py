@@ -76,7 +76,7 @@ def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArr
     contour runs end -> end -> back: the chain is the stretch from its first end pixel to the
     next; a closed one is already a loop.
     """
-    ends = np.flatnonzero(is_end)
+    ends = is_end.nonzero()[0]
     if ends.size == 0:
         return contour
     first = int(ends[0])
@@ -87,7 +87,7 @@ def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArr
 
 def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
     """Index of the chain pixel equal to ``vertex`` (approxPolyDP keeps original points)."""
-    hits = np.flatnonzero((chain[:, 0] == vertex[0]) & (chain[:, 1] == vertex[1]))
+    hits = ((chain[:, 0] == vertex[0]) & (chain[:, 1] == vertex[1])).nonzero()[0]
     return int(hits[0])
 
 
