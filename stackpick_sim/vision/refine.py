@@ -265,7 +265,9 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
         if round_ == PROFILE_ROUNDS - 1:
             d = ellipse_distances(fit, peaks)
             inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
-            if np.count_nonzero(inliers) >= PROFILE_MIN_SHARE * ok.size:
+            kept = np.count_nonzero(inliers)
+            # All inliers: the refit would repeat the fit on the same points.
+            if PROFILE_MIN_SHARE * ok.size <= kept < inliers.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape) else current
     return current
