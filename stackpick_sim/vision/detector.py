@@ -222,11 +222,16 @@ class TopObjectDetector:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
             top_ellipse = _profile_refit(top_ellipse, work, grad)
-            radius = None if radius_of is None else radius_of(top_ellipse)
+            # The face's colour once, for its radius and the pose's wall test (the same pixels
+            # in the crop and in the frame).
+            face = face_colour(top_ellipse, work) if work.ndim == 3 else None
+            colours = self.config.kind_colours
+            radius = (None if colours is None or face is None
+                      else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
             pose = estimate_pose(_moved(top_ellipse, du, dv), k,
                                  self.config.radii_m if radius is None else (radius,), None,
                                  self.config.depth_range_m,
-                                 image=img if img.ndim == 3 else None)
+                                 image=img if img.ndim == 3 else None, face_rgb=face)
             detection = replace(detection, pose=pose)
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
@@ -265,17 +270,36 @@ def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
     RGB ``image`` the ellipse is given in; None for a gray image."""
     if image.ndim != 3:
         return None
-    kinds = np.asarray(colours, np.float64)
-    chroma = kinds / np.maximum(kinds.sum(axis=1, keepdims=True), 1e-9)
+    chroma = _chromaticities(colours)
 
     def radius_of(ellipse: Ellipse) -> float | None:
-        face = face_colour(ellipse, image)
-        if float(face.sum()) <= 0.0:
-            return None
-        d = np.abs(chroma - face / float(face.sum())).sum(axis=1)
-        return float(radii[int(np.argmin(d))])
+        return _nearest_kind(face_colour(ellipse, image), chroma, radii)
 
     return radius_of
+
+
+def _chromaticities(colours: tuple[tuple[float, float, float], ...]
+                    ) -> list[tuple[float, float, float]]:
+    """(r, g, b) / (r + g + b) of each RGB colour (0-1)."""
+    out = []
+    for r, g, b in colours:
+        total = max(float(r) + float(g) + float(b), 1e-9)
+        out.append((float(r) / total, float(g) / total, float(b) / total))
+    return out
+
+
+def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, float]],
+                  radii: tuple[float, ...]) -> float | None:
+    """The radius of the kind whose chromaticity is nearest (L1) to the (3,) RGB ``face``
+    colour (the first of equals); None for a black face."""
+    # Three numbers per kind: Python floats cost less than numpy's calls.
+    f0, f1, f2 = face.tolist()
+    total = f0 + f1 + f2
+    if total <= 0.0:
+        return None
+    f0, f1, f2 = f0 / total, f1 / total, f2 / total
+    d = [abs(c0 - f0) + abs(c1 - f1) + abs(c2 - f2) for c0, c1, c2 in chroma]
+    return float(radii[d.index(min(d))])
 
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],

@@ -102,7 +102,14 @@ def _planes(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], ...]:
     """The channels of an (H, W) or (H, W, C) uint8 image, each (H, W) contiguous."""
     if image.ndim == 2:
         return (image,)
-    return tuple(cv2.extractChannel(image, c) for c in range(image.shape[2]))
+    return tuple(np.asarray(cv2.extractChannel(image, c), np.uint8)
+                 for c in range(image.shape[2]))
+
+
+def _sobel_pair(plane: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
+    """3x3 Sobel (dx, dy), (H, W) int16 each, of an (H, W) uint8 plane (one OpenCV call)."""
+    dx, dy = cv2.spatialGradient(plane)
+    return np.asarray(dx, np.int16), np.asarray(dy, np.int16)
 
 
 def _plane_gradients(planes: tuple[NDArray[np.uint8], ...]
@@ -110,10 +117,10 @@ def _plane_gradients(planes: tuple[NDArray[np.uint8], ...]
     """:func:`colour_gradients` of an image given as its (H, W) uint8 channels."""
     # One channel at a time: extractChannel and spatialGradient (the 3x3 Sobel pair, same
     # border) cost a third of split and two Sobel calls.
-    best_x, best_y = cv2.spatialGradient(planes[0])
+    best_x, best_y = _sobel_pair(planes[0])
     best_m = _l1(best_x, best_y)
     for plane in planes[1:]:
-        gx, gy = cv2.spatialGradient(plane)
+        gx, gy = _sobel_pair(plane)
         m = _l1(gx, gy)
         better = cv2.compare(m, best_m, cv2.CMP_GT)
         cv2.copyTo(gx, better, best_x)

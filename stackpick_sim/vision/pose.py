@@ -243,12 +243,14 @@ def choose_by_band(evidence: Sequence[WallEvidence]) -> int | None:
 def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequence[float],
                   support: NDArray[np.uint8] | None = None,
                   depth_range_m: tuple[float, float] | None = None, *,
-                  image: NDArray[np.uint8] | None = None) -> Pose:
+                  image: NDArray[np.uint8] | None = None,
+                  face_rgb: NDArray[np.float64] | None = None) -> Pose:
     """Pose of the face imaged as ``ellipse``; see the module docstring for the choices.
 
     ``image`` is the (H, W, 3) RGB frame used for the wall colour test (preferred);
     ``support`` the (H, W) 0/1 dilated edge map used for the edge-line wall test when no image
-    is given. With neither, the smaller tilt is taken.
+    is given. With neither, the smaller tilt is taken. ``face_rgb``: the face's (3,) colour in
+    ``image`` (:func:`~stackpick_sim.vision.wall.face_colour`) when the caller has it.
     """
     unit = circle_poses(ellipse, intrinsics, 1.0)
     radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
@@ -256,7 +258,7 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     best: int | None = None
     scores = [0.0, 0.0]
     if image is not None:
-        face = face_colour(ellipse, image)
+        face = face_colour(ellipse, image) if face_rgb is None else face_rgb
         evidence = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], ellipse,
                                   intrinsics, image, face)
         scores = [e.share for e in evidence]

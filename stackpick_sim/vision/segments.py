@@ -161,8 +161,9 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     if hierarchy is None:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
-    kept = [c.reshape(-1, 2) for c, parent in zip(contours, hierarchy[0][:, 3].tolist(),
-                                                  strict=True)
+    parents = hierarchy[0][:, 3].tolist()
+    kept = [np.asarray(c, np.int32).reshape(-1, 2)
+            for c, parent in zip(contours, parents, strict=True)
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
