@@ -214,7 +214,7 @@ class TopObjectDetector:
                             support=merged[i].support, evidence=choice.evidence[i])
             for i in keep)
         offset = np.array([du, dv], np.int32)
-        frame_chains = chains if du == dv == 0 else tuple(c + offset for c in chains)
+        frame_chains = chains if du == dv == 0 else _shifted(chains, offset)
         top = None if choice.index is None else keep.index(choice.index)
         detection = Detection(ellipses=ellipses, segments=frame_chains, top=top,
                               timings_ms=timings, reason=choice.reason)
@@ -223,7 +223,7 @@ class TopObjectDetector:
                                           crop)
             top_ellipse = _profile_refit(top_ellipse, work, grad)
             # The face's colour once, for its radius and the pose's wall test (the same pixels
-            # in the crop and in the frame).
+            # in the crop and in the frame while the face's interior lies in the crop).
             face = face_colour(top_ellipse, work) if work.ndim == 3 else None
             colours = self.config.kind_colours
             radius = (None if colours is None or face is None
@@ -388,6 +388,16 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -
     raw = unblurred_gradients(window, box)
     fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
     return _moved(fit, c0, r0)
+
+
+def _shifted(chains: tuple[NDArray[np.int32], ...], offset: NDArray[np.int32]
+             ) -> tuple[NDArray[np.int32], ...]:
+    """Each (N_i, 2) chain plus ``offset`` (2,), in one array pass (views of one array)."""
+    if not chains:
+        return chains
+    every = np.concatenate(chains) + offset
+    ends = np.cumsum([c.shape[0] for c in chains]).tolist()
+    return tuple(every[i - c.shape[0]:i] for c, i in zip(chains, ends, strict=True))
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

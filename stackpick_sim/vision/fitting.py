@@ -85,6 +85,9 @@ def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float6
     Sampson distance |Q| / |grad Q| of the normalised implicit form
     Q = (x/a)^2 + (y/b)^2 - 1 in each ellipse's own frame.
     """
+    if params.shape[0] == 1:  # one ellipse: scalar parameters, the same values
+        cx, cy, a, b, t = params[0].tolist()
+        return _scalar_distances(cx, cy, a, b, t, points)[None, :]
     p = np.asarray(points, np.float64)
     cx, cy, a, b, t = (params[:, i : i + 1] for i in range(5))
     du, dv = p[None, :, 0] - cx, p[None, :, 1] - cy
@@ -99,14 +102,20 @@ def distances(params: NDArray[np.float64], points: NDArray) -> NDArray[np.float6
 def ellipse_distances(ellipse: Ellipse, points: NDArray) -> NDArray[np.float64]:
     """(N,) :func:`distances` of N points (N, 2) to one ellipse (the same values, on scalar
     parameters: a third less time than the broadcast form on a few hundred points)."""
+    return _scalar_distances(ellipse.cx, ellipse.cy, ellipse.a, ellipse.b,
+                             math.radians(ellipse.angle_deg), points)
+
+
+def _scalar_distances(cx: float, cy: float, a: float, b: float, t: float, points: NDArray
+                      ) -> NDArray[np.float64]:
+    """(N,) :func:`distances` to the ellipse (cx, cy, a, b, angle t rad) of points (N, 2)."""
     p = np.asarray(points, np.float64)
-    t = math.radians(ellipse.angle_deg)
     c, s = math.cos(t), math.sin(t)
-    du, dv = p[:, 0] - ellipse.cx, p[:, 1] - ellipse.cy
-    x = (c * du + s * dv) / ellipse.a
-    y = (-s * du + c * dv) / ellipse.b
+    du, dv = p[:, 0] - cx, p[:, 1] - cy
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
     q = x * x + y * y - 1.0
-    grad = 2.0 * np.sqrt((x / ellipse.a) ** 2 + (y / ellipse.b) ** 2) + 1e-12
+    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
     return np.asarray(np.abs(q) / grad, np.float64)
 
 
