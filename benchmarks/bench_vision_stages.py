@@ -1,0 +1,162 @@
+"""Per-stage time of the detector against a baseline commit, as ratios, on the same frames.
+
+    python benchmarks/bench_vision_stages.py --data /work/data/ds_paper_dev3 --seeds 0:400 \\
+        [--baseline main] [--rounds 3] [--repeats 3]
+
+The baseline commit's ``stackpick_sim`` is exported to a temporary directory; the baseline and
+the working tree then run in alternation (``--rounds`` times each), each in its own process
+timing every frame ``--repeats`` times. Stage times are the detector's own
+(``Detection.timings_ms``) read on the thread's CPU clock rather than the wall clock: on a
+machine shared with other jobs, preemption then adds nothing, while the ratios stay those of
+the work done. Per frame the fastest repeat counts; the table gives medians over the frames
+and rounds and the ratio baseline / working tree. The outputs (ellipses, top, pose) of the two
+are compared as well: a speed-up should not change them.
+
+Use development seeds only: held-out seeds are for the reported benchmark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import pickle
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+STAGES = ("roi", "edges", "segments", "fitting", "merging", "refine", "top", "pose", "total")
+
+#: Run in a child process with the code under test first on sys.path: time each frame.
+WORKER = r"""
+import pickle, sys, time
+import cv2
+cv2.setNumThreads(1)
+time.perf_counter = time.thread_time  # the detector's stage clock: this thread's CPU time
+from stackpick_sim.geometry import CameraIntrinsics
+from stackpick_sim.vision.detector import (DEFAULT_RADII_M, DetectorConfig, TopObjectDetector,
+                                           object_kinds)
+frames_path, repeats, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+with open(frames_path, "rb") as f:
+    frames = pickle.load(f)
+times, outputs = [], []
+for frame in frames:
+    kinds = frame["kinds"]
+    radii, colours = object_kinds(kinds) if kinds else (DEFAULT_RADII_M, None)
+    det = TopObjectDetector(DetectorConfig(intrinsics=CameraIntrinsics(**frame["intrinsics"]),
+                                           radii_m=radii, depth_range_m=frame["depth_range_m"],
+                                           kind_colours=colours))
+    runs = [det.detect(frame["image"]) for _ in range(repeats)]
+    times.append([r.timings_ms for r in runs])
+    r = runs[-1]
+    outputs.append(([(e.ellipse.cx, e.ellipse.cy, e.ellipse.a, e.ellipse.b, e.ellipse.angle_deg)
+                     for e in r.ellipses], r.top,
+                    None if r.pose is None else (r.pose.x, r.pose.y, r.pose.theta_x_deg,
+                                                 r.pose.theta_y_deg, r.pose.depth_m)))
+with open(out, "wb") as f:
+    pickle.dump({"times": times, "outputs": outputs}, f)
+"""
+
+
+def save_frames(data: Path, seeds: list[int], out: Path) -> int:
+    """The frames of a data set as plain values (readable by any version of the package),
+    pickled to ``out``; returns how many."""
+    from stackpick_sim.config.loader import load_scene
+    from stackpick_sim.vision.benchmark.frames import iter_dataset
+
+    frames = [{"image": f.image_rgb, "depth_range_m": f.depth_range_m, "kinds": f.kinds,
+               "intrinsics": dataclasses.asdict(f.intrinsics)}
+              for f in iter_dataset(data, seeds, load_scene("paper"))]
+    with open(out, "wb") as fh:
+        pickle.dump(frames, fh)
+    return len(frames)
+
+
+def export(ref: str, into: Path) -> Path:
+    """``stackpick_sim`` of commit ``ref`` written under ``into``; returns the directory to put
+    on sys.path."""
+    archive = into / "baseline.tar"
+    subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", "-o", str(archive), ref,
+                    "stackpick_sim"], check=True)
+    with tarfile.open(archive) as tar:
+        tar.extractall(into, filter="data")
+    return into
+
+
+def run_worker(code_root: Path, frames: Path, repeats: int, out: Path) -> dict:
+    """Time the detector of ``code_root`` on the pickled ``frames`` in a child process; its
+    results."""
+    env = dict(os.environ, PYTHONPATH=str(code_root))
+    # -P: no current directory ahead of PYTHONPATH (it may hold another stackpick_sim).
+    subprocess.run([sys.executable, "-P", "-c", WORKER, str(frames), str(repeats), str(out)],
+                   check=True, env=env)
+    with open(out, "rb") as f:
+        return pickle.load(f)
+
+
+def stage_medians(results: list[dict]) -> dict[str, float]:
+    """Median over frames (and rounds) of each stage's fastest repeat, ms."""
+    return {s: float(np.median([min(r.get(s, 0.0) for r in per)
+                                for res in results for per in res["times"]]))
+            for s in STAGES}
+
+
+def differences(a: list, b: list) -> str:
+    """How the outputs of two runs differ (counts and largest differences)."""
+    count = top = 0
+    ellipse_diff = pose_diff = 0.0
+    for (e1, t1, p1), (e2, t2, p2) in zip(a, b, strict=True):
+        if len(e1) != len(e2):
+            count += 1
+        elif e1:
+            ellipse_diff = max(ellipse_diff, float(np.abs(np.subtract(e1, e2)).max()))
+        if t1 != t2 or (p1 is None) != (p2 is None):
+            top += 1
+        elif p1 is not None:
+            pose_diff = max(pose_diff, float(np.abs(np.subtract(p1, p2)).max()))
+    return (f"frames whose ellipse count differs: {count}; whose top differs: {top}; largest "
+            f"ellipse parameter difference {ellipse_diff:.3g}; largest pose difference "
+            f"{pose_diff:.3g}")
+
+
+def main() -> int:
+    """Run the comparison and print the table."""
+    from stackpick_sim.cli.common import parse_seeds
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--data", type=Path, required=True, help="a `stackpick dataset` directory")
+    p.add_argument("--seeds", default="0:400", help="development seeds (default 0:400)")
+    p.add_argument("--baseline", default="main", help="git ref of the baseline (default main)")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=3)
+    args = p.parse_args()
+    seeds = parse_seeds(args.seeds)
+    with tempfile.TemporaryDirectory() as tmp:
+        frames = Path(tmp) / "frames.pkl"
+        if save_frames(args.data, seeds, frames) == 0:
+            print(f"no frames of seeds {args.seeds} in {args.data}", file=sys.stderr)
+            return 1
+        base_root = export(args.baseline, Path(tmp))
+        base, work = [], []
+        for k in range(args.rounds):
+            base.append(run_worker(base_root, frames, args.repeats, Path(tmp) / f"base{k}.pkl"))
+            work.append(run_worker(REPO, frames, args.repeats, Path(tmp) / f"work{k}.pkl"))
+    old, new = stage_medians(base), stage_medians(work)
+    print(f"Detector stage times, CPU ms (median over {len(base[0]['times'])} frames x "
+          f"{args.rounds} rounds of the fastest of {args.repeats}), baseline {args.baseline} "
+          "vs working tree:\n")
+    print("| stage | baseline | working tree | baseline / working tree |")
+    print("|---|---|---|---|")
+    for s in STAGES:
+        print(f"| {s} | {old[s]:.3f} | {new[s]:.3f} | {old[s] / max(new[s], 1e-9):.2f} |")
+    print("\n" + differences(base[0]["outputs"], work[0]["outputs"]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
