@@ -3,8 +3,10 @@
 The paper writes an ellipse about its centre as ``A x^2 + 2 H x y + B y^2 = 1`` and accepts it
 only when ``A B - H^2 > 0``. Fitzgibbon's direct fit (``cv2.fitEllipseDirect``) minimises the
 algebraic error under exactly that constraint (normalised to ``4AB - (2H)^2 = 1``), so every
-fit it returns is an ellipse; the condition is still checked on the returned quadratic form,
-which also rejects the degenerate fits OpenCV returns for collinear points.
+fit it returns is an ellipse; the condition is still checked on the returned quadratic form
+wherever rounding could break it (axis ratios beyond EQ2_CHECKED_RATIO_SQ; below, it holds by a
+wide margin), which also rejects the degenerate fits OpenCV returns for collinear points (zero
+or extreme axes).
 
 Distances of points to an ellipse use the Sampson approximation (algebraic error over its
 gradient), accurate to a few percent within a few pixels of the curve, which is all the
