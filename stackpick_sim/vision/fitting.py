@@ -43,10 +43,16 @@ EQ2_CHECKED_RATIO_SQ = 1e6
 
 
 def fit_ellipse(points: NDArray) -> Ellipse | None:
-    """Ellipse-specific fit of (N, 2) pixels (u, v); None if N < 5 or not an ellipse."""
+    """Ellipse-specific fit of (N, 2) pixels (u, v); None if N < 5 or not an ellipse.
+
+    int32 and float32 points go to OpenCV as they are (it reads int32 points as float32, the
+    same values), others are converted to float32."""
     if points.shape[0] < 5:
         return None
-    (cx, cy), (w, h), angle = cv2.fitEllipseDirect(np.asarray(points, np.float32))
+    dtype = points.dtype
+    if dtype != np.int32 and dtype != np.float32:  # int32: half the call's cost unconverted
+        points = np.asarray(points, np.float32)
+    (cx, cy), (w, h), angle = cv2.fitEllipseDirect(points)
     if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
             and math.isfinite(angle)):
         return None

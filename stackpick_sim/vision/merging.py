@@ -147,7 +147,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     members: list[list[int]] = [[i] for i, _ in fits]
     ellipses: list[Ellipse | None] = [e for _, e in fits]
     seg_of_piece = np.array([i for i, _ in fits])
-    points = np.concatenate([chains[i] for i in seg_of_piece]).astype(np.float64)
+    pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
+    points = pixels.astype(np.float64)
     owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
     on = within(ellipse_params([e for _, e in fits]), points, MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
@@ -172,7 +173,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
                 break
             gi, gj = alive[bi], alive[bj]
             in_union = (owner == gi) | (owner == gj)
-            merged = fit_ellipse(points[in_union])
+            merged = fit_ellipse(pixels[in_union])
             d = (None if merged is None or not plausible(merged, shape)
                  else ellipse_distances(merged, points))
             if (merged is None or d is None
@@ -215,7 +216,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
-    all_points = np.concatenate(chains).astype(np.float64)
+    all_pixels = np.concatenate(chains)  # int32: the refits' input
+    all_points = all_pixels.astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
     params = ellipse_params([e for _, e in groups])
     if known is None:
@@ -253,7 +255,7 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     refits: dict[int, Ellipse | None] = {}
     for g, (segs, _) in enumerate(groups):
         if extras[g]:
-            refit = fit_ellipse(all_points[pixels(segs + extras[g])])
+            refit = fit_ellipse(all_pixels[pixels(segs + extras[g])])
             refits[g] = refit if refit is not None and plausible(refit, shape) else None
     tried = [g for g, r in refits.items() if r is not None]
     refit_rms = dict(zip(tried, rms([(e, groups[g][0] + extras[g]) for g in tried

@@ -114,22 +114,29 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                        ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
-    k = intrinsics.K
-    conic = _conic(ellipse)
-    q = k.T @ conic @ k
-    q = 0.5 * (q + q.T)
-    evals, evecs = np.linalg.eigh(q)
-    if np.count_nonzero(evals > 0) == 1:
-        q, evals, evecs = -q, -evals[::-1], evecs[:, ::-1]
-    # Now evals ascending with evals[0] < 0 < evals[1] <= evals[2].
-    l3, l2, l1 = evals.tolist()
-    e3, e1 = evecs[:, 0].tolist(), evecs[:, 2].tolist()
+    # Three-vectors and 3x3 forms on Python floats (numpy's matmul, inv and array
+    # construction cost more than the arithmetic on this size); numpy for the eigenvectors.
+    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    # q = K^T C K for K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] and the conic C (symmetric).
+    (m00, m01, d0), (m11, d1, f) = _conic_terms(ellipse)
+    r0, r1 = m00 * cx + m01 * cy + d0, m01 * cx + m11 * cy + d1  # C K's last column
+    q00, q01, q02 = fx * fx * m00, fx * fy * m01, fx * r0
+    q11, q12 = fy * fy * m11, fy * r1
+    q22 = cx * r0 + cy * r1 + (d0 * cx + d1 * cy + f)
+    evals, evecs = np.linalg.eigh(np.array([[q00, q01, q02], [q01, q11, q12],
+                                            [q02, q12, q22]]))
+    l_lo, l_mid, l_hi = evals.tolist()
+    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs.tolist()
+    if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:  # one positive: negate the form
+        q00, q01, q02, q11, q12, q22 = -q00, -q01, -q02, -q11, -q12, -q22
+        l3, l2, l1 = -l_hi, -l_mid, -l_lo
+        e3, e1 = [v02, v12, v22], [v00, v10, v20]
+    else:
+        l3, l2, l1 = l_lo, l_mid, l_hi
+        e3, e1 = [v00, v10, v20], [v02, v12, v22]
+    # Now l3 < 0 < l2 <= l1.
     g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
     h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
-    # Three-vectors and 3x3 forms on Python floats from here (numpy's inv, matmul and array
-    # construction cost more than the arithmetic on this size).
-    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-    (q00, q01, q02), (_, q11, q12), (_, _, q22) = q.tolist()
 
     def form(x: tuple[float, float, float]) -> float:
         """x^T q x."""
@@ -157,8 +164,8 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
         ray = ((p0 / p2 - cx) / fx, (p1 / p2 - cy) / fy, 1.0)
         along = n[0] * ray[0] + n[1] * ray[1] + n[2]
         x0 = (ray[0] / along, ray[1] / along, 1.0 / along)  # centre on the plane n . X = 1
-        u, _ = plane_basis(np.array(n))
-        s2 = -form(x0) / form((float(u[0]), float(u[1]), float(u[2])))
+        u0, u1, u2 = _basis_u(n[0], n[1], n[2])
+        s2 = -form(x0) / form((u0, u1, u2))
         scale = 1.0 / math.sqrt(max(s2, 1e-300))
         normal = np.array(n)
         centre = np.array([x0[0] * scale, x0[1] * scale, x0[2] * scale])
@@ -168,9 +175,10 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     return out[0], out[1]
 
 
-def _conic(ellipse: Ellipse) -> NDArray[np.float64]:
-    """:meth:`~stackpick_sim.geometry.Ellipse.conic`, written out on Python floats (the
-    matrix products on 2x2 arrays cost more than the arithmetic)."""
+def _conic_terms(ellipse: Ellipse) -> tuple[tuple[float, float, float],
+                                           tuple[float, float, float]]:
+    """The six distinct entries of the ellipse's conic C (:meth:`~stackpick_sim.geometry.
+    Ellipse.conic`), ((C00, C01, C02), (C11, C12, C22)), written out on Python floats."""
     t = math.radians(ellipse.angle_deg)
     c, s = math.cos(t), math.sin(t)
     ia, ib = 1.0 / ellipse.a ** 2, 1.0 / ellipse.b ** 2
@@ -178,7 +186,17 @@ def _conic(ellipse: Ellipse) -> NDArray[np.float64]:
     d0 = -(m00 * ellipse.cx + m01 * ellipse.cy)
     d1 = -(m01 * ellipse.cx + m11 * ellipse.cy)
     f = -(d0 * ellipse.cx + d1 * ellipse.cy) - 1.0
-    return np.array([[m00, m01, d0], [m01, m11, d1], [d0, d1, f]])
+    return (m00, m01, d0), (m11, d1, f)
+
+
+def _basis_u(n0: float, n1: float, n2: float) -> tuple[float, float, float]:
+    """The first vector of :func:`~stackpick_sim.vision.wall.plane_basis` of the normal
+    (n0, n1, n2), as floats (the same arithmetic, without the arrays)."""
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
+    u0, u1, u2 = (0.0, n2, -n1) if abs(n0) < 0.9 else (-n2, 0.0, n0)
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    return u0 / un, u1 / un, u2 / un
 
 
 def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,
