@@ -291,8 +291,9 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
         best = 0 if tilts[0] <= tilts[1] else 1
     chosen = unit[best]
     centre = chosen.centre_cam * radius
-    px = intrinsics.project(centre)[0]
+    cx, cy, cz = centre.tolist()  # projected as CameraIntrinsics.project, on floats
     tx, ty = tilt_angles(chosen.normal_cam)
-    return Pose(x=float(px[0]), y=float(px[1]), theta_x_deg=tx, theta_y_deg=ty,
-                depth_m=float(centre[2]), radius_m=radius, normal_cam=chosen.normal_cam,
+    return Pose(x=intrinsics.fx * cx / cz + intrinsics.cx,
+                y=intrinsics.fy * cy / cz + intrinsics.cy, theta_x_deg=tx, theta_y_deg=ty,
+                depth_m=cz, radius_m=radius, normal_cam=chosen.normal_cam,
                 centre_cam=centre, wall_support=(scores[best], scores[1 - best]))
