@@ -223,9 +223,9 @@ def remove_stairs(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     Zhang-Suen's two sub-iterations) delete exactly those corners, keeping connectivity.
     OpenCV's ``ximgproc.thinning`` leaves them in place and costs 10x more here.
     """
-    # 0/1: on uint8, min(x, 1) is (x > 0) in one call.
-    b = (np.asarray(cv2.min(edges, 1), np.uint8) if edges.dtype == np.uint8
-         else (edges > 0).astype(np.uint8))
+    # 0/1: on uint8, a binary threshold at 0 is (x > 0) in one call.
+    b = (np.asarray(cv2.threshold(edges, 0, 1, cv2.THRESH_BINARY)[1], np.uint8)
+         if edges.dtype == np.uint8 else (edges > 0).astype(np.uint8))
     for lut in STAIR_LUTS:
         removable = cv2.LUT(neighbour_codes(b), lut)
         b = np.asarray(cv2.subtract(b, cv2.bitwise_and(removable, b)), np.uint8)
