@@ -192,7 +192,9 @@ class TopObjectDetector:
             merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
         t = lap("refine", t)
         du, dv = roi.offset
-        k_crop = replace(k, cx=k.cx - du, cy=k.cy - dv)
+        # Built directly: dataclasses.replace costs several times the constructor.
+        k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
+                                  height=k.height)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
@@ -216,8 +218,7 @@ class TopObjectDetector:
         offset = np.array([du, dv], np.int32)
         frame_chains = chains if du == dv == 0 else _shifted(chains, offset)
         top = None if choice.index is None else keep.index(choice.index)
-        detection = Detection(ellipses=ellipses, segments=frame_chains, top=top,
-                              timings_ms=timings, reason=choice.reason)
+        pose = None
         if choice.index is not None:
             top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
                                           crop)
@@ -232,7 +233,8 @@ class TopObjectDetector:
                                  self.config.radii_m if radius is None else (radius,), None,
                                  self.config.depth_range_m,
                                  image=img if img.ndim == 3 else None, face_rgb=face)
-            detection = replace(detection, pose=pose)
+        detection = Detection(ellipses=ellipses, segments=frame_chains, top=top, pose=pose,
+                              timings_ms=timings, reason=choice.reason)
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection

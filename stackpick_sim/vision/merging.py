@@ -216,8 +216,7 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
-    all_pixels = np.concatenate(chains)  # int32: the refits' input
-    all_points = all_pixels.astype(np.float64)
+    all_points = np.concatenate(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
     params = ellipse_params([e for _, e in groups])
     if known is None:
@@ -230,19 +229,17 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                        minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
     frac = hits / lengths[None, :]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
-    starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-
-    def pixels(segs: list[int]) -> NDArray[np.int64]:
-        return np.concatenate([np.arange(starts[s], starts[s + 1]) for s in segs])
 
     def rms(pairs: list[tuple[Ellipse, list[int]]]) -> list[float]:
         """RMS residual of each (ellipse, segments) pair, all in one pass."""
         if not pairs:
             return []
-        # Each pair's pixels in ascending order (the order of the sums does not change).
-        idx = [pixels(sorted(set(segs))) for _, segs in pairs]
-        which = np.repeat(np.arange(len(pairs)), [i.shape[0] for i in idx])
-        at = np.concatenate(idx)
+        # Each pair's pixels in ascending order (the order of the sums does not change): the
+        # (pair, pixel) pairs of a (pairs x pixels) membership mask, in one call.
+        member = np.zeros((len(pairs), len(chains)), bool)
+        for k, (_, segs) in enumerate(pairs):
+            member[k, segs] = True
+        which, at = np.nonzero(member[:, seg_id])
         d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which, at)
         return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
                        / np.bincount(which, minlength=len(pairs))).tolist()
@@ -255,7 +252,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     refits: dict[int, Ellipse | None] = {}
     for g, (segs, _) in enumerate(groups):
         if extras[g]:
-            refit = fit_ellipse(all_pixels[pixels(segs + extras[g])])
+            # The chains themselves (int32, in this order): the fit's input as it stands.
+            refit = fit_ellipse(np.concatenate([chains[s] for s in segs + extras[g]]))
             refits[g] = refit if refit is not None and plausible(refit, shape) else None
     tried = [g for g, r in refits.items() if r is not None]
     refit_rms = dict(zip(tried, rms([(e, groups[g][0] + extras[g]) for g in tried
