@@ -130,13 +130,21 @@ def _scalar_distances(cx: float, cy: float, a: float, b: float, t: float, points
 def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
     """(E, N) bool: :func:`distances` < ``tol_px``, evaluated only for the points inside each
     ellipse's bounding square grown by the tolerance (the others are farther off)."""
+    out = np.zeros((params.shape[0], points.shape[0]), bool)
+    out[within_pairs(params, points, tol_px)] = True
+    return out
+
+
+def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
+    ``np.nonzero`` order, without the (E, N) matrix."""
     p = np.asarray(points, np.float64)
     reach = params[:, 2:3] + tol_px + 1.0
     e, n = np.nonzero((np.abs(p[None, :, 0] - params[:, 0:1]) <= reach)
                       & (np.abs(p[None, :, 1] - params[:, 1:2]) <= reach))
-    out = np.zeros((params.shape[0], p.shape[0]), bool)
-    out[e, n] = pair_distances(params, p, e, n) < tol_px
-    return out
+    close = (pair_distances(params, p, e, n) < tol_px).nonzero()[0]
+    return e[close], n[close]
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],

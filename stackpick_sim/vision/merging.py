@@ -33,6 +33,7 @@ from stackpick_sim.vision.fitting import (
     pair_distances,
     plausible,
     within,
+    within_pairs,
 )
 
 #: Eq. 3 threshold k on C = N_{A/B} N_{B/A}. Two halves of one face extrapolate ~1 px off
@@ -219,12 +220,15 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     all_points = np.concatenate(chains).astype(np.float64)
     seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
     params = ellipse_params([e for _, e in groups])
+    # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
     if known is None:
-        on = within(params, all_points, MERGE_TOLERANCE_PX)
+        g_on, p_on = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
     else:
-        on = np.hstack([known, within(params, all_points[known.shape[1]:], MERGE_TOLERANCE_PX)])
+        g_known, p_known = np.nonzero(known)
+        g_rest, p_rest = within_pairs(params, all_points[known.shape[1]:], MERGE_TOLERANCE_PX)
+        g_on = np.concatenate([g_known, g_rest])
+        p_on = np.concatenate([p_known, p_rest + known.shape[1]])
     lengths = np.array([c.shape[0] for c in chains], np.float64)
-    g_on, p_on = np.nonzero(on)
     hits = np.bincount(g_on * len(chains) + seg_id[p_on],
                        minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
     frac = hits / lengths[None, :]
