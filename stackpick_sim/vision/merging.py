@@ -106,17 +106,19 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     ct = np.concatenate([t[0] for t in tables])
     st = np.concatenate([t[1] for t in tables])
     owner = np.repeat(np.arange(len(ellipses)), counts)
-    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
-                     math.sin(math.radians(e.angle_deg))] for e in ellipses])[owner]
-    cx, cy, a, b, c, s = geo.T
+    # Each parameter repeated per sample as one contiguous row (a row gather of (E, 6) would
+    # leave strided columns, slower in every operation below).
+    cx, cy, a, b, c, s = np.repeat(np.array(
+        [[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
+          math.sin(math.radians(e.angle_deg))] for e in ellipses]).T, counts, axis=1)
     x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
     u = np.rint(cx + c * x - s * y).astype(np.int64)
     v = np.rint(cy + s * x + c * y).astype(np.int64)
     h, w = support.shape
     inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    ok = np.zeros(u.shape[0], bool)
-    ok[inside] = support[v[inside], u[inside]] > 0
-    return np.asarray(np.bincount(owner, weights=ok, minlength=len(ellipses))
+    # Off-image samples are unsupported: only the inside ones are looked up (flat indices).
+    hit = support.ravel()[(v * w + u)[inside]] > 0
+    return np.asarray(np.bincount(owner[inside], weights=hit, minlength=len(ellipses))
                       / np.asarray(counts), np.float64)
 
 
