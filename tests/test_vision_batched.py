@@ -9,8 +9,15 @@ import pytest
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profile, contrast_profiles, outline, outlines
-from stackpick_sim.vision.edges import edge_image
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, fit_or_split, within
+from stackpick_sim.vision.edges import adaptive_thresholds, edge_image, noise_level
+from stackpick_sim.vision.fitting import (
+    distances,
+    ellipse_params,
+    fit_all,
+    fit_or_split,
+    within,
+    within_pairs,
+)
 from stackpick_sim.vision.occlusion import evidence_all
 from stackpick_sim.vision.refine import _along, edge_points, refine_all
 from stackpick_sim.vision.segments import link_segments, neighbour_count
@@ -66,6 +73,17 @@ def test_within_matches_full_distances(scene: tuple[np.ndarray, list[Ellipse]]) 
     for tol in (1.2, 1.5, 2.5):
         np.testing.assert_array_equal(within(params, points, tol),
                                       distances(params, points) < tol)
+        e, n = within_pairs(params, points, tol)
+        np.testing.assert_array_equal(np.stack([e, n]), np.stack(np.nonzero(
+            distances(params, points) < tol)))
+
+
+def test_noise_level_is_the_thresholds_noise(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, _ = scene
+    grad = edge_image(image)
+    assert noise_level(grad.gx, grad.gy) == adaptive_thresholds(grad.gx, grad.gy)[2]
+    empty = np.zeros((0, 0), np.int16)
+    assert noise_level(empty, empty) == adaptive_thresholds(empty, empty)[2] == 0.0
 
 
 def test_fit_all_gives_fit_or_split_pieces_in_order(
