@@ -85,11 +85,10 @@ def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArr
     return np.concatenate([contour[first:], contour[:first]])
 
 
-def _vertex_indices(chain: NDArray[np.int32], vertices: NDArray) -> list[int]:
-    """Index of the first pixel of the (N, 2) chain equal to each of the (K, 2) ``vertices``
-    (approxPolyDP keeps original points), all in one (N, K) comparison."""
-    same = (chain[:, 0:1] == vertices[None, :, 0]) & (chain[:, 1:2] == vertices[None, :, 1])
-    return [int(i) for i in same.argmax(axis=0).tolist()]
+def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
+    """Index of the chain pixel equal to ``vertex`` (approxPolyDP keeps original points)."""
+    hits = ((chain[:, 0] == vertex[0]) & (chain[:, 1] == vertex[1])).nonzero()[0]
+    return int(hits[0])
 
 
 def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32]]:
@@ -142,7 +141,7 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
             at.append(k if closed else k + 1)
     if not at:
         return [chain]
-    cuts = sorted(set(_vertex_indices(chain, poly[at])))
+    cuts = sorted({_vertex_index(chain, poly[k]) for k in at})
     if closed:
         chain = np.roll(chain, -cuts[0], axis=0)
         bounds = [c - cuts[0] for c in cuts] + [chain.shape[0]]
