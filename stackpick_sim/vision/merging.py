@@ -261,11 +261,15 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
             # The chains themselves (int32, in this order): the fit's input as it stands.
             refit = fit_ellipse(np.concatenate([chains[s] for s in segs + extras[g]]))
             refits[g] = refit if refit is not None and plausible(refit, shape) else None
+    # One residual pass for the refits and for the groups that absorbed nothing (kept as
+    # fitted); only a failed or refused refit needs a second.
     tried = [g for g, r in refits.items() if r is not None]
-    refit_rms = dict(zip(tried, rms([(e, groups[g][0] + extras[g]) for g in tried
-                                     if (e := refits[g]) is not None]), strict=True))
+    plain = [g for g in range(len(groups)) if g not in refits]
+    first = rms([(e, groups[g][0] + extras[g]) for g in tried if (e := refits[g]) is not None]
+                + [(groups[g][1], groups[g][0]) for g in plain])
+    refit_rms = dict(zip(tried, first[:len(tried)], strict=True))
+    residuals: dict[int, float] = dict(zip(plain, first[len(tried):], strict=True))
     finals: list[tuple[list[int], Ellipse]] = []
-    residuals: dict[int, float] = {}
     for g, (segs, ellipse) in enumerate(groups):
         refit = refits.get(g)
         if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
