@@ -6,12 +6,12 @@ their union still fits; the best pair merges first and the counts are recomputed
 merge until no pair qualifies (the product is symmetric, so a short arc whose own ellipse is
 poorly constrained cannot absorb a long one by accident).
 
-All pair counts come from one (groups x pixels) boolean matrix, whose row for a group is
-computed once per (re)fit and only for the pixels near its ellipse, and one matrix product per
-round. Afterwards every edge segment too short to have been fitted on its own is absorbed by
-the ellipse its pixels lie on, and each final ellipse is validated by the share of its
-circumference that edge pixels support; residuals and support of all final ellipses are
-computed together.
+All pair counts come from the (group, pixel) pairs within tolerance, those of a group
+computed once per (re)fit and only for the pixels near its ellipse, counted per (ellipse,
+group) in one pass per round. Afterwards every edge segment too short to have been fitted on
+its own is absorbed by the ellipse its pixels lie on, and each final ellipse is validated by
+the share of its circumference that edge pixels support; residuals and support of all final
+ellipses are computed together.
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from stackpick_sim.vision.fitting import (
     fit_ellipse,
     pair_distances,
     plausible,
-    within,
     within_pairs,
 )
 
@@ -122,15 +121,16 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
                       / np.asarray(counts), np.float64)
 
 
-def _pertain_matrix(on: NDArray[np.bool_], owner: NDArray[np.int64], n_groups: int
-                    ) -> NDArray[np.float64]:
+def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
+                    owner: NDArray[np.int64], n_groups: int) -> NDArray[np.float64]:
     """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b, from
-    ``on`` (G, N) (pixel within tolerance of each group's ellipse) and ``owner`` (N,) the
-    group of each pixel (0..G-1)."""
-    onehot = np.zeros((owner.shape[0], n_groups))
-    onehot[np.arange(owner.shape[0]), owner] = 1.0
-    counts = onehot.sum(axis=0)
-    return np.asarray((on @ onehot) / np.maximum(counts, 1.0), np.float64)
+    the (ellipse, pixel) pairs within tolerance given as the ellipse ``ellipse_of`` (K,) and
+    the pixel's group ``pixel_group`` (K,) of each, and ``owner`` (N,) the group of every
+    pixel (all 0..G-1)."""
+    hits = np.bincount(ellipse_of * n_groups + pixel_group,
+                       minlength=n_groups * n_groups).reshape(n_groups, n_groups)
+    counts = np.bincount(owner, minlength=n_groups).astype(np.float64)
+    return np.asarray(hits / np.maximum(counts, 1.0), np.float64)
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
@@ -141,7 +141,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ellipse) for those that fitted on their own (one segment may appear once per piece);
     ``edges`` the (H, W) 0/1 edge map. Returns ellipses sorted by support, best first.
 
-    Each group's row of pixel distances is computed once, when its ellipse is (re)fitted; a
+    Each group's pixels within tolerance are found once, when its ellipse is (re)fitted; a
     refused pair changes nothing, so the next best pair is read off the same counts.
     """
     shape = (int(edges.shape[0]), int(edges.shape[1]))
@@ -153,7 +153,9 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
     points = pixels.astype(np.float64)
     owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
-    on = within(ellipse_params([e for _, e in fits]), points, MERGE_TOLERANCE_PX)
+    # The (group, pixel) pairs within tolerance of the group's ellipse.
+    pair_g, pair_p = within_pairs(ellipse_params([e for _, e in fits]), points,
+                                  MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
     changed = True
     while changed:
@@ -163,7 +165,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             break
         remap = -np.ones(len(ellipses), np.int64)
         remap[alive] = np.arange(len(alive))
-        n = _pertain_matrix(on[alive], remap[owner], len(alive))
+        group = remap[owner]
+        n = _pertain_matrix(remap[pair_g], group[pair_p], group, len(alive))
         c = n * n.T
         np.fill_diagonal(c, 0.0)
         for i, j in refused:
@@ -188,14 +191,19 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             ellipses[gi], ellipses[gj] = merged, None
             members[gi] += members[gj]
             owner[owner == gj] = gi
-            on[gi] = d < MERGE_TOLERANCE_PX
+            other = (pair_g != gi) & (pair_g != gj)
+            close = (d < MERGE_TOLERANCE_PX).nonzero()[0]
+            pair_g = np.concatenate([pair_g[other], np.full(close.shape[0], gi)])
+            pair_p = np.concatenate([pair_p[other], close])
             changed = True
             break
-    # The pieces' rows of pixel distances stay valid for absorbing when they lead ``chains``.
-    alive = [g for g, e in enumerate(ellipses) if e is not None]
+    # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
+    final = -np.ones(len(ellipses), np.int64)
+    final[[g for g, e in enumerate(ellipses) if e is not None]] = np.arange(
+        sum(e is not None for e in ellipses))
     leading = bool(np.array_equal(seg_of_piece, np.arange(len(fits))))
     return _absorb_and_validate(chains, members, ellipses, edges,
-                                on[alive] if leading else None)
+                                (final[pair_g], pair_p, points.shape[0]) if leading else None)
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
@@ -211,11 +219,12 @@ def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tupl
 
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
                          ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
-                         known: NDArray[np.bool_] | None = None) -> list[MergedEllipse]:
+                         known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None
+                         ) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit, keep supported ones.
 
-    ``known``: (G, K) whether each of the first K pixels of ``chains`` lies on each final
-    ellipse, when already computed."""
+    ``known``: (group, pixel) index pairs (K,) each of the first P pixels of ``chains`` that
+    lie on each final ellipse, and P, when already computed."""
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
@@ -226,10 +235,10 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     if known is None:
         g_on, p_on = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
     else:
-        g_known, p_known = np.nonzero(known)
-        g_rest, p_rest = within_pairs(params, all_points[known.shape[1]:], MERGE_TOLERANCE_PX)
+        g_known, p_known, done = known
+        g_rest, p_rest = within_pairs(params, all_points[done:], MERGE_TOLERANCE_PX)
         g_on = np.concatenate([g_known, g_rest])
-        p_on = np.concatenate([p_known, p_rest + known.shape[1]])
+        p_on = np.concatenate([p_known, p_rest + done])
     lengths = np.array([c.shape[0] for c in chains], np.float64)
     hits = np.bincount(g_on * len(chains) + seg_id[p_on],
                        minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
