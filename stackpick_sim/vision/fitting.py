@@ -151,14 +151,11 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
                    which: NDArray[np.int64], at: NDArray[np.int64]) -> NDArray[np.float64]:
     """(K,) :func:`distances` of points ``at`` (K,) of (N, 2) ``points`` to ellipses ``which``
     (K,) of (E, 5) ``params``: one distance per (ellipse, point) pair."""
-    geo = np.concatenate([params[:, :4], np.cos(params[:, 4:5]), np.sin(params[:, 4:5])],
-                         axis=1)
-    # One take per array; take's (6, K) and (2, K) results have contiguous rows.
-    cx, cy, a, b, c, s = np.take(geo.T, which, axis=1)
-    pu, pv = np.take(points.T, at, axis=1)
-    du, dv = pu - cx, pv - cy
+    cx, cy, a, b = (params[:, i][which] for i in range(4))  # contiguous per column
+    du, dv = points[:, 0][at] - cx, points[:, 1][at] - cy
+    c, s = np.cos(params[:, 4])[which], np.sin(params[:, 4])[which]
     x = (c * du + s * dv) / a
-    y = (c * dv - s * du) / b  # = -s du + c dv (negation and addition order are exact)
+    y = (-s * du + c * dv) / b
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
     return np.asarray(np.abs(x * x + y * y - 1.0) / grad, np.float64)
 

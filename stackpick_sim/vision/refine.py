@@ -192,12 +192,11 @@ def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
     columns (u, v, gu, gv), each (K,): pixel and unit gradient."""
     geo = np.array([[e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(math.radians(e.angle_deg)),
                      math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    # One take; its (6, K) result has contiguous rows.
-    cx, cy, ia, ib, c, s = np.take(geo.T, which, axis=1)
+    cx, cy, ia, ib, c, s = (np.ascontiguousarray(geo[:, i])[which] for i in range(6))
     u, v, gu, gv = cols
     du, dv = u - cx, v - cy
     x = (c * du + s * dv) * ia
-    y = (c * dv - s * du) * ib  # = -s du + c dv (negation and addition order are exact)
+    y = (-s * du + c * dv) * ib
     gx, gy = x * ia, y * ib
     norm = np.sqrt(gx * gx + gy * gy)
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
