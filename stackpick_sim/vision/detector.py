@@ -39,7 +39,12 @@ from stackpick_sim.vision.merging import (
     boundary_samples,
     merge_segments,
 )
-from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
+from stackpick_sim.vision.occlusion import (
+    OcclusionEvidence,
+    TopChoice,
+    select_top,
+    select_unobstructed,
+)
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
     PROFILE_REACH_PX,
@@ -196,6 +201,10 @@ class TopObjectDetector:
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points)
+        if choice.index is None:
+            fallback = select_unobstructed(choice.evidence)
+            if fallback is not None:
+                choice = replace(choice, index=fallback, reason="")
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).

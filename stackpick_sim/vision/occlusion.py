@@ -68,6 +68,13 @@ MAX_INTERIOR_SHARE = 0.05
 DEPTH_TIE_M = 0.01
 #: Candidates whose supports differ by less than this are tied.
 SUPPORT_TIE = 0.02
+#: Last resort (:func:`select_unobstructed`), when no ellipse passes the rule: a face with no
+#: T-junction and no edge pixel inside, with edge contrast along at least this share of its
+#: outline. An occluder's outline runs into the face it covers (interior edges, T-ends), so
+#: such a face's gaps are boundaries too faint even for the contrast test: a top face over a
+#: lower face of its colour and shade (development seed 292: 0.80). Far rims and arcs of two
+#: outlines fitted together show about half their outline (0.5-0.6).
+FALLBACK_MIN_SUPPORT = 0.75
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -222,6 +229,16 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
     if depths[order[1]] - depths[order[0]] < DEPTH_TIE_M:
         return None
     return int(order[0])
+
+
+def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
+    """Index of the best-supported ellipse with no T-junction end, no interior edge pixel and
+    support >= FALLBACK_MIN_SUPPORT, or None: the top rule's last resort when no ellipse
+    passes it (see FALLBACK_MIN_SUPPORT)."""
+    ok = [i for i, ev in enumerate(evidence)
+          if not ev.occluded_ends and not ev.interior_edge_px
+          and ev.support >= FALLBACK_MIN_SUPPORT]
+    return max(ok, key=lambda i: evidence[i].support, default=None)
 
 
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
