@@ -22,7 +22,7 @@ from stackpick_sim.vision import __all__ as vision_all
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
 from stackpick_sim.vision.edges import detect_edges
-from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.occlusion import select_top, select_unobstructed
 from stackpick_sim.vision.pose import choose_radius, circle_poses
 from stackpick_sim.vision.synthetic import (
     SyntheticConfig,
@@ -61,6 +61,32 @@ def test_isolated_disc_is_top_candidate_and_rule_takes_foreign_ellipses() -> Non
     choice = select_top([wrong, disc], detect_edges(image))
     assert choice.index == 1
     assert choice.evidence[0].support < 0.2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_last_resort_takes_a_face_whose_gap_is_an_invisible_boundary(seed: int) -> None:
+    # A top disc on a lower one of the very same shade (development seed 292): the boundary
+    # over the lower disc does not show, so no face passes the rule; neither has a T-junction
+    # or an edge inside, and the top shows more of its outline.
+    lower = Ellipse(cx=140, cy=120, a=30, b=26, angle_deg=20)
+    upper = Ellipse(cx=185, cy=125, a=42, b=37, angle_deg=110)
+    rng = np.random.default_rng(seed)
+    image = np.full(SHAPE, 35.0)
+    image[lower.mask(SHAPE)] = 150.0
+    image[upper.mask(SHAPE)] = 150.0
+    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    choice = select_top([lower, upper], detect_edges(image))
+    assert choice.index is None
+    assert select_unobstructed(choice.evidence) == 1
+
+
+def test_last_resort_never_takes_a_face_with_a_t_junction() -> None:
+    left = Ellipse(cx=130, cy=120, a=40, b=30, angle_deg=10)
+    right = Ellipse(cx=180, cy=125, a=38, b=30, angle_deg=100)
+    image = draw_ellipses(SHAPE, [left, right], noise_sigma=2.0, rng=np.random.default_rng(3))
+    choice = select_top([left], detect_edges(image))  # the top disc was not fitted
+    assert choice.index is None and choice.evidence[0].occluded_ends >= 1
+    assert select_unobstructed(choice.evidence) is None
 
 
 def test_rule_on_no_ellipses_is_a_miss() -> None:

@@ -23,6 +23,10 @@ wall_cover`).
 Among the unoccluded candidates the best-supported one wins (ties within SUPPORT_TIE go to
 the larger ellipse, which is nearer the camera for equal radii). The rule needs only a list
 of ellipses and an edge map, so it applies to any detector's ellipses.
+
+When no ellipse passes, :func:`select_unobstructed` is the last resort: a face with no
+T-junction and no edge inside it, most of whose outline shows (FALLBACK_MIN_SUPPORT), lies
+under nothing visible; its gaps are boundaries too faint to see.
 """
 
 from __future__ import annotations
