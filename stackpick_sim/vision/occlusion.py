@@ -218,10 +218,23 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                  for e in range(len(ellipses)))
 
 
+def _holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
+    """Whether ``inner``'s centre lies inside ``outer``."""
+    t = math.radians(outer.angle_deg)
+    du, dv = inner.cx - outer.cx, inner.cy - outer.cy
+    x = (math.cos(t) * du + math.sin(t) * dv) / outer.a
+    y = (-math.sin(t) * du + math.cos(t) * dv) / outer.b
+    return x * x + y * y < 1.0
+
+
 def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                      radius_of: Callable[[Ellipse], float | None]) -> int | None:
     """Index of the face nearer the camera than every other by DEPTH_TIE_M (face-centre
-    depth from its radius), or None when a radius is unknown or no face is clearly nearest."""
+    depth from its radius), or None when a radius is unknown or no face is clearly nearest.
+
+    Faces of two objects that both show whole do not overlap, so a candidate holding the
+    nearest one's centre, or whose centre it holds, is that face fitted twice: it is no rival.
+    """
     depths = []
     for face in faces:
         radius = radius_of(face)
@@ -229,10 +242,13 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
             return None
         sols = circle_poses(face, intrinsics, radius)
         depths.append(0.5 * float(sols[0].centre_cam[2] + sols[1].centre_cam[2]))
-    order = np.argsort(depths)
-    if depths[order[1]] - depths[order[0]] < DEPTH_TIE_M:
+    nearest = int(np.argmin(depths))
+    rivals = [d for face, d in zip(faces, depths, strict=True)
+              if not (_holds_centre(face, faces[nearest])
+                      or _holds_centre(faces[nearest], face))]
+    if rivals and min(rivals) - depths[nearest] < DEPTH_TIE_M:
         return None
-    return int(order[0])
+    return nearest
 
 
 def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
