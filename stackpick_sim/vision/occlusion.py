@@ -255,10 +255,14 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     """Index of the best-supported ellipse with no T-junction end, no interior edge pixel and
     support >= FALLBACK_MIN_SUPPORT, or None: the top rule's last resort when no ellipse
     passes it (see FALLBACK_MIN_SUPPORT)."""
-    ok = [i for i, ev in enumerate(evidence)
-          if not ev.occluded_ends and not ev.interior_edge_px
-          and ev.support >= FALLBACK_MIN_SUPPORT]
+    ok = [i for i, ev in enumerate(evidence) if _unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
+
+
+def _unobstructed(ev: OcclusionEvidence) -> bool:
+    """No T-junction end, no interior edge pixel, support >= FALLBACK_MIN_SUPPORT."""
+    return (not ev.occluded_ends and not ev.interior_edge_px
+            and ev.support >= FALLBACK_MIN_SUPPORT)
 
 
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
@@ -294,14 +298,19 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     if not candidates:
         return TopChoice(index=None, evidence=evidence,
                          reason=f"all {len(ellipses)} ellipses occluded")
-    if intrinsics is not None and len(candidates) > 1:
-        under = under_another([ellipses[i] for i in candidates], intrinsics)
-        free = [i for i, u in zip(candidates, under, strict=True) if not u]
-        candidates = free or candidates
-    if intrinsics is not None and radius_of is not None and len(candidates) > 1:
-        nearest = _clearly_nearest([ellipses[i] for i in candidates], intrinsics, radius_of)
+    # The depth test also hears faces that failed on support alone with nothing crossing
+    # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
+    pool = candidates + [i for i, ev in enumerate(evidence)
+                         if ev.occluded and _unobstructed(ev)]
+    if intrinsics is not None and len(pool) > 1:
+        under = under_another([ellipses[i] for i in pool], intrinsics)
+        free = [i for i, u in zip(pool, under, strict=True) if not u]
+        pool = free or pool
+        candidates = [i for i in candidates if i in free] or candidates
+    if intrinsics is not None and radius_of is not None and len(pool) > 1:
+        nearest = _clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
         if nearest is not None:
-            return TopChoice(index=candidates[nearest], evidence=evidence)
+            return TopChoice(index=pool[nearest], evidence=evidence)
     best_support = max(evidence[i].support for i in candidates)
     tied = [i for i in candidates if evidence[i].support >= best_support - SUPPORT_TIE]
     index = max(tied, key=lambda i: ellipses[i].area)
