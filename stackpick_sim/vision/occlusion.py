@@ -20,13 +20,15 @@ the camera intrinsics, the rule is also applied to side walls: a candidate whose
 wall runs under another candidate's face lies under it (:mod:`stackpick_sim.vision.
 wall_cover`).
 
-Among the unoccluded candidates the best-supported one wins (ties within SUPPORT_TIE go to
-the larger ellipse, which is nearer the camera for equal radii). The rule needs only a list
-of ellipses and an edge map, so it applies to any detector's ellipses.
-
-When no ellipse passes, :func:`select_unobstructed` is the last resort: a face with no
-T-junction and no edge inside it, most of whose outline shows (FALLBACK_MIN_SUPPORT), lies
-under nothing visible; its gaps are boundaries too faint to see.
+Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
+than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
+failed on support alone with nothing crossing them take part in this test too. Otherwise the
+best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse, which is
+nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
+the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
+(FALLBACK_MIN_SUPPORT), lies under nothing visible; its gaps are boundaries too faint to see.
+The rule needs only a list of ellipses and an edge map, so it applies to any detector's
+ellipses.
 """
 
 from __future__ import annotations
@@ -277,7 +279,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     frame), a candidate whose side wall runs under another candidate's face loses to it
     (:mod:`stackpick_sim.vision.wall_cover`). With ``intrinsics`` and ``radius_of`` (an
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
-    it is nearer than the others by DEPTH_TIE_M. Returns the chosen index (else the
+    it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
+    that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
+    take part in this depth test too. Returns the chosen index (else the
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
     map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
     """
