@@ -79,7 +79,10 @@ SUPPORT_TIE = 0.02
 #: outline. An occluder's outline runs into the face it covers (interior edges, T-ends), so
 #: such a face's gaps are boundaries too faint even for the contrast test: a top face over a
 #: lower face of its colour and shade (development seed 292: 0.80). Far rims and arcs of two
-#: outlines fitted together show about half their outline (0.5-0.6).
+#: outlines fitted together show about half their outline (0.5-0.6). Not proof on its own:
+#: lower faces whose occluder only clips their rim also reach 0.75-0.88 with no edge inside
+#: (development seeds, paper scene), so this evidence is used only when nothing passes, or
+#: with the DEPTH_TIE_M margin. Placeholder from the development seeds, not tuned further.
 FALLBACK_MIN_SUPPORT = 0.75
 
 
