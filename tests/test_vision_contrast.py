@@ -87,3 +87,20 @@ def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one() -
     assert strongest is not None and innermost is not None
     assert abs(strongest.a - outer.a) < 0.7 and abs(strongest.b - outer.b) < 0.7
     assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7
+
+
+def test_innermost_contrast_refit_reaches_a_faint_boundary_5_px_inside() -> None:
+    # A top face on a same-colour lower face a few px larger (development seeds 202, 339): its
+    # faint boundary lies 5 px inside the strong silhouette, beyond the strongest-edge reach.
+    from stackpick_sim.vision.synthetic import draw_ellipses
+
+    outer = Ellipse(cx=160.0, cy=120.0, a=45.0, b=39.0, angle_deg=20.0)
+    inner = Ellipse(cx=160.0, cy=120.0, a=40.0, b=34.0, angle_deg=20.0)
+    image = draw_ellipses((240, 320), [outer, inner], noise_sigma=1.0,
+                          rng=np.random.default_rng(11))
+    grad = edge_image(image)
+    innermost = refit_on_contrast(outer, grad, innermost=True)
+    assert innermost is not None
+    assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7
+    strongest = refit_on_contrast(outer, grad)
+    assert strongest is not None and abs(strongest.a - outer.a) < 0.7

@@ -21,8 +21,8 @@ from stackpick_sim.geometry import (
 from stackpick_sim.vision import __all__ as vision_all
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
-from stackpick_sim.vision.edges import detect_edges
-from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.edges import detect_edges, edge_image
+from stackpick_sim.vision.occlusion import select_top, select_unobstructed
 from stackpick_sim.vision.pose import choose_radius, circle_poses
 from stackpick_sim.vision.synthetic import (
     SyntheticConfig,
@@ -61,6 +61,70 @@ def test_isolated_disc_is_top_candidate_and_rule_takes_foreign_ellipses() -> Non
     choice = select_top([wrong, disc], detect_edges(image))
     assert choice.index == 1
     assert choice.evidence[0].support < 0.2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_last_resort_takes_a_face_whose_gap_is_an_invisible_boundary(seed: int) -> None:
+    # A top disc on a lower one of the very same shade (development seed 292): the boundary
+    # over the lower disc does not show, so no face passes the rule; neither has a T-junction
+    # or an edge inside, and the top shows more of its outline.
+    lower = Ellipse(cx=140, cy=120, a=30, b=26, angle_deg=20)
+    upper = Ellipse(cx=185, cy=125, a=42, b=37, angle_deg=110)
+    rng = np.random.default_rng(seed)
+    image = np.full(SHAPE, 35.0)
+    image[lower.mask(SHAPE)] = 150.0
+    image[upper.mask(SHAPE)] = 150.0
+    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    choice = select_top([lower, upper], detect_edges(image))
+    assert choice.index is None
+    assert select_unobstructed(choice.evidence) == 1
+
+
+def test_last_resort_never_takes_a_face_with_a_t_junction() -> None:
+    left = Ellipse(cx=130, cy=120, a=40, b=30, angle_deg=10)
+    right = Ellipse(cx=180, cy=125, a=38, b=30, angle_deg=100)
+    image = draw_ellipses(SHAPE, [left, right], noise_sigma=2.0, rng=np.random.default_rng(3))
+    choice = select_top([left], detect_edges(image))  # the top disc was not fitted
+    assert choice.index is None and choice.evidence[0].occluded_ends >= 1
+    assert select_unobstructed(choice.evidence) is None
+
+
+def test_a_duplicate_fit_of_the_nearest_face_is_no_depth_rival() -> None:
+    # Two whole faces; the nearer one (small kind) images smaller than the farther (large
+    # kind) and is fitted twice. The duplicate is no rival: the nearer face still wins.
+    near = Ellipse(cx=90, cy=120, a=38, b=38, angle_deg=0)
+    far = Ellipse(cx=230, cy=120, a=44, b=44, angle_deg=0)
+    image = draw_ellipses(SHAPE, [near, far], noise_sigma=1.0, rng=np.random.default_rng(5))
+    twin = Ellipse(cx=90.4, cy=119.7, a=38.2, b=37.9, angle_deg=30)
+
+    def radius_of(e: Ellipse) -> float:
+        return 0.025 if e.cx < 160 else 0.035
+
+    for order in ([far, near, twin], [twin, far, near]):
+        choice = select_top(order, edge_image(image), K, radius_of)
+        assert choice.index is not None and order[choice.index] is not far, choice.evidence
+
+
+def test_unobstructed_face_clearly_nearer_than_a_whole_face_is_top() -> None:
+    # The top disc lies on a lower disc of its shade (its arc there does not show: support
+    # ~0.85, nothing crossing it) and is nearer than a separate whole face, which passes.
+    lower = Ellipse(cx=140, cy=120, a=30, b=26, angle_deg=20)
+    upper = Ellipse(cx=185, cy=125, a=42, b=37, angle_deg=110)
+    far = Ellipse(cx=275, cy=55, a=32, b=30, angle_deg=0)
+    rng = np.random.default_rng(6)
+    image = np.full(SHAPE, 35.0)
+    for e in (lower, upper, far):
+        image[e.mask(SHAPE)] = 150.0
+    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+
+    def radius_of(e: Ellipse) -> float:
+        return 0.035 if e is far else 0.025
+
+    ellipses = [far, lower, upper]
+    grad = edge_image(image)
+    assert select_top(ellipses, grad).index == 0  # without depths: the only whole face
+    choice = select_top(ellipses, grad, K, radius_of)
+    assert choice.evidence[2].occluded and choice.index == 2, choice.evidence
 
 
 def test_rule_on_no_ellipses_is_a_miss() -> None:

@@ -191,6 +191,11 @@ def contrast_support(ellipse: Ellipse, image: EdgeImage,
 #: partial outline (same-colour neighbours leave only faint edges) is off by up to ~3 px
 #: there (development seeds 4, 36).
 REFIT_REACH_PX = 3
+#: Inward search reach (px) of the innermost-edge refit: a top face lying on a lower face of
+#: its own colour and about its size ends at a faint boundary up to a few px inside the lower
+#: face's strong silhouette (4-5 px on development seeds 202 and 339: a rim offset of 5 px is
+#: ~1.5 mm at the paper scene's 0.3 m); the face's smooth inside holds no other edge.
+REFIT_INNER_REACH_PX = 6
 #: Contrast refit rounds (each re-centres the search on the previous fit).
 REFIT_ROUNDS = 2
 #: Fewest supported samples, as a share of the outline, for a contrast refit.
@@ -209,11 +214,12 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     With ``innermost`` each sample takes the innermost local peak of the contrast that
     passes the threshold instead of the strongest: a top face over a lower face of its own
     colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
-    on both outlines is too large.
+    on both outlines is too large. The search then reaches REFIT_INNER_REACH_PX inward.
     """
     current = ellipse
     h, w = image.gx.shape
-    offsets = np.arange(-REFIT_REACH_PX, REFIT_REACH_PX + 1, dtype=np.float64)
+    inward = REFIT_INNER_REACH_PX if innermost else REFIT_REACH_PX
+    offsets = np.arange(-inward, REFIT_REACH_PX + 1, dtype=np.float64)
     for _ in range(REFIT_ROUNDS):
         pts, normals = outline(current)
         q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]  # (n, k, 2)

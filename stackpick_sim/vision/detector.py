@@ -1,10 +1,12 @@
 """The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
 
 Given a depth range, refined ellipses too small or too large for any face radius in it are
-dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, those that failed on support
-or interior edges alone are refitted on the edge contrast (faint same-colour boundaries) and
-the rule is re-run. One face fitted twice is reported once (DUPLICATE_SHARE), and a
-cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
+dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
+no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
+select_unobstructed`); failing that, those that failed on support or interior edges alone are
+refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run. One face
+fitted twice is reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a
+face (RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -39,7 +41,12 @@ from stackpick_sim.vision.merging import (
     boundary_samples,
     merge_segments,
 )
-from stackpick_sim.vision.occlusion import OcclusionEvidence, TopChoice, select_top
+from stackpick_sim.vision.occlusion import (
+    OcclusionEvidence,
+    TopChoice,
+    select_top,
+    select_unobstructed,
+)
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
     PROFILE_REACH_PX,
@@ -199,6 +206,12 @@ class TopObjectDetector:
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points)
+        if choice.index is None:
+            # Before the contrast retry: a refit of a lower face can shrink past the outline
+            # crossing it and pass (development seed 292).
+            fallback = select_unobstructed(choice.evidence)
+            if fallback is not None:
+                choice = replace(choice, index=fallback, reason="")
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
