@@ -7,6 +7,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from stackpick_sim.cli.main import main
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
@@ -85,14 +86,16 @@ def test_load_frame_reads_dataset_record(tmp_path: Path) -> None:
     assert np.allclose(frame.depth_range_m, (0.30 - 0.15, 0.30))
 
 
-def test_cli_writes_tables_for_a_data_set(tmp_path: Path) -> None:
+def test_cli_writes_tables_for_a_data_set(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
     data, out = tmp_path / "data", tmp_path / "out"
     data.mkdir()
     for seed in (0, 1):
         write_frame(data, seed)
     code = main(["bench-detect", "--data", str(data), "--out", str(out),
-                 "--methods", "ours,findellipses"])
+                 "--methods", "ours,findellipses", "--quiet"])
     assert code == 0
+    assert "bench-detect" not in capsys.readouterr().err  # --quiet: no progress bar
     results = json.loads((out / "results.json").read_text())
     ours = results["methods"]["ours"]
     assert ours["frames"] == 2 and ours["top_success"] == 1.0

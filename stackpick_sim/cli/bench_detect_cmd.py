@@ -49,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--methods", default=",".join(METHOD_NAMES),
                    help=f"comma-separated subset of {','.join(METHOD_NAMES)} (default: all)")
     p.add_argument("--rht-seed", type=int, default=0, help="seed of the RHT's sampling")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -69,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         seeds = parse_seeds(args.seeds or DEFAULT_SEEDS)
         frames = iter_generated(cfg, seeds)
         source = f"scene {cfg.name}, rendered"
-    bar = tqdm(frames, total=len(seeds), desc="bench-detect", unit="frame", file=sys.stderr)
+    bar = tqdm(frames, total=len(seeds), desc="bench-detect", unit="frame", file=sys.stderr,
+               disable=args.quiet)
     kept, records = run_benchmark(bar, methods)
     if not kept:
         print("bench-detect: no frames to score", file=sys.stderr)
