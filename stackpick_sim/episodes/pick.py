@@ -58,6 +58,24 @@ DESCENT_HOLD_LATERAL = 0.003
 DESCENT_HOLD_SLOPE = 0.05
 #: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
 GRASP_PRELOAD = 0.002
+#: Body whose origin lies on the robot's vertical J1 axis (the lift retreats towards it).
+BASE_AXIS_BODY = "j1_link"
+
+
+def lift_position(start: NDArray[np.float64], base: NDArray[np.float64], rise: float,
+                  lift_height: float, retreat: float) -> NDArray[np.float64]:
+    """(3,) tool position ``rise`` m into a lift from ``start`` (3,), world frame, m.
+
+    Straight up, and towards the robot's vertical axis through ``base`` (3,; only its x, y
+    count) by ``retreat`` m over the whole ``lift_height``: in proportion to the rise, so the
+    tool leaves the belt upwards and the arm pulls in as it rises.
+    """
+    out = np.asarray(start, dtype=float) + np.array([0.0, 0.0, rise])
+    inward = np.asarray(base, dtype=float)[:2] - out[:2]
+    dist = float(np.linalg.norm(inward))
+    if retreat > 0.0 and dist > 1e-9 and lift_height > 0.0:
+        out[:2] += inward / dist * min(retreat * rise / lift_height, dist)
+    return out
 
 
 class ArmPhases:
@@ -74,6 +92,7 @@ class ArmPhases:
     _last_lateral: float
     _settled: int
     _lift_from: NDArray[np.float64] | None
+    _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
     _look_T_cam: NDArray[np.float64]
@@ -214,6 +233,8 @@ class ArmPhases:
         if t - self.phase_start >= cfg.grasp_dwell:
             self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
             self._lift_from = self.ep.arm.command_world_T_tool()
+            cell = self.ep.scene.cell
+            self._lift_base = cell.data.xpos[cell.model.body(BASE_AXIS_BODY).id].copy()
             self._enter("lift", t)
         return err
 
@@ -226,8 +247,9 @@ class ArmPhases:
         # faces away from the robot would otherwise fold the wrist into itself as the arm
         # reaches up (J4 link against J6 link, control/reach.py).
         axis = tilted_axis(self._lift_from[:3, 2], 1.0 - rise / cfg.lift_height)
-        goal = tool_pose_on_axis(self._lift_from[:3, 3] + np.array([0.0, 0.0, rise]), axis,
-                                 0.0, self._lift_from)
+        goal = tool_pose_on_axis(lift_position(self._lift_from[:3, 3], self._lift_base, rise,
+                                               cfg.lift_height, cfg.lift_retreat),
+                                 axis, 0.0, self._lift_from)
         ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain * 2, dt), dt)
         tool_z = ep.arm.eih.world_T_ee(ep.scene.cell.data)[2, 3]
         if tool_z >= self._lift_from[2, 3] + cfg.lift_height - 0.003:
