@@ -6,7 +6,8 @@ or, where the arm cannot reach that at the servo standoff, a share of its tilt t
 during the descent to the full normal, or to the share the arm can take where the face will
 be at the grasp (:mod:`stackpick_sim.control.reach`). The descent is
 blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
-turns the tool upright as it rises.
+turns the tool upright as it rises and pulls it ``episode.lift_retreat`` towards the robot's
+base (a grasp at the edge of the reach, on a fast belt, cannot rise straight up).
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ REPLAN_TURN_DEG = 10.0
 #: 0.35 m/s on paper scenes).
 DESCENT_ARRIVED = 0.001
 DESCENT_WAIT = 0.15
+#: ... the wait counting only while the tool is within this of the command, m (it lags a
+#: straight descent by ~1 mm; placeholder with margin).
+DESCENT_SETTLED = 0.003
 #: The descent pauses while the face centre is farther than ``DESCENT_HOLD_LATERAL +
 #: DESCENT_HOLD_SLOPE * standoff`` (m) from the tool axis: twice the servo's lateral
 #: tolerance at the face, well inside the cup lip's 11 mm radius; farther up the servo has
@@ -60,6 +64,34 @@ DESCENT_HOLD_SLOPE = 0.05
 GRASP_PRELOAD = 0.002
 #: Body whose origin lies on the robot's vertical J1 axis (the lift retreats towards it).
 BASE_AXIS_BODY = "j1_link"
+
+
+def floor_time(at_floor: float, depth_error: float, standoff: float, floor: float,
+               dt: float) -> float:
+    """Time (s) the descent's command has rested at its ``floor`` m with the tool near it.
+
+    ``at_floor`` s so far, plus ``dt`` s when the commanded ``standoff`` m is at the floor
+    and the tool is within DESCENT_SETTLED of it (``depth_error`` m short, see
+    :func:`descent_missed`).
+    """
+    if standoff <= floor and depth_error < DESCENT_SETTLED:
+        return at_floor + dt
+    return at_floor
+
+
+def descent_missed(depth_error: float, standoff: float, floor: float,
+                   at_floor: float) -> bool:
+    """Whether a descent has passed the predicted face without contact.
+
+    ``depth_error`` m: the tool's distance short of its commanded ``standoff`` m (positive:
+    above it); ``floor`` m: the deepest command (``-overtravel``); ``at_floor`` s: how long
+    the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
+    follows the commanded descent some millimetres late: a miss is the tool itself past the
+    predicted face, or the tool resting near the floor for DESCENT_WAIT. A tool still far
+    above (slowed by the wrist's J5 = 0 singularity, paper seed 242: 10-20 mm behind) is
+    waited for, up to the phase's time-out.
+    """
+    return depth_error + standoff <= floor + DESCENT_ARRIVED or at_floor > DESCENT_WAIT
 
 
 def lift_position(start: NDArray[np.float64], base: NDArray[np.float64], rise: float,
@@ -197,8 +229,6 @@ class ArmPhases:
             self._enter("grasp", t)
             return self._servo_step(t, dt, self._standoff, 0.0)
         floor = -cfg.overtravel
-        if self._standoff <= floor:
-            self._at_floor += dt
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
@@ -206,9 +236,8 @@ class ArmPhases:
         self._standoff = max(self._standoff - speed * dt, floor)
         err = self._servo_step(t, dt, self._standoff, -speed)
         self._last_lateral = err.lateral
-        # The arm follows the commanded descent some millimetres late: a miss is the tool
-        # itself past the predicted face, or the command resting at its floor for a while.
-        if err.depth + self._standoff <= floor + DESCENT_ARRIVED or self._at_floor > DESCENT_WAIT:
+        self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
+        if descent_missed(err.depth, self._standoff, floor, self._at_floor):
             self.fail("missed_grasp", "the descent passed the predicted face without contact")
             return None
         return err
