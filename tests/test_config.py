@@ -76,6 +76,8 @@ def test_scene_by_path(tmp_path: Path) -> None:
     ("objects.max_face_height=0.25", "objects.max_face_height = 0.25 is out of range; allowed: "
      "above the lowest object's height (0.025 m) and at least 0.1 m below "
      "camera.look_height (0.3 m)"),
+    ("episode.lift_retreat=-0.01", "episode.lift_retreat = -0.01 is out of range; allowed: "
+     "0 to 0.3 m"),
     ("conveyor.speed", "is not of the form key=value"),
     ("conveyor.speed=0.2.3", "the value is not a TOML value; expected number"),
 ])

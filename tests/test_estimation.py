@@ -311,3 +311,39 @@ def test_transform_carries_velocity_and_covariance_through_the_jacobian() -> Non
     assert np.allclose(after.covariance[:2, :2], jac @ before.covariance[:2, :2] @ jac.T)
     assert not tracker.advance(0.05)  # older than the state
     assert tracker.advance(0.2) and tracker.time == 0.2
+
+
+def test_belt_velocity_prior_tempers_a_bad_two_point_start() -> None:
+    """Two detections a frame apart of two different ellipses of one face (3 mm apart, paper
+    seed 45) imply a velocity ~90 mm/s off; the belt's known speed pulls the start's velocity
+    back, weighted by the two covariances."""
+    belt_v = (0.0, BELT_SPEED)
+    cfg = TrackerConfig.belt(depth=CAMERA_HEIGHT - BELT_Z, focal_px=INTRINSICS.fx,
+                             pixel_std=PIXEL_STD, prior_velocity=belt_v, prior_velocity_std=0.01)
+    z0 = np.array([0.01, 0.0])
+    z1 = z0 + np.array([0.003, BELT_SPEED * FRAME_DT])
+    plain, prior = ConstantVelocityTracker(BELT_CONFIG), ConstantVelocityTracker(cfg)
+    for tracker in (plain, prior):
+        tracker.update(0.0, z0)
+        assert tracker.update(FRAME_DT, z1)
+    v_plain = plain.predict_at(FRAME_DT).velocity
+    v_prior = prior.predict_at(FRAME_DT).velocity
+    assert v_plain[0] == pytest.approx(0.003 / FRAME_DT)
+    # Two-point std sqrt(2) sigma / dt (~15 mm/s here) against the prior's 10 mm/s.
+    two_point_var = 2 * BELT_CONFIG.measurement_std**2 / FRAME_DT**2
+    expected = v_plain[0] * 0.01**2 / (0.01**2 + two_point_var)
+    assert v_prior[0] == pytest.approx(expected, rel=1e-6)
+    assert abs(v_prior[0]) < 0.5 * abs(v_plain[0])
+    assert v_prior[1] == pytest.approx(BELT_SPEED, abs=1e-9)
+    # The prior also tightens the velocity covariance, never the other way.
+    assert np.all(np.diag(prior.predict_at(FRAME_DT).covariance)[2:]
+                  < np.diag(plain.predict_at(FRAME_DT).covariance)[2:])
+    # A restart (a changed motion, seen in three consistent detections) is a two-point start
+    # too: the prior weighs in against its own, here tighter, two-point covariance.
+    prior.restart(0.0, z0, np.eye(2) * 1e-8, FRAME_DT, z1, np.eye(2) * 1e-8)
+    tight_var = 2e-8 / FRAME_DT**2
+    assert prior.predict_at(FRAME_DT).velocity[0] == pytest.approx(
+        v_plain[0] * 0.01**2 / (0.01**2 + tight_var), rel=1e-6)
+    with pytest.raises(ConfigError):
+        TrackerConfig.belt(depth=0.2, focal_px=290.0, prior_velocity=belt_v,
+                           prior_velocity_std=0.0)

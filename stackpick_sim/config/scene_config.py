@@ -270,6 +270,10 @@ class EpisodeCfg:
     """Lift of the tool after the grasp, straight up, m."""
     lift_speed: float = 0.4
     """Lift speed, m/s."""
+    lift_retreat: float = 0.0
+    """Horizontal travel of the tool towards the robot's base (the J1 axis) during the lift,
+    m, in proportion to the rise: a grasp near the edge of the workspace (a fast belt carries
+    the face far out) cannot rise straight up with the arm stretched."""
     verify_time: float = 0.15
     """Time the lifted object must stay held, s."""
     timeout_look: float = 0.2
@@ -298,6 +302,8 @@ class EpisodeCfg:
             _positive(f"episode.{key}", getattr(self, key))
         for key in ("grasp_dwell", "verify_time"):
             _non_negative(f"episode.{key}", getattr(self, key))
+        _require(math.isfinite(self.lift_retreat) and 0 <= self.lift_retreat <= 0.3,
+                 "episode.lift_retreat", self.lift_retreat, "0 to 0.3 m")
         for key in ("look", "detect", "track", "approach", "servo", "descend", "grasp", "lift",
                     "verify"):
             _non_negative(f"episode.timeout_{key}", getattr(self, f"timeout_{key}"))

@@ -51,17 +51,23 @@ class RadiusHypotheses:
         """Fuse ``obs`` into every hypothesis; switch to the most consistent one.
 
         The summed NIS compares hypotheses only over the same measurements: a frame that
-        some hypothesis fused and another could not associate at all (its prediction too far
-        from every face) costs the latter the gate's worth, as a gated-out measurement does.
+        some hypothesis associated (fused or gated out) and another could not associate at
+        all (its prediction too far from every face) costs the latter the gate's worth, as a
+        gated-out measurement does.
         Otherwise a wrong height, whose track drifts off the face within a few frames,
         would stop accruing NIS and soon look better than the right one, which goes on
         paying for every measurement's noise. Only a hypothesis that fused at least as
         recently as the active one may take over: one that lost the face is no alternative.
         """
+        before = [h.nis for h in self.hypotheses]
         used = [h.offer(obs) for h in self.hypotheses]
-        if any(used):
-            for h, u in zip(self.hypotheses, used, strict=True):
-                if not u and h.missed_last:
+        # A hypothesis associated the frame if it fused it or gated it out (which raised its
+        # NIS); one that found nothing near its prediction pays as much as a gated one.
+        associated = [u or h.nis > b for h, u, b in zip(self.hypotheses, used, before,
+                                                        strict=True)]
+        if any(associated):
+            for h, a in zip(self.hypotheses, associated, strict=True):
+                if not a and h.missed_last:
                     h.nis += h.tracker.config.gate_chi2
         latest = self.active.last_fused_time or 0.0
         alive = [h for h in self.hypotheses

@@ -62,6 +62,7 @@ class PhaseLogic(ArmPhases):
         self._settled = 0
         self._standoff = episode.scene.cell.cfg.episode.standoff
         self._lift_from: np.ndarray | None = None
+        self._lift_base = np.zeros(3)
         self._start_z: dict[str, float] = {}
         self._start_axes: dict[str, np.ndarray] = {}
         self._grasped: list[str] = []

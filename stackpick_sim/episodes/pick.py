@@ -6,7 +6,8 @@ or, where the arm cannot reach that at the servo standoff, a share of its tilt t
 during the descent to the full normal, or to the share the arm can take where the face will
 be at the grasp (:mod:`stackpick_sim.control.reach`). The descent is
 blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
-turns the tool upright as it rises.
+turns the tool upright as it rises and pulls it ``episode.lift_retreat`` towards the robot's
+base (a grasp at the edge of the reach, on a fast belt, cannot rise straight up).
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ REPLAN_TURN_DEG = 10.0
 #: 0.35 m/s on paper scenes).
 DESCENT_ARRIVED = 0.001
 DESCENT_WAIT = 0.15
+#: ... the wait counting only while the tool is within this of the command, m (it lags a
+#: straight descent by ~1 mm; placeholder with margin).
+DESCENT_SETTLED = 0.003
 #: The descent pauses while the face centre is farther than ``DESCENT_HOLD_LATERAL +
 #: DESCENT_HOLD_SLOPE * standoff`` (m) from the tool axis: twice the servo's lateral
 #: tolerance at the face, well inside the cup lip's 11 mm radius; farther up the servo has
@@ -58,6 +62,52 @@ DESCENT_HOLD_LATERAL = 0.003
 DESCENT_HOLD_SLOPE = 0.05
 #: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
 GRASP_PRELOAD = 0.002
+#: Body whose origin lies on the robot's vertical J1 axis (the lift retreats towards it).
+BASE_AXIS_BODY = "j1_link"
+
+
+def floor_time(at_floor: float, depth_error: float, standoff: float, floor: float,
+               dt: float) -> float:
+    """Time (s) the descent's command has rested at its ``floor`` m with the tool near it.
+
+    ``at_floor`` s so far, plus ``dt`` s when the commanded ``standoff`` m is at the floor
+    and the tool is within DESCENT_SETTLED of it (``depth_error`` m short, see
+    :func:`descent_missed`).
+    """
+    if standoff <= floor and depth_error < DESCENT_SETTLED:
+        return at_floor + dt
+    return at_floor
+
+
+def descent_missed(depth_error: float, standoff: float, floor: float,
+                   at_floor: float) -> bool:
+    """Whether a descent has passed the predicted face without contact.
+
+    ``depth_error`` m: the tool's distance short of its commanded ``standoff`` m (positive:
+    above it); ``floor`` m: the deepest command (``-overtravel``); ``at_floor`` s: how long
+    the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
+    follows the commanded descent some millimetres late: a miss is the tool itself past the
+    predicted face, or the tool resting near the floor for DESCENT_WAIT. A tool still far
+    above (slowed by the wrist's J5 = 0 singularity, paper seed 242: 10-20 mm behind) is
+    waited for, up to the phase's time-out.
+    """
+    return depth_error + standoff <= floor + DESCENT_ARRIVED or at_floor > DESCENT_WAIT
+
+
+def lift_position(start: NDArray[np.float64], base: NDArray[np.float64], rise: float,
+                  lift_height: float, retreat: float) -> NDArray[np.float64]:
+    """(3,) tool position ``rise`` m into a lift from ``start`` (3,), world frame, m.
+
+    Straight up, and towards the robot's vertical axis through ``base`` (3,; only its x, y
+    count) by ``retreat`` m over the whole ``lift_height``: in proportion to the rise, so the
+    tool leaves the belt upwards and the arm pulls in as it rises.
+    """
+    out = np.asarray(start, dtype=float) + np.array([0.0, 0.0, rise])
+    inward = np.asarray(base, dtype=float)[:2] - out[:2]
+    dist = float(np.linalg.norm(inward))
+    if retreat > 0.0 and dist > 1e-9 and lift_height > 0.0:
+        out[:2] += inward / dist * min(retreat * rise / lift_height, dist)
+    return out
 
 
 class ArmPhases:
@@ -74,6 +124,7 @@ class ArmPhases:
     _last_lateral: float
     _settled: int
     _lift_from: NDArray[np.float64] | None
+    _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
     _look_T_cam: NDArray[np.float64]
@@ -178,8 +229,6 @@ class ArmPhases:
             self._enter("grasp", t)
             return self._servo_step(t, dt, self._standoff, 0.0)
         floor = -cfg.overtravel
-        if self._standoff <= floor:
-            self._at_floor += dt
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
@@ -187,9 +236,8 @@ class ArmPhases:
         self._standoff = max(self._standoff - speed * dt, floor)
         err = self._servo_step(t, dt, self._standoff, -speed)
         self._last_lateral = err.lateral
-        # The arm follows the commanded descent some millimetres late: a miss is the tool
-        # itself past the predicted face, or the command resting at its floor for a while.
-        if err.depth + self._standoff <= floor + DESCENT_ARRIVED or self._at_floor > DESCENT_WAIT:
+        self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
+        if descent_missed(err.depth, self._standoff, floor, self._at_floor):
             self.fail("missed_grasp", "the descent passed the predicted face without contact")
             return None
         return err
@@ -214,6 +262,8 @@ class ArmPhases:
         if t - self.phase_start >= cfg.grasp_dwell:
             self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
             self._lift_from = self.ep.arm.command_world_T_tool()
+            cell = self.ep.scene.cell
+            self._lift_base = cell.data.xpos[cell.model.body(BASE_AXIS_BODY).id].copy()
             self._enter("lift", t)
         return err
 
@@ -226,8 +276,9 @@ class ArmPhases:
         # faces away from the robot would otherwise fold the wrist into itself as the arm
         # reaches up (J4 link against J6 link, control/reach.py).
         axis = tilted_axis(self._lift_from[:3, 2], 1.0 - rise / cfg.lift_height)
-        goal = tool_pose_on_axis(self._lift_from[:3, 3] + np.array([0.0, 0.0, rise]), axis,
-                                 0.0, self._lift_from)
+        goal = tool_pose_on_axis(lift_position(self._lift_from[:3, 3], self._lift_base, rise,
+                                               cfg.lift_height, cfg.lift_retreat),
+                                 axis, 0.0, self._lift_from)
         ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain * 2, dt), dt)
         tool_z = ep.arm.eih.world_T_ee(ep.scene.cell.data)[2, 3]
         if tool_z >= self._lift_from[2, 3] + cfg.lift_height - 0.003:

@@ -66,6 +66,12 @@ FACE_Z_WINDOW = 9
 #: on the belt or settle in its pile, which the configured jitter does not cover.
 #: Placeholder, not identified.
 MIN_SPEED_JITTER = 5e-4
+#: Std of an object's velocity about the belt's nominal one when the track starts, m/s: the
+#: belt's own speed noise is ~2 mm/s (paper scene), but an object can creep or settle in its
+#: pile (paper seed 38: +20 mm/s). Placeholder, not identified. The two-point start alone
+#: gives ~20 mm/s (0.5 px centre noise a frame apart); two different ellipses of one face
+#: in the first two frames (paper seed 45: 3 mm apart) gave 90 mm/s.
+BELT_VELOCITY_PRIOR_STD = 0.01
 #: Fastest plausible image speed of a face, px/s, for the image frame's two-point start
 #: (the camera's motion is compensated; 1 m/s at the closest ~0.05 m depth, f ~ 290 px).
 IMAGE_MAX_SPEED = 6000.0
@@ -132,8 +138,10 @@ class TargetEstimator:
         self._accel_psd = belt_accel_psd(jitter, cfg.conveyor.jitter_period)
         focal = 0.5 * (intrinsics.fx + intrinsics.fy)
         if self.frame == "belt":
-            config = TrackerConfig.belt(depth=cfg.camera.look_height, focal_px=focal,
-                                        pixel_std=self.pixel_std, accel_psd=self._accel_psd)
+            config = TrackerConfig.belt(
+                depth=cfg.camera.look_height, focal_px=focal, pixel_std=self.pixel_std,
+                accel_psd=self._accel_psd, prior_velocity=(0.0, cfg.conveyor.speed),
+                prior_velocity_std=max(cfg.conveyor.speed_jitter, BELT_VELOCITY_PRIOR_STD))
         else:  # q in px^2/s^3 at the look depth; each step rescales it to its own depth
             scale = focal / cfg.camera.look_height
             config = TrackerConfig.image(accel_psd=self._accel_psd * scale**2,
@@ -221,7 +229,10 @@ class TargetEstimator:
             if (e is not None and expected is not None
                     and abs(e.a - expected[0].a) > SIZE_TOLERANCE * expected[0].a):
                 continue  # not the tracked face's size: a smaller face, a wall, a fragment
-            if shift is not None and cand.ellipse is not None:
+            # Before the filter is set the normal is one view's (two-fold ambiguous): a
+            # candidate with a pose of its own keeps its own centre.
+            if (shift is not None and cand.ellipse is not None
+                    and (self.tracker.initialised or cand.centre_cam is None)):
                 cand = replace(cand, pixel=np.array([cand.ellipse.cx, cand.ellipse.cy]) + shift)
             try:
                 z = self._measurement(obs, cand.pixel)
@@ -242,18 +253,30 @@ class TargetEstimator:
 
     def _expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
         """The tracked face as ``obs``'s camera should see it: its ellipse and the (2,) pixel
-        of its centre, from the estimate; None before the filter is set.
+        of its centre, from the estimate; None before the first detection (belt frame) or
+        before the filter is set (image frame).
 
         The ellipse's size tells the tracked face from other faces near the prediction.
         Perspective moves an ellipse's centre off the image of the circle's centre; with
         the tracked normal (a consensus over frames) this shift is steadier than each
-        frame's own pose.
+        frame's own pose. Before the filter is set (belt frame) the face is where the belt
+        carries the first detection: later frames see a tilted face's ellipse centre
+        several mm off its centre (fast_belt seed 90: the only later views were cut by the
+        border, without a pose of their own, and never associated).
         """
-        if not self.tracker.initialised or self.radius is None:
+        if self.radius is None:
             return None
-        state = self.state(obs.capture_time, obs.world_T_cam)
+        if self.tracker.initialised:
+            state = self.state(obs.capture_time, obs.world_T_cam)
+            centre, normal = state.centre, state.normal
+        elif self.frame == "belt" and self._last is not None:
+            t0, z0 = self._last
+            xy = z0 + self._belt_v * (obs.capture_time - t0)
+            centre, normal = np.array([xy[0], xy[1], self.face_z]), self.normal
+        else:
+            return None
         r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
-        c_cam, n_cam = r.T @ (state.centre - p), r.T @ state.normal
+        c_cam, n_cam = r.T @ (centre - p), r.T @ normal
         try:
             e = project_circle(c_cam, n_cam, self.radius, self.k)
         except ValueError:

@@ -72,6 +72,9 @@ class TrackerConfig:
 
     ``accel_psd`` q (units^2/s^3), ``measurement_std`` (units), ``max_speed`` (units/s) the
     fastest plausible object speed, used to reject a wild first pair of measurements.
+    ``prior_velocity`` (units/s, (vx, vy)) with ``prior_velocity_std`` (units/s), when given,
+    is what the velocity is expected to be before any measurement (an object riding a belt
+    of known speed): fused with the velocity of every two-point start, restarts included.
     """
 
     frame: TrackerFrame = "belt"
@@ -80,6 +83,8 @@ class TrackerConfig:
     max_speed: float
     gate_chi2: float = GATE_CHI2
     max_consecutive_rejections: int = MAX_CONSECUTIVE_REJECTIONS
+    prior_velocity: tuple[float, float] | None = None
+    prior_velocity_std: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in ("belt", "image"):
@@ -90,17 +95,26 @@ class TrackerConfig:
         if self.gate_chi2 <= 0.0 or self.max_consecutive_rejections < 1:
             raise ConfigError(f"need gate_chi2 > 0 and max_consecutive_rejections >= 1; got "
                               f"{self.gate_chi2}, {self.max_consecutive_rejections}")
+        if self.prior_velocity is not None and not (
+                len(self.prior_velocity) == 2 and np.all(np.isfinite(self.prior_velocity))
+                and np.isfinite(self.prior_velocity_std) and self.prior_velocity_std > 0.0):
+            raise ConfigError(f"need a finite (vx, vy) prior_velocity and prior_velocity_std "
+                              f"> 0; got {self.prior_velocity}, {self.prior_velocity_std}")
 
     @classmethod
     def belt(cls, *, depth: float, focal_px: float, pixel_std: float = PIXEL_NOISE_STD,
-             accel_psd: float | None = None, max_speed: float = 1.0) -> TrackerConfig:
+             accel_psd: float | None = None, max_speed: float = 1.0,
+             prior_velocity: tuple[float, float] | None = None,
+             prior_velocity_std: float = 0.0) -> TrackerConfig:
         """Belt-frame config: R from ``pixel_std`` px at ``depth`` m and focal ``focal_px`` px.
 
-        ``accel_psd`` defaults to :func:`belt_accel_psd` (m^2/s^3); ``max_speed`` m/s.
+        ``accel_psd`` defaults to :func:`belt_accel_psd` (m^2/s^3); ``max_speed`` m/s;
+        ``prior_velocity`` (m/s) e.g. the belt's, with ``prior_velocity_std`` m/s.
         """
         q = belt_accel_psd() if accel_psd is None else accel_psd
         return cls(frame="belt", accel_psd=q, measurement_std=pixel_std * depth / focal_px,
-                   max_speed=max_speed)
+                   max_speed=max_speed, prior_velocity=prior_velocity,
+                   prior_velocity_std=prior_velocity_std)
 
     @classmethod
     def image(cls, *, accel_psd: float, pixel_std: float = PIXEL_NOISE_STD,
@@ -281,11 +295,21 @@ class ConstantVelocityTracker:
             self._first = (t, z, r)
             return UpdateResult(False, f"initialising: implied speed {speed:.3g} > max_speed "
                                        f"{self.config.max_speed}; restarted from this one")
-        self._kf.x = np.concatenate([z, v]).reshape(4, 1)
         p = np.zeros((4, 4))
         p[:2, :2] = r
         p[:2, 2:] = p[2:, :2] = r / dt
         p[2:, 2:] = (r + r0) / dt**2
+        if self.config.prior_velocity is not None:
+            # Two detections a frame apart give the speed to ~20 mm/s (belt frame); the belt
+            # knows it far better. A velocity measurement, fused once.
+            h = np.hstack([np.zeros((2, 2)), np.eye(2)])
+            s = h @ p @ h.T + np.eye(2) * self.config.prior_velocity_std**2
+            gain = p @ h.T @ np.linalg.inv(s)
+            x = np.concatenate([z, v])
+            x = x + gain @ (np.asarray(self.config.prior_velocity, dtype=float) - v)
+            p = (np.eye(4) - gain @ h) @ p
+            z, v = x[:2], x[2:]
+        self._kf.x = np.concatenate([z, v]).reshape(4, 1)
         self._kf.P = p
         self._time = t
         self._first = None
