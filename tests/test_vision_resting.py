@@ -96,3 +96,18 @@ def test_unknown_radius_gives_no_evidence() -> None:
     image, large, small = _lean_frame()
     assert rests_on([large, small], K, lambda e: None, image) == [False, False]
     assert rests_on([large, small], K, lambda e: 0.03, image) == [False, False]
+
+
+def test_face_seen_square_on_takes_the_smaller_tilt_and_can_be_leaned_on() -> None:
+    # Paper scene seed 544 at the look pose: a flat small cylinder (no wall shows) and a small
+    # one tilted 32 deg leaning on its rim; the tilted one is the top.
+    flat = (np.array([0.0386, -0.0112, 0.2454]), _unit([0.0, 0.001, 1.0]), 0.025, 0.025)
+    tilted = (np.array([0.0119, 0.0405, 0.2369]), _unit([0.257, -0.463, 0.848]), 0.025, 0.025)
+    rng = np.random.default_rng(544)
+    render = render_cylinders([flat, tilted], [BLUE, BLUE], K)
+    image = np.clip(np.round(render + rng.normal(0.0, 1.0, render.shape)), 0, 255)
+    image = image.astype(np.uint8)
+    faces = [project_circle(o[0], o[1], o[2], K) for o in (flat, tilted)]
+    assert rests_on(faces, K, lambda e: 0.025, image) == [True, False]
+    choice = select_top(faces, edge_image(image), K, lambda e: 0.025, image=image)
+    assert choice.index == 1, choice.evidence
