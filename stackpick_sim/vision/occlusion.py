@@ -323,9 +323,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         candidates = [i for i in candidates if i in free] or candidates
     if (intrinsics is not None and radius_of is not None and image is not None
             and image.ndim == 3 and len(pool) > 1):
-        # A leaning object shows no T-junction on the face it leans on (see resting).
-        # The faces left, when any, come from the pool: a face that failed on support alone
-        # and another face's object rests under it is above that one (seed 404).
+        # A leaning object shows no T-junction on the face it leans on (see resting). When
+        # every passing face has an object resting on it, the pool's faces left (failed on
+        # support alone) are above them (paper seed 404: the top's arc over a lower face of
+        # its colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, image)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
