@@ -3,7 +3,8 @@
 Stages, one module each: :mod:`edges`, :mod:`segments`, :mod:`fitting`, :mod:`merging`,
 :mod:`refine` (refit on all edge pixels along each ellipse), :mod:`contrast` (outline support
 from consistent gradients),
-:mod:`occlusion` (the top-object rule, usable on any detector's ellipses), :mod:`pose` (with
+:mod:`occlusion` (the top-object rule, usable on any detector's ellipses; with
+:mod:`wall_cover` and :mod:`resting`: walls under faces, leans on walls), :mod:`pose` (with
 :mod:`wall`: the wall-colour test that resolves the tilt ambiguity); :mod:`roi` crops to the pile;
 :mod:`detector` runs them, :mod:`detection` holds the result, :mod:`synthetic` renders test
 stacks with ground truth. :mod:`moving_edges` finds an already tracked face's outline around

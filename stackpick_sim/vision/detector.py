@@ -204,8 +204,9 @@ class TopObjectDetector:
                                   height=k.height)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
+        rgb = work if work.ndim == 3 else None
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                            edge_points=points)
+                            edge_points=points, image=rgb)
         if choice.index is None:
             # Before the contrast retry: a refit of a lower face can shrink past the outline
             # crossing it and pass (development seed 292).
@@ -218,7 +219,7 @@ class TopObjectDetector:
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                    edge_points=points)
+                                    edge_points=points, image=rgb)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],

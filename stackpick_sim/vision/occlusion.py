@@ -18,7 +18,9 @@ A gap end counts as a T only when the other contour runs on into this face (an o
 does; the object's own wall lines and the outlines of objects under it stay outside). Given
 the camera intrinsics, the rule is also applied to side walls: a candidate whose predicted
 wall runs under another candidate's face lies under it (:mod:`stackpick_sim.vision.
-wall_cover`).
+wall_cover`). Given the colour image as well, a candidate whose reconstructed cylinder
+another candidate's touches from above (a lean on its side wall, below its face, shows no
+T-junction) lies under it (:mod:`stackpick_sim.vision.resting`).
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
@@ -45,6 +47,7 @@ from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold,
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import circle_poses
+from stackpick_sim.vision.resting import rests_on
 from stackpick_sim.vision.wall_cover import under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
@@ -273,7 +276,8 @@ def _unobstructed(ev: OcclusionEvidence) -> bool:
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
-               edge_points: NDArray[np.float64] | None = None) -> TopChoice:
+               edge_points: NDArray[np.float64] | None = None,
+               image: NDArray[np.uint8] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -284,7 +288,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
-    take part in this depth test too. Returns the chosen index (else the
+    take part in this depth test too. With ``intrinsics``, ``radius_of`` and the (H, W, 3) RGB
+    ``image`` (the edge map's pixel frame), a candidate whose reconstructed cylinder another
+    candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
+    test. Returns the chosen index (else the
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
     map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
     """
@@ -314,6 +321,16 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or candidates
+    if (intrinsics is not None and radius_of is not None and image is not None
+            and image.ndim == 3 and len(pool) > 1):
+        # A leaning object shows no T-junction on the face it leans on (see resting). When
+        # every passing face has an object resting on it, the pool's faces left (failed on
+        # support alone) are above them (paper seed 404: the top's arc over a lower face of
+        # its colour does not show).
+        under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, image)
+        free = [i for i, u in zip(pool, under, strict=True) if not u]
+        pool = free or pool
+        candidates = [i for i in candidates if i in free] or free or candidates
     if intrinsics is not None and radius_of is not None and len(pool) > 1:
         nearest = _clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
         if nearest is not None:

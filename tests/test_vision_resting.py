@@ -1,0 +1,113 @@
+"""The contact test of reconstructed cylinders: which whole face's object rests on which."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.resting import (
+    CONTACT_GAP_M,
+    MIN_REST_UP,
+    UP_CAM,
+    contact,
+    height_of,
+    rests_on,
+)
+from stackpick_sim.vision.synthetic import render_cylinders
+
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+ORANGE, BLUE = (217, 153, 64), (77, 153, 217)  # the paper scene's large and small kinds
+#: Paper scene seed 487 at the look pose (ground truth, camera frame): a small cylinder
+#: (BLUE) tilted 42 deg leans its far rim on the side wall of a large one (ORANGE) tilted
+#: 35 deg; both faces show whole, 2 mm apart in depth, and the small one is the top.
+LARGE = (np.array([-0.0443, -0.0398, 0.2314]), np.array([0.5708, -0.04, 0.8201]), 0.035, 0.03)
+SMALL = (np.array([0.0339, -0.041, 0.2294]), np.array([-0.6555, 0.1038, 0.748]), 0.025, 0.025)
+
+
+def _unit(v: list[float]) -> np.ndarray:
+    a = np.asarray(v, np.float64)
+    return a / np.linalg.norm(a)
+
+
+def _contact(a: tuple, b: tuple) -> tuple[float, float]:
+    """Separation (m) and upward component of the contact normal from b to a."""
+    bodies = [a, b]
+    sep, normal = contact(np.array([o[0] for o in bodies]), np.array([o[1] for o in bodies]),
+                          np.array([o[2] for o in bodies]), np.array([o[3] for o in bodies]),
+                          np.array([[0, 1]]))
+    return float(sep[0]), float(normal[0] @ UP_CAM)
+
+
+def test_contact_of_stacked_side_by_side_and_apart_cylinders() -> None:
+    down = np.array([0.0, 0.0, 1.0])  # upright: the inward normal points away from the camera
+    lower = (np.array([0.0, 0.0, 0.27]), down, 0.035, 0.03)
+    on_top = (np.array([0.01, 0.0, 0.245]), down, 0.025, 0.025)  # its bottom on lower's face
+    beside = (np.array([0.06, 0.0, 0.275]), down, 0.025, 0.025)  # walls touch
+    apart = (np.array([0.08, 0.0, 0.275]), down, 0.025, 0.025)
+    # Touching: the separation is 0 up to the direction grid's error (~1.5 mm).
+    sep, up = _contact(on_top, lower)
+    assert abs(sep) < 2e-3 and up > 0.99
+    sep, up = _contact(lower, on_top)  # the normal flips with the order
+    assert abs(sep) < 2e-3 and up < -0.99
+    sep, up = _contact(beside, lower)
+    assert abs(sep) < 2e-3 and abs(up) < MIN_REST_UP
+    sep, _ = _contact(apart, lower)
+    assert sep > CONTACT_GAP_M
+
+
+def test_contact_of_a_lean_on_a_side_wall_points_up_into_the_leaning_body() -> None:
+    sep, up = _contact(SMALL, LARGE)
+    assert abs(sep) < CONTACT_GAP_M and up >= MIN_REST_UP
+
+
+def test_heights_of_the_paper_kinds_and_unknown_radii() -> None:
+    assert height_of(0.035) == 0.03 and height_of(0.025) == 0.025
+    assert height_of(0.03) is None
+
+
+def _lean_frame() -> tuple[np.ndarray, Ellipse, Ellipse]:
+    """Seed 487's two cylinders rendered (the leaning one drawn last), with their faces."""
+    rng = np.random.default_rng(487)
+    render = render_cylinders([LARGE, SMALL], [ORANGE, BLUE], K)
+    image = np.clip(np.round(render + rng.normal(0.0, 1.0, render.shape)), 0, 255)
+    faces = [project_circle(o[0], o[1], o[2], K) for o in (LARGE, SMALL)]
+    return image.astype(np.uint8), faces[0], faces[1]
+
+
+def _radius_of(e: Ellipse) -> float:
+    return 0.035 if e.cx < 160 else 0.025  # the large face lies left
+
+
+def test_face_leaned_on_below_its_rim_is_not_top() -> None:
+    image, large, small = _lean_frame()
+    assert rests_on([large, small], K, _radius_of, image) == [True, False]
+    assert rests_on([small, large], K, _radius_of, image) == [False, True]
+    grad = edge_image(image)
+    # Without the image both faces pass, 2 mm apart in depth: the larger one won.
+    assert select_top([large, small], grad, K, _radius_of).index == 0
+    for order in ([large, small], [small, large]):
+        choice = select_top(order, grad, K, _radius_of, image=image)
+        assert choice.index is not None and order[choice.index] is small, choice.evidence
+
+
+def test_unknown_radius_gives_no_evidence() -> None:
+    image, large, small = _lean_frame()
+    assert rests_on([large, small], K, lambda e: None, image) == [False, False]
+    assert rests_on([large, small], K, lambda e: 0.03, image) == [False, False]
+
+
+def test_face_seen_square_on_takes_the_smaller_tilt_and_can_be_leaned_on() -> None:
+    # Paper scene seed 544 at the look pose: a flat small cylinder (no wall shows) and a small
+    # one tilted 32 deg leaning on its rim; the tilted one is the top.
+    flat = (np.array([0.0386, -0.0112, 0.2454]), _unit([0.0, 0.001, 1.0]), 0.025, 0.025)
+    tilted = (np.array([0.0119, 0.0405, 0.2369]), _unit([0.257, -0.463, 0.848]), 0.025, 0.025)
+    rng = np.random.default_rng(544)
+    render = render_cylinders([flat, tilted], [BLUE, BLUE], K)
+    image = np.clip(np.round(render + rng.normal(0.0, 1.0, render.shape)), 0, 255)
+    image = image.astype(np.uint8)
+    faces = [project_circle(o[0], o[1], o[2], K) for o in (flat, tilted)]
+    assert rests_on(faces, K, lambda e: 0.025, image) == [True, False]
+    choice = select_top(faces, edge_image(image), K, lambda e: 0.025, image=image)
+    assert choice.index == 1, choice.evidence
