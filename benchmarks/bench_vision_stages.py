@@ -47,10 +47,10 @@ with open(frames_path, "rb") as f:
 times, outputs = [], []
 for frame in frames:
     kinds = frame["kinds"]
-    radii, colours = object_kinds(kinds) if kinds else (DEFAULT_RADII_M, None)
+    radii, colours, heights = object_kinds(kinds) if kinds else (DEFAULT_RADII_M, None, None)
     det = TopObjectDetector(DetectorConfig(intrinsics=CameraIntrinsics(**frame["intrinsics"]),
                                            radii_m=radii, depth_range_m=frame["depth_range_m"],
-                                           kind_colours=colours))
+                                           kind_colours=colours, heights_m=heights))
     runs = [det.detect(frame["image"]) for _ in range(repeats)]
     times.append([r.timings_ms for r in runs])
     r = runs[-1]

@@ -108,7 +108,8 @@ def test_dataset_kinds_read_from_the_index(tmp_path: Path) -> None:
     from stackpick_sim.vision.benchmark.frames import dataset_kinds
 
     assert dataset_kinds(tmp_path) == ()
-    types = {"large": {"radius": 0.035, "rgba": [0.85, 0.6, 0.25, 1.0]},
-             "small": {"radius": 0.025, "rgba": [0.3, 0.6, 0.85, 1.0]}}
+    types = {"large": {"radius": 0.035, "height": 0.03, "rgba": [0.85, 0.6, 0.25, 1.0]},
+             "small": {"radius": 0.025, "height": 0.025, "rgba": [0.3, 0.6, 0.85, 1.0]}}
     (tmp_path / "index.json").write_text(json.dumps({"scene": {"object_types": types}}))
-    assert dataset_kinds(tmp_path) == ((0.035, (0.85, 0.6, 0.25)), (0.025, (0.3, 0.6, 0.85)))
+    assert dataset_kinds(tmp_path) == ((0.035, (0.85, 0.6, 0.25), 0.03),
+                                       (0.025, (0.3, 0.6, 0.85), 0.025))

@@ -12,7 +12,6 @@ from stackpick_sim.vision.resting import (
     MIN_REST_UP,
     UP_CAM,
     contact,
-    height_of,
     rests_on,
 )
 from stackpick_sim.vision.synthetic import render_cylinders
@@ -62,11 +61,6 @@ def test_contact_of_a_lean_on_a_side_wall_points_up_into_the_leaning_body() -> N
     assert abs(sep) < CONTACT_GAP_M and up >= MIN_REST_UP
 
 
-def test_heights_of_the_paper_kinds_and_unknown_radii() -> None:
-    assert height_of(0.035) == 0.03 and height_of(0.025) == 0.025
-    assert height_of(0.03) is None
-
-
 def _lean_frame() -> tuple[np.ndarray, Ellipse, Ellipse]:
     """Seed 487's two cylinders rendered (the leaning one drawn last), with their faces."""
     rng = np.random.default_rng(487)
@@ -80,22 +74,29 @@ def _radius_of(e: Ellipse) -> float:
     return 0.035 if e.cx < 160 else 0.025  # the large face lies left
 
 
+#: The paper scene's kinds: cylinder height (m) of each radius (m).
+HEIGHTS = {0.035: 0.03, 0.025: 0.025}
+_height_of = HEIGHTS.get
+
+
 def test_face_leaned_on_below_its_rim_is_not_top() -> None:
     image, large, small = _lean_frame()
-    assert rests_on([large, small], K, _radius_of, image) == [True, False]
-    assert rests_on([small, large], K, _radius_of, image) == [False, True]
+    assert rests_on([large, small], K, _radius_of, _height_of, image) == [True, False]
+    assert rests_on([small, large], K, _radius_of, _height_of, image) == [False, True]
     grad = edge_image(image)
-    # Without the image both faces pass, 2 mm apart in depth: the larger one won.
+    # Without the image or the heights both faces pass, 2 mm apart in depth: the larger won.
     assert select_top([large, small], grad, K, _radius_of).index == 0
+    assert select_top([large, small], grad, K, _radius_of, image=image).index == 0
     for order in ([large, small], [small, large]):
-        choice = select_top(order, grad, K, _radius_of, image=image)
+        choice = select_top(order, grad, K, _radius_of, image=image, height_of=_height_of)
         assert choice.index is not None and order[choice.index] is small, choice.evidence
 
 
-def test_unknown_radius_gives_no_evidence() -> None:
+def test_unknown_radius_or_height_gives_no_evidence() -> None:
     image, large, small = _lean_frame()
-    assert rests_on([large, small], K, lambda e: None, image) == [False, False]
-    assert rests_on([large, small], K, lambda e: 0.03, image) == [False, False]
+    assert rests_on([large, small], K, lambda e: None, _height_of, image) == [False, False]
+    assert rests_on([large, small], K, lambda e: 0.03, _height_of, image) == [False, False]
+    assert rests_on([large, small], K, _radius_of, lambda r: None, image) == [False, False]
 
 
 def test_face_seen_square_on_takes_the_smaller_tilt_and_can_be_leaned_on() -> None:
@@ -108,6 +109,7 @@ def test_face_seen_square_on_takes_the_smaller_tilt_and_can_be_leaned_on() -> No
     image = np.clip(np.round(render + rng.normal(0.0, 1.0, render.shape)), 0, 255)
     image = image.astype(np.uint8)
     faces = [project_circle(o[0], o[1], o[2], K) for o in (flat, tilted)]
-    assert rests_on(faces, K, lambda e: 0.025, image) == [True, False]
-    choice = select_top(faces, edge_image(image), K, lambda e: 0.025, image=image)
+    assert rests_on(faces, K, lambda e: 0.025, _height_of, image) == [True, False]
+    choice = select_top(faces, edge_image(image), K, lambda e: 0.025, image=image,
+                        height_of=_height_of)
     assert choice.index == 1, choice.evidence

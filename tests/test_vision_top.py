@@ -301,6 +301,14 @@ def test_kind_colours_must_match_the_radii() -> None:
     DetectorConfig(radii_m=(0.035, 0.025), kind_colours=((0.8, 0.6, 0.2), (0.3, 0.6, 0.8)))
 
 
+def test_heights_must_match_the_radii() -> None:
+    with pytest.raises(ConfigError, match="heights_m"):
+        DetectorConfig(radii_m=(0.035, 0.025), heights_m=(0.03,))
+    with pytest.raises(ConfigError, match="heights_m"):
+        DetectorConfig(radii_m=(0.035,), heights_m=(0.0,))
+    DetectorConfig(radii_m=(0.035, 0.025), heights_m=(0.03, 0.025))
+
+
 def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
     big = Ellipse(cx=100, cy=120, a=40, b=38, angle_deg=0)  # radius 0.035 m: ~0.25 m deep
     small = Ellipse(cx=230, cy=120, a=34, b=33, angle_deg=0)  # radius 0.025 m: ~0.21 m deep
@@ -340,12 +348,19 @@ def test_far_rim_of_a_tilted_cylinder_is_not_reported_as_a_face() -> None:
 
 def test_object_kinds_give_colours_only_when_kinds_differ_in_colour() -> None:
     orange, blue = (0.85, 0.6, 0.25), (0.3, 0.6, 0.85)
-    assert object_kinds([(0.025, blue), (0.035, orange)]) == ((0.035, 0.025), (orange, blue))
+    assert object_kinds([(0.025, blue, 0.025), (0.035, orange, 0.03)]) == (
+        (0.035, 0.025), (orange, blue), (0.03, 0.025))
     # the same kind listed twice is one kind
-    assert object_kinds([(0.035, orange), (0.035, orange)]) == ((0.035,), (orange,))
+    assert object_kinds([(0.035, orange, 0.03), (0.035, orange, 0.03)]) == (
+        (0.035,), (orange,), (0.03,))
     # two radii in one colour (or in a brighter shade of it): no colour cue
-    assert object_kinds([(0.035, orange), (0.025, (0.425, 0.3, 0.125))]) == ((0.035, 0.025), None)
+    assert object_kinds([(0.035, orange, 0.03), (0.025, (0.425, 0.3, 0.125), 0.025)])[:2] == (
+        (0.035, 0.025), None)
     # one radius in two colours: no colour cue either
-    assert object_kinds([(0.035, orange), (0.035, blue), (0.025, blue)])[1] is None
+    assert object_kinds([(0.035, orange, 0.03), (0.035, blue, 0.03),
+                         (0.025, blue, 0.025)])[1] is None
+    # one radius in two heights: no heights (the colours still tell the radii)
+    assert object_kinds([(0.035, orange, 0.03), (0.035, orange, 0.05),
+                         (0.025, blue, 0.025)])[1:] == ((orange, blue), None)
     with pytest.raises(ValueError, match="no object kinds"):
         object_kinds([])

@@ -161,9 +161,12 @@ class Sensor:
         controller would not use (after the servo, or with the tracked face out of view)."""
         self.wall = {"render": 0.0, "vision": 0.0}
         types = [cell.cfg.object_types[name] for name in cell.cfg.objects.types]
-        self._radii, colours = object_kinds([(t.radius, t.rgba[:3]) for t in types])
+        self._radii, colours, heights = object_kinds(
+            [(t.radius, t.rgba[:3], t.height) for t in types])
         self._colours = None if colours is None else dict(zip(self._radii, colours, strict=True))
         """Colour of each radius's kind, when the kinds differ in colour."""
+        self._heights = None if heights is None else dict(zip(self._radii, heights, strict=True))
+        """Cylinder height of each radius's kind, when each radius has one."""
 
     def due(self, t: float) -> bool:
         """Whether a frame is due at sim time ``t`` s."""
@@ -250,8 +253,10 @@ class Sensor:
         radii = (self.radius,) if self.radius is not None else self._radii
         known = self._colours or {}
         colours = tuple(known[r] for r in radii) if all(r in known for r in radii) else None
+        tall = self._heights or {}
+        heights = tuple(tall[r] for r in radii) if all(r in tall for r in radii) else None
         return DetectorConfig(intrinsics=self._cell.intrinsics, radii_m=radii,
-                              kind_colours=colours,
+                              kind_colours=colours, heights_m=heights,
                               depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)))
 
 

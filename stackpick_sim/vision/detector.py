@@ -108,13 +108,17 @@ class DetectorConfig:
     above the belt); None takes the first radius. ``kind_colours``: optional RGB colour
     (components 0-1) of the objects of each radius, parallel to ``radii_m``: a face's radius
     is then read from its colour (nearest chromaticity), which gives each candidate's depth
-    for the top rule (the nearest wins) and the pose its radius.
+    for the top rule (the nearest wins) and the pose its radius. ``heights_m``: optional
+    cylinder height (m) of the objects of each radius, parallel to ``radii_m``; with the
+    colours it lets the top rule rebuild the candidates' cylinders and reject one another
+    rests on (:mod:`~stackpick_sim.vision.resting`).
     """
 
     intrinsics: CameraIntrinsics | None = None
     radii_m: tuple[float, ...] = DEFAULT_RADII_M
     depth_range_m: tuple[float, float] | None = None
     kind_colours: tuple[tuple[float, float, float], ...] | None = None
+    heights_m: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -129,6 +133,10 @@ class DetectorConfig:
                        for c in self.kind_colours)):
             raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
                               f"radius in radii_m, got {self.kind_colours}")
+        if self.heights_m is not None and (len(self.heights_m) != len(self.radii_m)
+                                           or any(not h > 0 for h in self.heights_m)):
+            raise ConfigError("heights_m must give one positive height (m) per radius in "
+                              f"radii_m, got {self.heights_m}")
 
 
 class TopObjectDetector:
@@ -205,8 +213,10 @@ class TopObjectDetector:
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         rgb = work if work.ndim == 3 else None
+        height_of = (None if self.config.heights_m is None else
+                     dict(zip(self.config.radii_m, self.config.heights_m, strict=True)).get)
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                            edge_points=points, image=rgb)
+                            edge_points=points, image=rgb, height_of=height_of)
         if choice.index is None:
             # Before the contrast retry: a refit of a lower face can shrink past the outline
             # crossing it and pass (development seed 292).
@@ -219,7 +229,7 @@ class TopObjectDetector:
             merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                    edge_points=points, image=rgb)
+                                    edge_points=points, image=rgb, height_of=height_of)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -254,28 +264,34 @@ class TopObjectDetector:
         return detection
 
 
-def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float]]]
-                 ) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...] | None]:
-    """``radii_m`` and ``kind_colours`` for a DetectorConfig from a scene's object kinds,
-    (radius m, RGB 0-1) pairs: each radius once, largest first, with its colour; the colours
-    are None when the kinds cannot be told apart by colour (one radius in two colours, or two
-    radii in colours within MIN_KIND_CHROMA_DISTANCE). ValueError for no kinds."""
+def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]]
+                 ) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...] | None,
+                            tuple[float, ...] | None]:
+    """``radii_m``, ``kind_colours`` and ``heights_m`` for a DetectorConfig from a scene's
+    object kinds, (radius m, RGB 0-1, height m) triples: each radius once, largest first, with
+    its colour and height. The colours are None when the kinds cannot be told apart by colour
+    (one radius in two colours, or two radii in colours within MIN_KIND_CHROMA_DISTANCE); the
+    heights are None when one radius comes in two heights. ValueError for no kinds."""
     if not kinds:
         raise ValueError("no object kinds given")
     by_radius: dict[float, set[tuple[float, float, float]]] = {}
-    for radius, rgb in kinds:
+    heights: dict[float, set[float]] = {}
+    for radius, rgb, height in kinds:
         by_radius.setdefault(float(radius), set()).add((float(rgb[0]), float(rgb[1]),
                                                         float(rgb[2])))
+        heights.setdefault(float(radius), set()).add(float(height))
     radii = tuple(sorted(by_radius, reverse=True))
+    kind_heights = (None if any(len(h) > 1 for h in heights.values()) else
+                    tuple(next(iter(heights[r])) for r in radii))
     if any(len(c) > 1 for c in by_radius.values()):
-        return radii, None
+        return radii, None, kind_heights
     colours = tuple(next(iter(by_radius[r])) for r in radii)
     chroma = np.asarray(colours) / np.maximum(np.sum(colours, axis=1, keepdims=True), 1e-9)
     apart = np.abs(chroma[:, None, :] - chroma[None, :, :]).sum(axis=2)
     np.fill_diagonal(apart, np.inf)
     if float(apart.min(initial=np.inf)) < MIN_KIND_CHROMA_DISTANCE:
-        return radii, None
-    return radii, colours
+        return radii, None, kind_heights
+    return radii, colours, kind_heights
 
 
 def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],

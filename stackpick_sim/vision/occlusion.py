@@ -277,7 +277,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
                edge_points: NDArray[np.float64] | None = None,
-               image: NDArray[np.uint8] | None = None) -> TopChoice:
+               image: NDArray[np.uint8] | None = None,
+               height_of: Callable[[float], float | None] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -288,8 +289,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
-    take part in this depth test too. With ``intrinsics``, ``radius_of`` and the (H, W, 3) RGB
-    ``image`` (the edge map's pixel frame), a candidate whose reconstructed cylinder another
+    take part in this depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
+    cylinder height, m, of a face radius, or None if unknown) and the (H, W, 3) RGB ``image``
+    (the edge map's pixel frame), a candidate whose reconstructed cylinder another
     candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
     test. Returns the chosen index (else the
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
@@ -321,13 +323,14 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or candidates
-    if (intrinsics is not None and radius_of is not None and image is not None
-            and image.ndim == 3 and len(pool) > 1):
+    if (intrinsics is not None and radius_of is not None and height_of is not None
+            and image is not None and image.ndim == 3 and len(pool) > 1):
         # A leaning object shows no T-junction on the face it leans on (see resting). When
         # every passing face has an object resting on it, the pool's faces left (failed on
         # support alone) are above them (paper seed 404: the top's arc over a lower face of
         # its colour does not show).
-        under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, image)
+        under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
+                         image)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates

@@ -11,7 +11,8 @@ top: a contact whose normal points up (z >= 0.3) into another object.
 That contact can be read from the 3-D reconstruction instead. Each whole face gives its
 cylinder: the pose solution its wall band favours (:func:`~stackpick_sim.vision.pose.
 choose_by_band`), the radius from its colour, the axis along the inward normal for its kind's
-height (HEIGHTS_BY_RADIUS_M). For two convex bodies the largest separation along a direction,
+height (the caller's, from the scene's object kinds). For two convex bodies the largest
+separation along a direction,
 ``max_d (min_{x in A} x.d - max_{x in B} x.d)``, is their distance when apart and minus their
 penetration depth when overlapping, and the maximising ``d`` is the contact normal from B to A
 (the separating axis); a cylinder's support function is closed-form, so the maximum is taken
@@ -33,14 +34,6 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, circle_poses
 from stackpick_sim.vision.wall import face_colour, wall_evidences
 
-#: Cylinder height (m) of each face radius (m): the paper scene's kinds (scenes/paper.toml;
-#: the cluttered and fast-belt scenes extend it), as :data:`~stackpick_sim.vision.detector.
-#: DEFAULT_RADII_M` gives their radii. A face of another radius gives no evidence. The true
-#: height matters: one 5 mm too tall flips the contact normal of a lean on a far rim
-#: (development frame 128 of ds_paper_dev3).
-HEIGHTS_BY_RADIUS_M: tuple[tuple[float, float], ...] = ((0.035, 0.03), (0.025, 0.025))
-#: A face radius matches a kind's within this (m).
-RADIUS_MATCH_M = 1e-4
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
 CONTACT_GAP_M = 0.003
@@ -71,14 +64,6 @@ def _directions(n: int = AXIS_DIRECTIONS) -> NDArray[np.float64]:
     return d
 
 
-def height_of(radius: float) -> float | None:
-    """Cylinder height (m) of a face radius (m), or None for no known kind."""
-    for r, h in HEIGHTS_BY_RADIUS_M:
-        if abs(r - radius) <= RADIUS_MATCH_M:
-            return h
-    return None
-
-
 def _support(centre: NDArray[np.float64], normal: NDArray[np.float64], radius: NDArray[np.float64],
              height: NDArray[np.float64], dirs: NDArray[np.float64]) -> NDArray[np.float64]:
     """(P, D) support function max_x x.d of P cylinders (face centre (P, 3) m, inward unit
@@ -104,10 +89,14 @@ def contact(centres: NDArray[np.float64], normals: NDArray[np.float64],
 
 
 def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
-             radius_of: Callable[[Ellipse], float | None], image: NDArray[np.uint8]
+             radius_of: Callable[[Ellipse], float | None],
+             height_of: Callable[[float], float | None], image: NDArray[np.uint8]
              ) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
-    another face's cylinder rest on its cylinder (see the module docstring)."""
+    another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
+    a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
+    either gives None takes no part. The true height matters: one 5 mm too tall flips the
+    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3)."""
     n = len(faces)
     under = [False] * n
     bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []

@@ -22,6 +22,9 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ImageError, SceneGenerationError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 
+#: A scene's object kinds: (radius m, (r, g, b) 0-1, height m) per kind.
+Kinds = tuple[tuple[float, tuple[float, float, float], float], ...]
+
 
 @dataclass(frozen=True, kw_only=True)
 class TruthFace:
@@ -41,15 +44,15 @@ class TruthFace:
 class BenchFrame:
     """One frame: ``image_rgb`` (H, W, 3) uint8 RGB, intrinsics, the depth range a caller knows
     (metres along the optical axis, from the camera height above the belt), the faces, and the
-    scene's object kinds as (radius m, (r, g, b) 0-1) pairs (a caller knows those too; empty
-    when unknown)."""
+    scene's object kinds as (radius m, (r, g, b) 0-1, height m) triples (a caller knows those
+    too; empty when unknown)."""
 
     seed: int
     image_rgb: NDArray[np.uint8]
     intrinsics: CameraIntrinsics
     depth_range_m: tuple[float, float]
     faces: tuple[TruthFace, ...]
-    kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
+    kinds: Kinds = ()
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -64,7 +67,7 @@ class BenchFrame:
 
 def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str, Any],
                       belt_top_z: float, max_face_height: float,
-                      kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
+                      kinds: Kinds = ()
                       ) -> BenchFrame:
     """A BenchFrame from an RGB image and a ground-truth dict (FrameTruth JSON schema); the
     depth range is :func:`~stackpick_sim.geometry.face_depth_range` of the camera's height
@@ -93,7 +96,7 @@ def dataset_seeds(directory: Path) -> list[int]:
 
 
 def load_frame(directory: Path, seed: int, belt_top_z: float, max_face_height: float,
-               kinds: tuple[tuple[float, tuple[float, float, float]], ...] = ()
+               kinds: Kinds = ()
                ) -> BenchFrame:
     """Read frame ``seed`` of a data set directory; ImageError if its files are missing."""
     stem = directory / f"{seed:06d}"
@@ -105,13 +108,16 @@ def load_frame(directory: Path, seed: int, belt_top_z: float, max_face_height: f
     return frame_from_record(seed, rgb, record, belt_top_z, max_face_height, kinds)
 
 
-def _kinds(types: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, float]], ...]:
-    """(radius, rgb) per object type of a scene's ``object_types`` table (JSON-shaped)."""
+def _kinds(types: dict[str, Any]) -> Kinds:
+    """(radius, rgb, height) per object type of a scene's ``object_types`` table (JSON-shaped
+    or ObjectType)."""
     out = []
     for t in types.values():
         rgba = t["rgba"] if isinstance(t, dict) else t.rgba
         radius = t["radius"] if isinstance(t, dict) else t.radius
-        out.append((float(radius), (float(rgba[0]), float(rgba[1]), float(rgba[2]))))
+        height = t["height"] if isinstance(t, dict) else t.height
+        out.append((float(radius), (float(rgba[0]), float(rgba[1]), float(rgba[2])),
+                    float(height)))
     return tuple(out)
 
 
@@ -124,13 +130,13 @@ def _recorded_scene(directory: Path) -> dict[str, Any]:
     return scene if isinstance(scene, dict) else {}
 
 
-def _scene_kinds(scene: dict[str, Any]) -> tuple[tuple[float, tuple[float, float, float]], ...]:
+def _scene_kinds(scene: dict[str, Any]) -> Kinds:
     types = scene.get("object_types", {})
     return _kinds(types) if isinstance(types, dict) else ()
 
 
-def dataset_kinds(directory: Path) -> tuple[tuple[float, tuple[float, float, float]], ...]:
-    """Object kinds (radius, rgb) recorded in a data set's index.json; () if absent."""
+def dataset_kinds(directory: Path) -> Kinds:
+    """Object kinds (radius, rgb, height) recorded in a data set's index.json; () if absent."""
     return _scene_kinds(_recorded_scene(directory))
 
 

@@ -56,10 +56,11 @@ class Method:
 def run_ours(frame: BenchFrame) -> MethodOutput:
     """Our detector on one frame, with the frame's intrinsics, depth range and object kinds
     (radii and colours) when known."""
-    radii, colours = object_kinds(frame.kinds) if frame.kinds else (DEFAULT_RADII_M, None)
+    radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
+                               else (DEFAULT_RADII_M, None, None))
     det = TopObjectDetector(DetectorConfig(
         intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m, radii_m=radii,
-        kind_colours=colours))
+        kind_colours=colours, heights_m=heights))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
@@ -83,10 +84,12 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         t1 = time.perf_counter()
         ellipses = tuple(s.ellipse for s in found)
         grad = edge_image(rgb)
-        radii, colours = (object_kinds(frame.kinds) if frame.kinds
-                          else (DEFAULT_RADII_M, None))
+        radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
+                                   else (DEFAULT_RADII_M, None, None))
         radius_of = None if colours is None else radius_by_colour(rgb, radii, colours)
-        choice = select_top(ellipses, grad, frame.intrinsics, radius_of)
+        height_of = None if heights is None else dict(zip(radii, heights, strict=True)).get
+        choice = select_top(ellipses, grad, frame.intrinsics, radius_of, image=rgb,
+                            height_of=height_of)
         pose = None
         top = None
         if choice.index is not None:
