@@ -47,10 +47,15 @@ with open(frames_path, "rb") as f:
 times, outputs = [], []
 for frame in frames:
     kinds = frame["kinds"]
-    radii, colours, heights = object_kinds(kinds) if kinds else (DEFAULT_RADII_M, None, None)
+    try:
+        got = object_kinds(kinds) if kinds else (DEFAULT_RADII_M, None, None)
+    except ValueError:  # a baseline from before the kinds carried heights: (radius, rgb)
+        got = object_kinds([k[:2] for k in kinds])
+    radii, colours, heights = (tuple(got) + (None,))[:3]
+    extra = {} if heights is None else {"heights_m": heights}
     det = TopObjectDetector(DetectorConfig(intrinsics=CameraIntrinsics(**frame["intrinsics"]),
                                            radii_m=radii, depth_range_m=frame["depth_range_m"],
-                                           kind_colours=colours, heights_m=heights))
+                                           kind_colours=colours, **extra))
     runs = [det.detect(frame["image"]) for _ in range(repeats)]
     times.append([r.timings_ms for r in runs])
     r = runs[-1]
