@@ -4,10 +4,11 @@ over faint same-colour boundaries (the simulator's common case)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stackpick_sim.geometry import Ellipse, mask_iou
 from stackpick_sim.vision.contrast import contrast_support, refit_on_contrast
-from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.edges import EdgeImage, edge_image
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.refine import edge_points, refine
 
@@ -73,34 +74,26 @@ def test_contrast_refit_on_a_flat_image_is_none() -> None:
     assert refit_on_contrast(UPPER, edge_image(flat)) is None
 
 
-def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one() -> None:
+def _nested_discs(gap_px: float, seed: int) -> tuple[Ellipse, Ellipse, EdgeImage]:
+    """An inner disc (145) on an outer one ``gap_px`` larger (200) on a 40 belt: a strong
+    silhouette edge and a weaker boundary inside it; the two outlines and the edge image."""
     from stackpick_sim.vision.synthetic import draw_ellipses
 
-    outer = Ellipse(cx=160.0, cy=120.0, a=42.5, b=36.5, angle_deg=20.0)
     inner = Ellipse(cx=160.0, cy=120.0, a=40.0, b=34.0, angle_deg=20.0)
-    # Outer disc 200 on a 40 belt (strong edge), inner disc 145 on it (weaker edge 2.5 px in).
+    outer = Ellipse(cx=160.0, cy=120.0, a=40.0 + gap_px, b=34.0 + gap_px, angle_deg=20.0)
     image = draw_ellipses((240, 320), [outer, inner], noise_sigma=1.0,
-                          rng=np.random.default_rng(9))
-    grad = edge_image(image)
+                          rng=np.random.default_rng(seed))
+    return outer, inner, edge_image(image)
+
+
+# 5 px: a top face on a same-colour lower face a few px larger (development seeds 202, 339),
+# beyond the strongest-edge refit's reach.
+@pytest.mark.parametrize(("gap_px", "seed"), [(2.5, 9), (5.0, 11)])
+def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one(
+        gap_px: float, seed: int) -> None:
+    outer, inner, grad = _nested_discs(gap_px, seed)
     strongest = refit_on_contrast(outer, grad)
     innermost = refit_on_contrast(outer, grad, innermost=True)
     assert strongest is not None and innermost is not None
     assert abs(strongest.a - outer.a) < 0.7 and abs(strongest.b - outer.b) < 0.7
     assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7
-
-
-def test_innermost_contrast_refit_reaches_a_faint_boundary_5_px_inside() -> None:
-    # A top face on a same-colour lower face a few px larger (development seeds 202, 339): its
-    # faint boundary lies 5 px inside the strong silhouette, beyond the strongest-edge reach.
-    from stackpick_sim.vision.synthetic import draw_ellipses
-
-    outer = Ellipse(cx=160.0, cy=120.0, a=45.0, b=39.0, angle_deg=20.0)
-    inner = Ellipse(cx=160.0, cy=120.0, a=40.0, b=34.0, angle_deg=20.0)
-    image = draw_ellipses((240, 320), [outer, inner], noise_sigma=1.0,
-                          rng=np.random.default_rng(11))
-    grad = edge_image(image)
-    innermost = refit_on_contrast(outer, grad, innermost=True)
-    assert innermost is not None
-    assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7
-    strongest = refit_on_contrast(outer, grad)
-    assert strongest is not None and abs(strongest.a - outer.a) < 0.7
