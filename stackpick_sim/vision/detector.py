@@ -138,6 +138,13 @@ class DetectorConfig:
             raise ConfigError("heights_m must give one positive height (m) per radius in "
                               f"radii_m, got {self.heights_m}")
 
+    def height_of(self) -> Callable[[float], float | None] | None:
+        """Radius (m) -> cylinder height (m) of its kind (None for another radius), or None
+        without ``heights_m``."""
+        if self.heights_m is None:
+            return None
+        return dict(zip(self.radii_m, self.heights_m, strict=True)).get
+
 
 class TopObjectDetector:
     """Finds the top cylinder's face and pose in one image; see :func:`detect`."""
@@ -213,8 +220,7 @@ class TopObjectDetector:
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         rgb = work if work.ndim == 3 else None
-        height_of = (None if self.config.heights_m is None else
-                     dict(zip(self.config.radii_m, self.config.heights_m, strict=True)).get)
+        height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points, image=rgb, height_of=height_of)
         if choice.index is None:

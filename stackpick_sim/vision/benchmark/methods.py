@@ -53,14 +53,18 @@ class Method:
     run: Callable[[BenchFrame], MethodOutput]
 
 
-def run_ours(frame: BenchFrame) -> MethodOutput:
-    """Our detector on one frame, with the frame's intrinsics, depth range and object kinds
-    (radii and colours) when known."""
+def detector_config(frame: BenchFrame) -> DetectorConfig:
+    """What a caller knows of ``frame``: its intrinsics, depth range and object kinds (radii,
+    colours and heights; the default radii when the kinds are unknown)."""
     radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
                                else (DEFAULT_RADII_M, None, None))
-    det = TopObjectDetector(DetectorConfig(
-        intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m, radii_m=radii,
-        kind_colours=colours, heights_m=heights))
+    return DetectorConfig(intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
+                          radii_m=radii, kind_colours=colours, heights_m=heights)
+
+
+def run_ours(frame: BenchFrame) -> MethodOutput:
+    """Our detector on one frame, configured by :func:`detector_config`."""
+    det = TopObjectDetector(detector_config(frame))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
@@ -84,12 +88,12 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         t1 = time.perf_counter()
         ellipses = tuple(s.ellipse for s in found)
         grad = edge_image(rgb)
-        radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
-                                   else (DEFAULT_RADII_M, None, None))
-        radius_of = None if colours is None else radius_by_colour(rgb, radii, colours)
-        height_of = None if heights is None else dict(zip(radii, heights, strict=True)).get
+        cfg = detector_config(frame)
+        radii = cfg.radii_m
+        radius_of = (None if cfg.kind_colours is None
+                     else radius_by_colour(rgb, radii, cfg.kind_colours))
         choice = select_top(ellipses, grad, frame.intrinsics, radius_of, image=rgb,
-                            height_of=height_of)
+                            height_of=cfg.height_of())
         pose = None
         top = None
         if choice.index is not None:
