@@ -127,45 +127,79 @@ class Outlines:
 
     def cyclic(self, shift: int) -> NDArray[np.int64]:
         """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
-        starts, counts = self._starts_and_counts
-        return np.asarray(starts + (self.local + shift) % counts, np.int64)
+        counts = self.counts
+        if counts.size and abs(shift) >= int(counts.min()):
+            starts, each = self._starts_and_counts
+            return np.asarray(starts + (self.local + shift) % each, np.int64)
+        # Every sample but the |shift| at an outline's end (start) moves by shift; those wrap.
+        index = np.arange(self.local.shape[0], dtype=np.int64) + shift
+        for j in range(abs(shift)):
+            if shift > 0:
+                index[self.offsets[1:] - 1 - j] -= counts
+            else:
+                index[self.offsets[:-1] + j] += counts
+        return index
 
 
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
-    counts = np.array([max(16, math.ceil(perimeter_px(e))) for e in ellipses], np.int64)
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    owner = np.repeat(np.arange(len(ellipses)), counts)
+    rows, sizes = [], []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
+        sizes.append(max(16, math.ceil(perimeter_px(e))))
+    counts = np.array(sizes, np.int64)
+    offsets = np.zeros(len(sizes) + 1, np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    owner = np.repeat(np.arange(len(sizes)), counts)
     local = np.arange(int(offsets[-1])) - offsets[owner]
-    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
-                     math.sin(math.radians(e.angle_deg))]
-                    for e in ellipses], np.float64).reshape(-1, 6)
-    cx, cy, a, b, c, s = (geo[owner, i] for i in range(6))
-    tables = [unit_circle(int(n)) for n in counts]
+    # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
+    cx, cy, a, b, c, s = np.repeat(np.array(rows, np.float64).reshape(-1, 6).T, counts, axis=1)
+    tables = [unit_circle(n) for n in sizes]
     ct = np.concatenate([t[0] for t in tables])
     st = np.concatenate([t[1] for t in tables])
     x, y = a * ct, b * st
-    pts = np.stack([cx + c * x - s * y, cy + s * x + c * y], axis=1)
+    # Points and normals as (N, 2) views of (2, N) arrays: contiguous columns, the same
+    # values as outline's cx + c x - s y etc.
+    pts = np.empty((2, x.shape[0]))
+    np.add(cx, c * x, out=pts[0])
+    pts[0] -= s * y
+    np.add(cy, s * x, out=pts[1])
+    pts[1] += c * y
     nx, ny = b * ct, a * st
     norm = np.hypot(nx, ny)
-    nx, ny = nx / norm, ny / norm
-    normals = np.stack([c * nx - s * ny, s * nx + c * ny], axis=1)
-    return Outlines(points=pts, normals=normals, offsets=offsets, owner=owner, local=local)
+    nx /= norm
+    ny /= norm
+    normals = np.empty((2, x.shape[0]))
+    np.multiply(c, nx, out=normals[0])
+    normals[0] -= s * ny
+    np.multiply(s, nx, out=normals[1])
+    normals[1] += c * ny
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, owner=owner, local=local)
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass."""
-    pts, normals = lines.points, lines.normals
+    pu, pv = lines.points[:, 0], lines.points[:, 1]
+    nu, nv = lines.normals[:, 0], lines.normals[:, 1]
     h, w = image.gx.shape
-    offsets = np.asarray(NORMAL_OFFSETS_PX)[:, None, None]
-    q = np.rint(pts[None, :, :] + offsets * normals[None, :, :]).astype(np.int64)  # (k, n, 2)
-    u, v = np.clip(q[..., 0], 0, w - 1), np.clip(q[..., 1], 0, h - 1)
-    inside = (u == q[..., 0]) & (v == q[..., 1])
+    offsets = np.array(NORMAL_OFFSETS_PX)[:, None]
+    qu = np.rint(pu + offsets * nu).astype(np.int64)  # (k, n)
+    qv = np.rint(pv + offsets * nv).astype(np.int64)
+    u = np.minimum(np.maximum(qu, 0), w - 1)
+    v = np.minimum(np.maximum(qv, 0), h - 1)
+    inside = (u == qu) & (v == qv)
     flat = v * w + u
-    g = (image.gx.ravel()[flat] * normals[None, :, 0]
-         + image.gy.ravel()[flat] * normals[None, :, 1])
+    g = image.gx.ravel()[flat] * nu + image.gy.ravel()[flat] * nv
     g = np.where(inside, g, 0.0)
-    best = np.take_along_axis(g, np.argmax(np.abs(g), axis=0)[None, :], axis=0)[0]
+    # The strongest offset per sample (the first of equals, as argmax over the offsets).
+    mag = np.abs(g)
+    best, top = g[0], mag[0]
+    for k in range(1, g.shape[0]):
+        better = mag[k] > top
+        best = np.where(better, g[k], best)
+        if k + 1 < g.shape[0]:
+            top = np.maximum(top, mag[k])
     k = WINDOW_SAMPLES
     total = best.copy()
     for shift in range(-(k // 2), k // 2 + 1):

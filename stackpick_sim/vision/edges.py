@@ -249,11 +249,11 @@ class EdgeImage:
 
 def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
     """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image."""
-    # Channel by channel (the same values as blurring the colour image): the blur of single
-    # planes costs less, and the gradients need the planes anyway.
-    gx, gy = _plane_gradients(tuple(
-        np.asarray(cv2.GaussianBlur(p, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE), GAUSSIAN_SIGMA_PX),
-                   np.uint8) for p in _planes(image)))
+    # The colour image blurred in one call (the same values as channel by channel, at about
+    # half the cost), then split into the planes the gradients need.
+    blurred = np.asarray(cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE),
+                                          GAUSSIAN_SIGMA_PX), np.uint8)
+    gx, gy = _plane_gradients(_planes(blurred))
     low, high, noise = adaptive_thresholds(gx, gy)
     edges = remove_stairs(np.asarray(cv2.Canny(gx, gy, low, high, L2gradient=True), np.uint8))
     return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)

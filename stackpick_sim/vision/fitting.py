@@ -140,10 +140,13 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
     """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
     ``np.nonzero`` order, without the (E, N) matrix."""
     p = np.asarray(points, np.float64)
+    pu, pv = p[:, 0], p[:, 1]
     reach = params[:, 2:3] + tol_px + 1.0
-    e, n = np.nonzero((np.abs(p[None, :, 0] - params[:, 0:1]) <= reach)
-                      & (np.abs(p[None, :, 1] - params[:, 1:2]) <= reach))
-    close = (pair_distances(params, p, e, n) < tol_px).nonzero()[0]
+    e, n = np.nonzero((np.abs(pu - params[:, 0:1]) <= reach)
+                      & (np.abs(pv - params[:, 1:2]) <= reach))
+    # The pairs run ellipse by ellipse: each ellipse's parameters repeated, not gathered.
+    d = grouped_distances(params, np.bincount(e, minlength=params.shape[0]), pu[n], pv[n])
+    close = (d < tol_px).nonzero()[0]
     return e[close], n[close]
 
 
@@ -154,6 +157,23 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
     cx, cy, a, b = (params[:, i][which] for i in range(4))  # contiguous per column
     du, dv = points[:, 0][at] - cx, points[:, 1][at] - cy
     c, s = np.cos(params[:, 4])[which], np.sin(params[:, 4])[which]
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
+    return np.asarray(np.abs(x * x + y * y - 1.0) / grad, np.float64)
+
+
+def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
+                      pu: NDArray[np.float64], pv: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
+    ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
+    ``counts[1]`` to ellipse 1, ... (the same values; one repeat instead of six gathers)."""
+    rows = np.empty((6, params.shape[0]))
+    rows[:4] = params[:, :4].T
+    np.cos(params[:, 4], out=rows[4])
+    np.sin(params[:, 4], out=rows[5])
+    cx, cy, a, b, c, s = np.repeat(rows, counts, axis=1)
+    du, dv = pu - cx, pv - cy
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
@@ -220,41 +240,52 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
     residuals of all pieces of one level are one array pass each (only the direct fit runs
     per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
     order :func:`fit_or_split` gives them chain after chain."""
-    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
-    found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
+    return [(i, pts, e, r) for i, _, pts, e, r in fit_pieces(chains, shape, depth)]
+
+
+def fit_pieces(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
+               ) -> list[tuple[int, int, NDArray, Ellipse, float]]:
+    """:func:`fit_all` with where each piece starts in its chain: (chain index, start,
+    points, ellipse, residual) per accepted piece; ``points`` is ``chains[i][start:start +
+    len(points)]`` (a view)."""
+    # (chain index, split path, start, points): the path orders the pieces as the recursion.
+    pending: list[tuple[int, str, int, NDArray]] = [(i, "", 0, c) for i, c in enumerate(chains)]
+    found: list[tuple[tuple[int, str], int, NDArray, Ellipse, float]] = []
     for level in range(depth + 1):
         if not pending:
             break
-        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
-        bows = _bows([p[2] for p in long_enough])
-        fitted: list[tuple[tuple[int, str], NDArray, Ellipse]] = []
-        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
+        long_enough = [p for p in pending if p[3].shape[0] >= MIN_FIT_PX]
+        bows = _bows([p[3] for p in long_enough])
+        fitted: list[tuple[tuple[int, str, int, NDArray], Ellipse]] = []
+        failed = [p for p in pending if p[3].shape[0] < MIN_FIT_PX]
         for p, bow in zip(long_enough, bows, strict=True):
-            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
+            e = fit_ellipse(p[3]) if bow >= MIN_BOW_PX else None
             if e is None or not plausible(e, shape):
                 failed.append(p)
             else:
-                fitted.append(((p[0], p[1]), p[2], e))
+                fitted.append((p, e))
         if fitted:
-            pts = np.concatenate([f[1] for f in fitted]).astype(np.float64)
-            which = np.repeat(np.arange(len(fitted)), [f[1].shape[0] for f in fitted])
-            d = pair_distances(ellipse_params([f[2] for f in fitted]), pts, which,
-                               np.arange(pts.shape[0]))
-            rms = np.sqrt(np.bincount(which, weights=d * d) / np.bincount(which))
-            for f, r in zip(fitted, rms.tolist(), strict=True):
+            pts = np.concatenate([f[0][3] for f in fitted]).astype(np.float64)
+            counts = np.array([f[0][3].shape[0] for f in fitted])
+            d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[:, 0],
+                                  pts[:, 1])
+            which = np.repeat(np.arange(len(fitted)), counts)
+            rms = np.sqrt(np.bincount(which, weights=d * d) / counts)
+            for (p, e), r in zip(fitted, rms.tolist(), strict=True):
                 if r > MAX_RESIDUAL_PX:
-                    failed.append((f[0][0], f[0][1], f[1]))
+                    failed.append(p)
                 else:
-                    found.append((f[0], f[1], f[2], r))
+                    found.append(((p[0], p[1]), p[2], p[3], e, r))
         pending = []
         if level == depth:
             break
-        for i, path, pts_ in failed:
+        for i, path, start, pts_ in failed:
             if pts_.shape[0] >= 2 * MIN_FIT_PX:
                 half = pts_.shape[0] // 2
-                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+                pending += [(i, path + "0", start, pts_[:half]),
+                            (i, path + "1", start + half, pts_[half:])]
     found.sort(key=lambda f: f[0])
-    return [(key[0], pts_, e, r) for key, pts_, e, r in found]
+    return [(key[0], start, pts_, e, r) for key, start, pts_, e, r in found]
 
 
 def _bows(pieces: list[NDArray]) -> list[float]:

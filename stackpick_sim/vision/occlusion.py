@@ -160,70 +160,83 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
-    geo = np.array([[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
-                     math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    cx, cy, a = (geo[:, i : i + 1] for i in range(3))
-    reach = a + JUNCTION_RADIUS_PX + 1
-    du = edge_points[None, :, 0] - cx
-    dv = edge_points[None, :, 1] - cy
+    n_e = len(ellipses)
+    # Per ellipse: centre, reach, then per pair: cos, sin, axes and the axes less the inner
+    # and interior margins (as the pairs' arithmetic had them).
+    rows = []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        rows.append((e.cx, e.cy, e.a + JUNCTION_RADIUS_PX + 1, math.cos(t), math.sin(t), e.a,
+                     e.b, max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6),
+                     max(e.a - INTERIOR_MARGIN_PX, 1e-6), max(e.b - INTERIOR_MARGIN_PX, 1e-6)))
+    geo = np.array(rows, np.float64)
+    cx, cy, reach = geo[:, 0:1], geo[:, 1:2], geo[:, 2:3]
+    du = edge_points[:, 0] - cx
+    dv = edge_points[:, 1] - cy
     pe, pm = np.nonzero((np.abs(du) <= reach) & (np.abs(dv) <= reach))  # local pairs
-    pdu, pdv = du[pe, pm], dv[pe, pm]
-    pc, ps, pa, pb = (geo[:, i][pe] for i in (4, 5, 2, 3))  # contiguous per column
+    at = pe * edge_points.shape[0] + pm
+    pdu, pdv = du.ravel()[at], dv.ravel()[at]
+    pc, ps, pa, pb, a_in, b_in, a_int, b_int = geo.T[3:][:, pe]
     xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
     x, y = xr / pa, yr / pb
     # Sampson distance, as fitting.distances.
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / pa) ** 2 + (y / pb) ** 2) + 1e-12)
-
-    def inside_by(margin: float) -> NDArray[np.bool_]:
-        xs = xr / np.maximum(pa - margin, 1e-6)
-        ys = yr / np.maximum(pb - margin, 1e-6)
-        return np.asarray(xs * xs + ys * ys < 1.0, np.bool_)
-
     off_curve = dist > MERGE_TOLERANCE_PX
-    inner = off_curve & inside_by(MERGE_TOLERANCE_PX)
-    interior = np.bincount(pe[inside_by(INTERIOR_MARGIN_PX)], minlength=len(ellipses))
+    xs, ys = xr / a_in, yr / b_in
+    inner = off_curve & (xs * xs + ys * ys < 1.0)
+    xs, ys = xr / a_int, yr / b_int
+    interior = np.bincount(pe[xs * xs + ys * ys < 1.0], minlength=n_e).tolist()
     counts = lines.counts
-    support_share = np.bincount(lines.owner, weights=ok, minlength=len(ellipses)) / counts
+    support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples.
-    prev_ok, next_ok = ok[lines.cyclic(-1)], ok[lines.cyclic(1)]
-    firsts = np.flatnonzero(~ok & prev_ok)
-    lasts = np.flatnonzero(~ok & next_ok)
-    longest = [0] * len(ellipses)
-    ends: list[tuple[int, int]] = []  # (ellipse, global index of a supported sample at a gap)
-    lo_f, lo_l = np.searchsorted(firsts, lines.offsets), np.searchsorted(lasts, lines.offsets)
-    for e in range(len(ellipses)):
-        n, base = int(counts[e]), int(lines.offsets[e])
-        f = firsts[lo_f[e]:lo_f[e + 1]] - base
-        t = lasts[lo_l[e]:lo_l[e + 1]] - base
-        if f.size == 0:
-            longest[e] = 0 if ok[base] else n  # all supported, or one gap all round
-            continue
-        if t[0] < f[0]:
-            t = np.roll(t, -1)  # the first gap wraps round the outline's start
-        lengths = (t - f) % n + 1
-        longest[e] = int(lengths.max())
-        for start, length in zip(f.tolist(), lengths.tolist(), strict=True):
-            if length >= MIN_GAP_PX:
-                ends.append((e, base + (start - 1) % n))
-                ends.append((e, base + (start + length) % n))
-    occluded_ends = [0] * len(ellipses)
+    before, after = lines.cyclic(-1), lines.cyclic(1)
+    firsts = np.flatnonzero(~ok & ok[before])
+    lasts = np.flatnonzero(~ok & ok[after])
+    sizes = counts.tolist()
+    offsets = lines.offsets
+    longest = [0 if ok[base] else n for base, n in zip(offsets[:-1].tolist(), sizes,
+                                                       strict=True)]
+    ends = np.zeros(0, np.int64)  # global index of a supported sample at each gap's end
+    if firsts.size:
+        # Each run's last sample: the first last at or after its first in its outline, else
+        # (the run wraps round the outline's start) the outline's first last.
+        owner = lines.owner[firsts]
+        j = np.searchsorted(lasts, firsts)
+        lo = np.searchsorted(lasts, offsets[:-1])
+        wrapped = lasts[np.minimum(j, lasts.size - 1)] >= offsets[1:][owner]
+        wrapped |= j >= lasts.size
+        stop = lasts[np.where(wrapped, lo[owner], j)]
+        lengths = (stop - firsts) % counts[owner] + 1
+        runs: dict[int, int] = {}
+        for k, length in zip(owner.tolist(), lengths.tolist(), strict=True):
+            if length > runs.get(k, 0):
+                runs[k] = length
+        for k, length in runs.items():
+            longest[k] = length
+        gap = lengths >= MIN_GAP_PX
+        ends = np.stack([before[firsts[gap]], after[stop[gap]]], axis=1).ravel()
+    occluded_ends = [0] * n_e
     off = np.flatnonzero(off_curve)
-    if ends and off.size:
-        end_e = np.array([e for e, _ in ends])
-        end_pts = samples[[i for _, i in ends]]
-        pts = edge_points[pm[off]]
-        d2 = ((pts[None, :, 0] - end_pts[:, 0:1]) ** 2
-              + (pts[None, :, 1] - end_pts[:, 1:2]) ** 2)
-        mine = pe[off][None, :] == end_e[:, None]
-        junction = np.any(mine & (d2 <= JUNCTION_RADIUS_PX ** 2), axis=1)
-        crossing = np.any(mine & inner[off][None, :] & (d2 <= CROSSING_REACH_PX ** 2), axis=1)
-        for e in end_e[junction & crossing].tolist():
+    if ends.size and off.size:
+        end_e = lines.owner[ends]
+        # Each end against the off-curve pairs of its own ellipse (a contiguous range: the
+        # pairs run ellipse by ellipse).
+        bounds = np.searchsorted(pe[off], np.arange(n_e + 1))
+        first, size = bounds[end_e], bounds[end_e + 1] - bounds[end_e]
+        which = np.repeat(np.arange(ends.size), size)
+        pick = off[np.arange(which.size) - np.repeat(np.cumsum(size) - size - first, size)]
+        end_u, end_v = samples[ends, 0][which], samples[ends, 1][which]
+        at_m = pm[pick]
+        d2 = (edge_points[at_m, 0] - end_u) ** 2 + (edge_points[at_m, 1] - end_v) ** 2
+        junction = np.bincount(which[d2 <= JUNCTION_RADIUS_PX ** 2], minlength=ends.size)
+        crossing = np.bincount(which[inner[pick] & (d2 <= CROSSING_REACH_PX ** 2)],
+                               minlength=ends.size)
+        for e in end_e[(junction > 0) & (crossing > 0)].tolist():
             occluded_ends[e] += 1
-    return tuple(OcclusionEvidence(support=float(support_share[e]), longest_gap_px=longest[e],
+    return tuple(OcclusionEvidence(support=support_share[e], longest_gap_px=longest[e],
                                    occluded_ends=occluded_ends[e],
-                                   interior_edge_px=int(interior[e]),
-                                   perimeter_px=int(counts[e]))
-                 for e in range(len(ellipses)))
+                                   interior_edge_px=interior[e], perimeter_px=sizes[e])
+                 for e in range(n_e))
 
 
 def _holds_centre(outer: Ellipse, inner: Ellipse) -> bool:

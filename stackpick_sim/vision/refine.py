@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import math
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision.contrast import contrast_threshold, outline
+from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
 from stackpick_sim.vision.wall import column_median
@@ -76,16 +75,26 @@ def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float6
     """(N, 2) edge pixels (u, v) moved to the gradient-magnitude peak along (N, 2) unit
     gradient directions: a parabola through the magnitudes one pixel either side
     (Devernay's sub-pixel Canny, with bilinear sampling)."""
+    su, sv = _subpixel_columns(image, pts[:, 0], pts[:, 1], dirs[:, 0], dirs[:, 1])
+    out = np.empty((su.shape[0], 2))
+    out[:, 0], out[:, 1] = su, sv
+    return out
+
+
+def _subpixel_columns(image: EdgeImage, u: NDArray[np.float64], v: NDArray[np.float64],
+                      gu: NDArray[np.float64], gv: NDArray[np.float64]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`subpixel` of points and directions given as (N,) columns; the moved points'
+    columns."""
     steps = np.array([-1.0, 0.0, 1.0])[:, None]
-    qu = (pts[:, 0] + steps * dirs[:, 0]).ravel()
-    qv = (pts[:, 1] + steps * dirs[:, 1]).ravel()
+    qu = (u + steps * gu).ravel()
+    qv = (v + steps * gv).ravel()
     before, centre, after = np.hypot(*_bilinear_uv(image.gx, image.gy, qu, qv)).reshape(3, -1)
     curvature = before - 2.0 * centre + after
     ok = curvature < -1e-9
-    shift = np.zeros(pts.shape[0])
-    shift[ok] = 0.5 * (before[ok] - after[ok]) / curvature[ok]
+    shift = np.where(ok, 0.5 * (before - after) / np.where(ok, curvature, -1.0), 0.0)
     shift = np.minimum(np.maximum(shift, -MAX_SHIFT_PX), MAX_SHIFT_PX)
-    return pts + shift[:, None] * dirs
+    return u + shift * gu, v + shift * gv
 
 
 def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
@@ -94,24 +103,37 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
     unit gradients (M, 2) along it (within SUBPIXEL_TOLERANCE_PX, gradient normal to it)."""
     reach = ellipse.a + SUBPIXEL_TOLERANCE_PX + 1
     near = ((np.abs(points[:, 0] - ellipse.cx) <= reach)
-            & (np.abs(points[:, 1] - ellipse.cy) <= reach))
-    pts, g = _along(ellipse, points[near], grads[near], SUBPIXEL_TOLERANCE_PX)
-    if pts.shape[0] < MIN_PIXELS:
+            & (np.abs(points[:, 1] - ellipse.cy) <= reach)).nonzero()[0]
+    u, v = points[:, 0][near], points[:, 1][near]
+    gu, gv = grads[:, 0][near], grads[:, 1][near]
+    keep = _along_mask(ellipse, u, v, gu, gv, SUBPIXEL_TOLERANCE_PX).nonzero()[0]
+    if keep.shape[0] < MIN_PIXELS:
         return ellipse
-    fit = fit_ellipse(subpixel(image, pts, g))
+    su, sv = _subpixel_columns(image, u[keep], v[keep], gu[keep], gv[keep])
+    pts = np.empty((keep.shape[0], 2), np.float32)  # the fit's input type
+    pts[:, 0], pts[:, 1] = su, sv
+    fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape) else ellipse
 
 
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(M, 2) edge pixels (u, v) and their (M, 2) unit gradient directions."""
-    # findNonZero: np.nonzero's row-major order at a third of its cost (None when empty).
-    found = cv2.findNonZero(np.asarray(image.edges, np.uint8))
-    uv = np.zeros((0, 2), np.int32) if found is None else found.reshape(-1, 2)
-    uu, vv = uv[:, 0], uv[:, 1]
-    g = np.empty((uv.shape[0], 2))
-    g[:, 0], g[:, 1] = image.gx[vv, uu], image.gy[vv, uu]
-    g /= np.maximum(np.hypot(g[:, 0], g[:, 1]), 1e-9)[:, None]
-    return uv.astype(np.float64), g
+    """(M, 2) edge pixels (u, v) in row-major order and their (M, 2) unit gradient
+    directions (each with contiguous columns)."""
+    edges = np.asarray(image.edges)
+    w = edges.shape[1]
+    # flatnonzero of a bool map: np.nonzero's row-major order at a fifth of findNonZero's
+    # cost.
+    at = np.flatnonzero(edges.astype(np.bool_))
+    pts = np.empty((2, at.shape[0]))
+    np.floor_divide(at, w, out=pts[1], casting="unsafe")
+    np.remainder(at, w, out=pts[0], casting="unsafe")
+    gx = image.gx.ravel()[at].astype(np.float64)
+    gy = image.gy.ravel()[at].astype(np.float64)
+    norm = np.maximum(np.hypot(gx, gy), 1e-9)
+    g = np.empty((2, at.shape[0]))
+    np.divide(gx, norm, out=g[0])
+    np.divide(gy, norm, out=g[1])
+    return pts.T, g.T
 
 
 def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64],
@@ -122,18 +144,26 @@ def _along(ellipse: Ellipse, pts: NDArray[np.float64], grads: NDArray[np.float64
     Distance (Sampson, as :func:`~stackpick_sim.vision.fitting.distances`) and normal come
     from one evaluation of the implicit form's gradient.
     """
+    keep = _along_mask(ellipse, pts[:, 0], pts[:, 1], grads[:, 0], grads[:, 1], tol_px)
+    return pts[keep], grads[keep]
+
+
+def _along_mask(ellipse: Ellipse, u: NDArray[np.float64], v: NDArray[np.float64],
+                gu: NDArray[np.float64], gv: NDArray[np.float64], tol_px: float
+                ) -> NDArray[np.bool_]:
+    """:func:`_along`'s test of pixels and unit gradients given as (M,) columns."""
     t = math.radians(ellipse.angle_deg)
     c, s = math.cos(t), math.sin(t)
-    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
+    du, dv = u - ellipse.cx, v - ellipse.cy
     x = (c * du + s * dv) / ellipse.a
     y = (-s * du + c * dv) / ellipse.b
     gx, gy = x / ellipse.a, y / ellipse.b
     norm = np.sqrt(gx * gx + gy * gy)
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
     # |unit normal . gradient|, the normal rotated back to the image frame.
-    cos = np.abs((c * gx - s * gy) * grads[:, 0] + (s * gx + c * gy) * grads[:, 1])
-    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
-    return pts[keep], grads[keep]
+    cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
+    return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
+                      np.bool_)
 
 
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
@@ -151,37 +181,46 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
+    n = len(current)
     reach = np.array([e.a for e in current]) + TOLERANCES_PX[0] + 1
     cx = np.array([e.cx for e in current])
     cy = np.array([e.cy for e in current])
-    pe, pm = np.nonzero((np.abs(points[None, :, 0] - cx[:, None]) <= reach[:, None])
-                        & (np.abs(points[None, :, 1] - cy[:, None]) <= reach[:, None]))
+    pu, pv = points[:, 0], points[:, 1]
+    pe, pm = np.nonzero((np.abs(pu - cx[:, None]) <= reach[:, None])
+                        & (np.abs(pv - cy[:, None]) <= reach[:, None]))
+    # The pairs run ellipse by ellipse: per ellipse, a range of them.
+    counts = np.bincount(pe, minlength=n)
     # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    columns = (points[pm, 0], points[pm, 1], grads[pm, 0], grads[pm, 1])
+    columns: tuple[NDArray[np.float64], ...] = (pu[pm], pv[pm], grads[:, 0][pm],
+                                                  grads[:, 1][pm])
     # The fits' input, built once: pixel coordinates are exact in float32.
     pair_points = points[pm].astype(np.float32)
-    active = np.ones(len(current), bool)
-    previous: dict[int, NDArray[np.int64]] = {}
+    active = [True] * n
+    previous: dict[int, bytes] = {}
     for tol in TOLERANCES_PX:
-        if active.all():
-            idx, which, cols = None, pe, columns
+        if all(active):
+            idx, cols, live = None, columns, counts
         else:
-            idx = active[pe].nonzero()[0]
-            which, cols = pe[idx], tuple(c[idx] for c in columns)
-        keep = _along_columns(current, which, cols, tol)
+            live = counts * np.array(active)
+            idx = np.array(active)[pe].nonzero()[0]
+            cols = tuple(c[idx] for c in columns)
+        keep = _along_grouped(current, live, cols, tol)
         sel = keep.nonzero()[0] if idx is None else idx[keep]
-        bounds = pe[sel].searchsorted(np.arange(len(current) + 1)).tolist()
-        for e in active.nonzero()[0].tolist():
+        bounds = pe[sel].searchsorted(np.arange(n + 1)).tolist()
+        for e in range(n):
+            if not active[e]:
+                continue
             mine = sel[bounds[e]:bounds[e + 1]]
-            if e in previous and np.array_equal(mine, previous[e]):
+            key = mine.tobytes()
+            if previous.get(e) == key:
                 continue  # the same pixels as the fit in hand: the same fit
-            previous[e] = mine
+            previous[e] = key
             fit = fit_ellipse(pair_points[mine]) if mine.size >= MIN_PIXELS else None
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
             current[e] = fit
-        if not active.any():
+        if not any(active):
             break
     return current
 
@@ -190,9 +229,23 @@ def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
                    cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
     """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel) pairs given as
     columns (u, v, gu, gv), each (K,): pixel and unit gradient."""
-    geo = np.array([[e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(math.radians(e.angle_deg)),
-                     math.sin(math.radians(e.angle_deg))] for e in ellipses], np.float64)
-    cx, cy, ia, ib, c, s = (np.ascontiguousarray(geo[:, i])[which] for i in range(6))
+    order = np.argsort(which, kind="stable")
+    keep = np.empty(which.shape[0], bool)
+    keep[order] = _along_grouped(ellipses, np.bincount(which, minlength=len(ellipses)),
+                                 tuple(c[order] for c in cols), tol_px)
+    return keep
+
+
+def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
+                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
+    """:func:`_along_columns` of pairs that run ellipse by ellipse: the first ``counts[0]``
+    of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its parameters repeated, not
+    gathered: the same values)."""
+    rows = []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        rows.append((e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(t), math.sin(t)))
+    cx, cy, ia, ib, c, s = np.repeat(np.array(rows, np.float64).T, counts, axis=1)
     u, v, gu, gv = cols
     du, dv = u - cx, v - cy
     x = (c * du + s * dv) * ia
@@ -238,27 +291,32 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
     steps = PROFILE_STEPS
+    k = steps.shape[0]
     current = ellipse
     for round_ in range(PROFILE_ROUNDS):
-        pts, normals = outline(current)
-        nu, nv = normals[:, 0:1], normals[:, 1:2]
+        pu, pv, nu, nv = _outline_columns(current)
+        n = pu.shape[0]
         # The (n, k) sample grid across the outline, one coordinate at a time.
-        qu, qv = pts[:, 0:1] + steps[None, :] * nu, pts[:, 1:2] + steps[None, :] * nv
+        qu = pu[:, None] + steps * nu[:, None]
+        qv = pv[:, None] + steps * nv[:, None]
         bx, by = _bilinear_uv(image.gx, image.gy, qu.ravel(), qv.ravel())
-        g = np.abs(bx.reshape(qu.shape) * nu + by.reshape(qu.shape) * nv)
+        g = np.abs(bx.reshape(n, k) * nu[:, None] + by.reshape(n, k) * nv[:, None])
         best = g[:, 1:-1].argmax(axis=1) + 1
-        rows = np.arange(best.size)
-        before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
+        at = np.arange(0, n * k, k) + best
+        flat = g.ravel()
+        before, centre, after = flat[at - 1], flat[at], flat[at + 1]
         curvature = before - 2.0 * centre + after
-        shift = np.where(curvature < -1e-9,
-                         0.5 * (before - after) / np.where(curvature < -1e-9, curvature, -1.0),
+        peaked = curvature < -1e-9
+        shift = np.where(peaked, 0.5 * (before - after) / np.where(peaked, curvature, -1.0),
                          0.0)
         ok = centre >= threshold
-        if np.count_nonzero(ok) < PROFILE_MIN_SHARE * ok.size:
+        count = int(np.count_nonzero(ok))
+        if count < PROFILE_MIN_SHARE * n:
             return current
         offset = steps[best] + np.minimum(np.maximum(shift, -0.5), 0.5) * PROFILE_STEP_PX
-        peaks = pts + offset[:, None] * normals
-        peaks = peaks[ok]
+        peaks = np.empty((count, 2))
+        peaks[:, 0] = (pu + offset * nu)[ok]
+        peaks[:, 1] = (pv + offset * nv)[ok]
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape):
             return current
@@ -267,7 +325,31 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
             inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
             kept = np.count_nonzero(inliers)
             # All inliers: the refit would repeat the fit on the same points.
-            if PROFILE_MIN_SHARE * ok.size <= kept < inliers.size:
+            if PROFILE_MIN_SHARE * n <= kept < inliers.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape) else current
     return current
+
+
+def _outline_columns(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`~stackpick_sim.vision.contrast.outline` of ``ellipse`` (the same values) as
+    four (n,) columns: points u, v and unit outward normals nu, nv."""
+    n = max(16, math.ceil(perimeter_px(ellipse)))
+    th = math.radians(ellipse.angle_deg)
+    c, s = math.cos(th), math.sin(th)
+    ct, st = unit_circle(n)
+    x, y = ellipse.a * ct, ellipse.b * st
+    pu = ellipse.cx + c * x
+    pu -= s * y
+    pv = ellipse.cy + s * x
+    pv += c * y
+    nx, ny = ellipse.b * ct, ellipse.a * st  # gradient of the implicit form, scaled by a*b
+    norm = np.hypot(nx, ny)
+    nx /= norm
+    ny /= norm
+    nu = c * nx
+    nu -= s * ny
+    nv = s * nx
+    nv += c * ny
+    return pu, pv, nu, nv

@@ -76,12 +76,16 @@ def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArr
     contour runs end -> end -> back: the chain is the stretch from its first end pixel to the
     next; a closed one is already a loop.
     """
-    ends = is_end.nonzero()[0]
-    if ends.size == 0:
+    return _order_by_ends(contour, is_end.nonzero()[0].tolist())
+
+
+def _order_by_ends(contour: NDArray[np.int32], ends: list[int]) -> NDArray[np.int32]:
+    """:func:`_order_chain` given the indices ``ends`` (ascending) of the end pixels."""
+    if not ends:
         return contour
-    first = int(ends[0])
-    if ends.size > 1:
-        return contour[first: int(ends[1]) + 1]
+    first = ends[0]
+    if len(ends) > 1:
+        return contour[first: ends[1] + 1]
     return np.concatenate([contour[first:], contour[:first]])
 
 
@@ -113,17 +117,20 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     else:
         verts = pl
         count -= 2
+    atan2, degrees = math.atan2, math.degrees
     mag: list[float] = []
     sign: list[int] = []
     (qx, qy), (rx, ry) = verts[0], verts[1]
     x0, y0 = rx - qx, ry - qy
     for rx1, ry1 in verts[2:]:
         x1, y1 = rx1 - rx, ry1 - ry
-        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        t = degrees(atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
         m = abs(t)
         mag.append(m)
         sign.append(0 if m < MIN_SIGNED_TURN_DEG else (1 if t > 0 else -1))
         rx, ry, x0, y0 = rx1, ry1, x1, y1
+    if max(mag) <= SPIKE_MIN_DEG and not (1 in sign and -1 in sign):
+        return [chain]  # no corner, no spike and one turning sign: no cut
     at = []
     last = 0  # the sign of the previous signed vertex
     for k in range(count):
@@ -134,17 +141,22 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
             before = mag[k - 1] if k else 0.0
             after = mag[k + 1] if k + 1 < count else 0.0
         cut = m > CORNER_ANGLE_DEG or (m > SPIKE_MIN_DEG and m > SPIKE_RATIO * max(before, after))
-        if sign[k]:
-            cut = cut or (last != 0 and sign[k] != last)
-            last = sign[k]
+        sk = sign[k]
+        if sk:
+            cut = cut or (last != 0 and sk != last)
+            last = sk
         if cut:
             at.append(k if closed else k + 1)
     if not at:
         return [chain]
-    cuts = sorted({_vertex_index(chain, poly[k]) for k in at})
+    # Each cut vertex's first index in the chain, all at once.
+    cv = poly[at]
+    hits = (chain[:, 0:1] == cv[None, :, 0]) & (chain[:, 1:2] == cv[None, :, 1])
+    cuts = sorted(set(hits.argmax(axis=0).tolist()))
     if closed:
-        chain = np.roll(chain, -cuts[0], axis=0)
-        bounds = [c - cuts[0] for c in cuts] + [chain.shape[0]]
+        first = cuts[0]
+        chain = np.concatenate([chain[first:], chain[:first]])
+        bounds = [c - first for c in cuts] + [chain.shape[0]]
     else:
         bounds = [0, *cuts, chain.shape[0]]
     return [chain[i:j] for i, j in itertools.pairwise(bounds) if j > i]
@@ -152,30 +164,40 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
 
 def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments."""
-    junctions = find_junctions(edges)
-    cut = edges.copy()
-    cut[junctions] = 0
-    is_end = (neighbour_count(cut) <= 1) & (cut > 0)
+    # Junctions: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel included) of
+    # 4+; end points of the map without them: a 3x3 sum of at most 2.
+    on = edges != 0
+    box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
+                        borderType=cv2.BORDER_CONSTANT)
+    junctions = on & (box >= 4)
+    kept_px = on & (box < 4)
+    cut = kept_px.view(np.uint8)
+    box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    is_end = kept_px & (box <= 2)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     chains: list[NDArray[np.int32]] = []
     if hierarchy is None:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
     parents = hierarchy[0][:, 3].tolist()
-    kept = [np.asarray(c, np.int32).reshape(-1, 2)
-            for c, parent in zip(contours, parents, strict=True)
+    kept = [c.reshape(-1, 2) for c, parent in zip(contours, parents, strict=True)
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
     # The end-point test of all contour pixels at once, then each contour's share of it.
     every = np.concatenate(kept)
-    is_end_px = is_end[every[:, 1], every[:, 0]]
+    is_end_px = is_end.ravel()[every[:, 1] * edges.shape[1] + every[:, 0]]
+    end_at = np.flatnonzero(is_end_px).tolist()
+    k = 0
     start = 0
     for pts in kept:
-        ends = is_end_px[start:start + pts.shape[0]]
-        start += pts.shape[0]
-        chain = _order_chain(pts, ends)
-        for arc in split_chain(chain, closed=not ends.any()):
+        stop = start + pts.shape[0]
+        ends = []
+        while k < len(end_at) and end_at[k] < stop:
+            ends.append(end_at[k] - start)
+            k += 1
+        start = stop
+        for arc in split_chain(_order_by_ends(pts, ends), closed=not ends):
             if arc.shape[0] >= MIN_CHAIN_PX:
                 chains.append(arc)
     return EdgeSegments(chains=tuple(chains), junctions=junctions, edges=edges)

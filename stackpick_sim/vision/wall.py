@@ -64,6 +64,13 @@ def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
     """:func:`stackpick_sim.geometry.plane_basis` (same vectors) on Python floats: numpy's
     ``cross`` costs ~20 us a call, and the top rule and pose call this a few hundred times
     a frame."""
+    u, v = _basis(normal)
+    return np.array(u), np.array(v)
+
+
+def _basis(normal: NDArray[np.float64]) -> tuple[tuple[float, float, float],
+                                                 tuple[float, float, float]]:
+    """:func:`plane_basis` as float triples."""
     n0, n1, n2 = (float(x) for x in normal)
     norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
@@ -73,8 +80,7 @@ def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
         u0, u1, u2 = -n2, 0.0, n0
     un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
     u0, u1, u2 = u0 / un, u1 / un, u2 / un
-    v = (n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0)
-    return np.array([u0, u1, u2]), np.array(v)
+    return (u0, u1, u2), (n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0)
 
 
 def column_median(values: NDArray) -> NDArray[np.float64]:
@@ -98,14 +104,24 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float6
     """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image."""
     ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
+    c, s = math.cos(th), math.sin(th)
     x, y = FACE_SAMPLE_SCALE * ellipse.a * ct, FACE_SAMPLE_SCALE * ellipse.b * st
-    u = np.rint(ellipse.cx + math.cos(th) * x - math.sin(th) * y).astype(np.int64)
-    v = np.rint(ellipse.cy + math.sin(th) * x + math.cos(th) * y).astype(np.int64)
+    # Rows u, v: (cx + c x) - s y and (cy + s x) + c y, as (2, n) arrays.
+    q = np.array([[ellipse.cx], [ellipse.cy]]) + np.array([[c], [s]]) * x
+    q += np.array([[-s], [c]]) * y
+    uv = np.rint(q).astype(np.int64)
     h, w = image.shape[:2]
     # min(max()): np.clip's Python wrapper costs more than the two ufuncs here.
-    np.minimum(np.maximum(u, 0, out=u), w - 1, out=u)
-    np.minimum(np.maximum(v, 0, out=v), h - 1, out=v)
-    return column_median(image[v, u].astype(np.float64))
+    np.minimum(np.maximum(uv, 0, out=uv), np.array([[w - 1], [h - 1]]), out=uv)
+    values = image[uv[1], uv[0]]
+    if values.ndim == 1:
+        return column_median(values.astype(np.float64))
+    # The median of each channel from a sort of its integer values (the same order
+    # statistics as sorting them as floats).
+    ordered = np.sort(values.T, axis=1)
+    n = ordered.shape[1]
+    return np.asarray(0.5 * (ordered[:, (n - 1) // 2].astype(np.float64) + ordered[:, n // 2]),
+                      np.float64)
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -117,21 +133,34 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
     unit-radius face, camera frame (a unit-radius :class:`~stackpick_sim.vision.pose.
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
-    u, v = plane_basis(normal_cam)
+    u, v = _basis(normal_cam)
     ct, st = unit_circle(WALL_RIM_POINTS)
-    rim = centre_cam + ct[:, None] * u[None, :] + st[:, None] * v[None, :]
-    depth = np.asarray(depths)[:, None, None]
-    band = (rim[None, :, :] + depth * np.asarray(normal_cam)[None, None, :]).reshape(-1, 3)
-    pts = np.stack([intrinsics.fx * band[:, 0] / band[:, 2] + intrinsics.cx,
-                    intrinsics.fy * band[:, 1] / band[:, 2] + intrinsics.cy], axis=1)
+    # Component-major (3, depths, rim points): the rim at each depth along the normal.
+    rim = np.asarray(centre_cam, np.float64).reshape(3, 1) + ct * np.array(u).reshape(3, 1)
+    rim += st * np.array(v).reshape(3, 1)
+    band = rim[:, None, :] + (np.asarray(depths, np.float64).reshape(1, -1, 1)
+                              * np.asarray(normal_cam, np.float64).reshape(3, 1, 1))
+    return _outside(band.reshape(3, -1), ellipse, intrinsics)[0]
+
+
+def _outside(band: NDArray[np.float64], ellipse: Ellipse, intrinsics: CameraIntrinsics
+             ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The pixels (N, 2) of the (3, M) camera-frame points ``band`` that project more than
+    WALL_MARGIN_PX outside ``ellipse``, and which of the M they are."""
+    pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
+    pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
     th = math.radians(ellipse.angle_deg)
-    du, dv = pts[:, 0] - ellipse.cx, pts[:, 1] - ellipse.cy
-    x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
-    y = (-math.sin(th) * du + math.cos(th) * dv) / ellipse.b
+    c, s = math.cos(th), math.sin(th)
+    du, dv = pu - ellipse.cx, pv - ellipse.cy
+    x = (c * du + s * dv) / ellipse.a
+    y = (-s * du + c * dv) / ellipse.b
     # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses).
     rho = np.sqrt(x * x + y * y)
     outside = (rho - 1.0) * np.hypot(x * ellipse.a, y * ellipse.b) / np.maximum(rho, 1e-9)
-    return np.asarray(pts[outside > WALL_MARGIN_PX], np.float64)
+    keep = outside > WALL_MARGIN_PX
+    pts = np.empty((int(np.count_nonzero(keep)), 2))
+    pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
+    return pts, keep
 
 
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -165,31 +194,31 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
                    face: NDArray[np.float64]) -> list[WallEvidence]:
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
-    bases = [plane_basis(n) for n, _ in solutions]
-    normal = np.array([np.asarray(n, np.float64) for n, _ in solutions])  # (S, 3)
-    centre = np.array([np.asarray(c, np.float64) for _, c in solutions])
-    u = np.array([b[0] for b in bases])
-    v = np.array([b[1] for b in bases])
+    n_sol = len(solutions)
+    bases = [_basis(n) for n, _ in solutions]
+    # (3, solutions) each: normal, centre, u, v.
+    normal, centre, u, v = np.array(
+        [[np.asarray(n, np.float64) for n, _ in solutions],
+         [np.asarray(c, np.float64) for _, c in solutions],
+         [b[0] for b in bases], [b[1] for b in bases]], np.float64).reshape(4, n_sol, 3
+                                                                            ).transpose(0, 2, 1)
     ct, st = unit_circle(WALL_RIM_POINTS)
-    rim = centre[:, None, :] + ct[None, :, None] * u[:, None, :] + st[None, :, None] * v[:, None, :]
-    depth = np.asarray(WALL_DEPTH_FRACTIONS)[None, :, None, None]
-    band = (rim[:, None, :, :] + depth * normal[:, None, None, :]).reshape(-1, 3)
-    pu = intrinsics.fx * band[:, 0] / band[:, 2] + intrinsics.cx
-    pv = intrinsics.fy * band[:, 1] / band[:, 2] + intrinsics.cy
-    th = math.radians(ellipse.angle_deg)
-    du, dv = pu - ellipse.cx, pv - ellipse.cy
-    x = (math.cos(th) * du + math.sin(th) * dv) / ellipse.a
-    y = (-math.sin(th) * du + math.cos(th) * dv) / ellipse.b
-    rho = np.sqrt(x * x + y * y)
-    outside = (rho - 1.0) * np.hypot(x * ellipse.a, y * ellipse.b) / np.maximum(rho, 1e-9)
+    rim = centre[:, :, None] + ct * u[:, :, None]
+    rim += st * v[:, :, None]
+    # (3, solutions, depths, rim points), flattened in that order.
+    band = rim[:, :, None, :] + (np.asarray(WALL_DEPTH_FRACTIONS).reshape(1, 1, -1, 1)
+                                 * normal[:, :, None, None])
+    per = band.shape[2] * band.shape[3]
+    pts, keep = _outside(band.reshape(3, -1), ellipse, intrinsics)
     h, w = image.shape[:2]
-    qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
-    keep = (outside > WALL_MARGIN_PX) & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)
-    owner = np.repeat(np.arange(len(solutions)), band.shape[0] // len(solutions))[keep]
-    counts = np.bincount(owner, minlength=len(solutions))
+    q = np.rint(pts).astype(np.int64)
+    inside = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
+    owner = (keep.nonzero()[0] // per)[inside]
+    counts = np.bincount(owner, minlength=n_sol)
     colour = face.reshape(-1)
     face_sum = max(float(colour.sum()), 1.0)
-    cols = image[qv[keep], qu[keep]].astype(np.float64)
+    q = q[inside]
+    cols = image[q[:, 1], q[:, 0]].astype(np.float64)
     cols = cols[:, None] if cols.ndim == 1 else cols
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
@@ -197,7 +226,7 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
                           for n, c in solutions])
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
           & (sums <= brightest[owner]))
-    hits = np.bincount(owner, weights=ok, minlength=len(solutions))
+    hits = np.bincount(owner, weights=ok, minlength=n_sol)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
