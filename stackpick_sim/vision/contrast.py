@@ -16,6 +16,7 @@ at the noise level, so hidden arcs remain gaps.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -149,12 +150,11 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
         rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
     counts = np.array(sizes, np.int64)
-    offsets = np.zeros(len(sizes) + 1, np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    owner = np.repeat(np.arange(len(sizes)), counts)
-    local = np.arange(int(offsets[-1])) - offsets[owner]
+    offsets = np.array([0, *itertools.accumulate(sizes)], np.int64)
+    owner = np.arange(len(sizes)).repeat(counts)
+    local = np.arange(int(offsets[-1])) - offsets[:-1].repeat(counts)
     # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
-    cx, cy, a, b, c, s = np.repeat(np.array(rows, np.float64).reshape(-1, 6).T, counts, axis=1)
+    cx, cy, a, b, c, s = np.array(rows, np.float64).reshape(-1, 6).T.repeat(counts, axis=1)
     tables = [unit_circle(n) for n in sizes]
     ct = np.concatenate([t[0] for t in tables])
     st = np.concatenate([t[1] for t in tables])

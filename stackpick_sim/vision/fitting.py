@@ -42,6 +42,9 @@ MAX_AXIS_DIAGONALS = 1.0
 EQ2_CHECKED_RATIO_SQ = 1e6
 
 
+_INT32, _FLOAT32 = np.dtype(np.int32), np.dtype(np.float32)
+
+
 def fit_ellipse(points: NDArray) -> Ellipse | None:
     """Ellipse-specific fit of (N, 2) pixels (u, v); None if N < 5 or not an ellipse.
 
@@ -50,7 +53,9 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
     if points.shape[0] < 5:
         return None
     dtype = points.dtype
-    if dtype != np.int32 and dtype != np.float32:  # int32: half the call's cost unconverted
+    # int32: half the call's cost unconverted (dtypes of these types are singletons; any
+    # other, byte-swapped included, is converted).
+    if dtype is not _INT32 and dtype is not _FLOAT32:
         points = np.asarray(points, np.float32)
     (cx, cy), (w, h), angle = cv2.fitEllipseDirect(points)
     if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
@@ -60,8 +65,7 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
         a, b, ang = w / 2.0, h / 2.0, angle
     else:
         a, b, ang = h / 2.0, w / 2.0, angle + 90.0
-    ellipse = Ellipse(cx=float(cx), cy=float(cy), a=float(a), b=float(b),
-                      angle_deg=float(ang % 180.0))
+    ellipse = Ellipse.of(float(cx), float(cy), float(a), float(b), float(ang % 180.0))
     # Eq. 2's AB - H^2 equals (a / b)^2 > 0 up to rounding of terms of its square's size:
     # it can only fail on extreme axis ratios (the degenerate fits), so only those are checked.
     if (a / b) ** 2 > EQ2_CHECKED_RATIO_SQ and not satisfies_eq2(ellipse):

@@ -16,6 +16,7 @@ ellipses are computed together.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -30,7 +31,7 @@ from stackpick_sim.vision.fitting import (
     ellipse_distances,
     ellipse_params,
     fit_ellipse,
-    pair_distances,
+    grouped_distances,
     plausible,
     within_pairs,
 )
@@ -100,25 +101,33 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
     if not ellipses:
         return np.zeros(0)
-    counts = [max(16, math.ceil(perimeter_px(e))) for e in ellipses]
-    tables = [unit_circle(n) for n in counts]
-    ct = np.concatenate([t[0] for t in tables])
-    st = np.concatenate([t[1] for t in tables])
-    owner = np.repeat(np.arange(len(ellipses)), counts)
+    counts, rows = [], []
+    for e in ellipses:
+        counts.append(max(16, math.ceil(perimeter_px(e))))
+        t = math.radians(e.angle_deg)
+        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
+    ct = np.concatenate([unit_circle(n)[0] for n in counts])
+    st = np.concatenate([unit_circle(n)[1] for n in counts])
     # Each parameter repeated per sample as one contiguous row (a row gather of (E, 6) would
     # leave strided columns, slower in every operation below).
-    cx, cy, a, b, c, s = np.repeat(np.array(
-        [[e.cx, e.cy, e.a, e.b, math.cos(math.radians(e.angle_deg)),
-          math.sin(math.radians(e.angle_deg))] for e in ellipses]).T, counts, axis=1)
+    cx, cy, a, b, c, s = np.array(rows).T.repeat(counts, axis=1)
     x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
     u = np.rint(cx + c * x - s * y).astype(np.int64)
     v = np.rint(cy + s * x + c * y).astype(np.int64)
     h, w = support.shape
-    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    # Off-image samples are unsupported: only the inside ones are looked up (flat indices).
-    hit = support.ravel()[(v * w + u)[inside]] > 0
-    return np.asarray(np.bincount(owner[inside], weights=hit, minlength=len(ellipses))
-                      / np.asarray(counts), np.float64)
+    # Off-image samples are unsupported: clamped one pixel outside the map, onto a zero
+    # border added around it.
+    np.minimum(np.maximum(u, -1, out=u), w, out=u)
+    np.minimum(np.maximum(v, -1, out=v), h, out=v)
+    framed = cv2.copyMakeBorder(support, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    v += 1
+    v *= w + 2
+    v += u
+    v += 1
+    hit = framed.ravel()[v] > 0
+    owner = np.arange(len(counts)).repeat(counts)
+    return np.asarray(np.bincount(owner, weights=hit, minlength=len(ellipses))
+                      / np.array(counts), np.float64)
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
@@ -149,10 +158,10 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
         return []
     members: list[list[int]] = [[i] for i, _ in fits]
     ellipses: list[Ellipse | None] = [e for _, e in fits]
-    seg_of_piece = np.array([i for i, _ in fits])
+    seg_of_piece = [i for i, _ in fits]
     pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
     points = pixels.astype(np.float64)
-    owner = np.repeat(np.arange(len(fits)), [chains[i].shape[0] for i in seg_of_piece])
+    owner = np.arange(len(fits)).repeat([chains[i].shape[0] for i in seg_of_piece])
     # The (group, pixel) pairs within tolerance of the group's ellipse.
     pair_g, pair_p = within_pairs(ellipse_params([e for _, e in fits]), points,
                                   MERGE_TOLERANCE_PX)
@@ -201,7 +210,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     final = -np.ones(len(ellipses), np.int64)
     final[[g for g, e in enumerate(ellipses) if e is not None]] = np.arange(
         sum(e is not None for e in ellipses))
-    leading = bool(np.array_equal(seg_of_piece, np.arange(len(fits))))
+    leading = seg_of_piece == list(range(len(fits)))
     return _absorb_and_validate(chains, members, ellipses, edges,
                                 (final[pair_g], pair_p, points.shape[0]) if leading else None)
 
@@ -228,8 +237,10 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
+    sizes = [c.shape[0] for c in chains]
+    starts = np.array([0, *itertools.accumulate(sizes)], np.int64)
     all_points = np.concatenate(chains).astype(np.float64)
-    seg_id = np.repeat(np.arange(len(chains)), [c.shape[0] for c in chains])
+    seg_id = np.arange(len(chains)).repeat(sizes)
     params = ellipse_params([e for _, e in groups])
     # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
     if known is None:
@@ -239,7 +250,7 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         g_rest, p_rest = within_pairs(params, all_points[done:], MERGE_TOLERANCE_PX)
         g_on = np.concatenate([g_known, g_rest])
         p_on = np.concatenate([p_known, p_rest + done])
-    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    lengths = np.array(sizes, np.float64)
     hits = np.bincount(g_on * len(chains) + seg_id[p_on],
                        minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
     frac = hits / lengths[None, :]
@@ -249,20 +260,28 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         """RMS residual of each (ellipse, segments) pair, all in one pass."""
         if not pairs:
             return []
-        # Each pair's pixels in ascending order (the order of the sums does not change): the
-        # (pair, pixel) pairs of a (pairs x pixels) membership mask, in one call.
-        member = np.zeros((len(pairs), len(chains)), bool)
-        for k, (_, segs) in enumerate(pairs):
-            member[k, segs] = True
-        which, at = np.nonzero(member[:, seg_id])
-        d = pair_distances(ellipse_params([e for e, _ in pairs]), all_points, which, at)
+        # Each pair's pixels in ascending order (its segments ascending, each segment's
+        # pixel range in turn): the order of the sums does not change.
+        segs_all: list[int] = []
+        count = []
+        for _, segs in pairs:
+            ordered = sorted(set(segs))
+            segs_all += ordered
+            count.append(sum(sizes[k] for k in ordered))
+        first = starts[segs_all]
+        lens = starts[np.array(segs_all) + 1] - first
+        at = np.arange(sum(count)) + (first - (lens.cumsum() - lens)).repeat(lens)
+        d = grouped_distances(ellipse_params([e for e, _ in pairs]), np.array(count),
+                              all_points[:, 0][at], all_points[:, 1][at])
+        which = np.arange(len(pairs)).repeat(count)
         return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
-                       / np.bincount(which, minlength=len(pairs))).tolist()
+                       / np.array(count)).tolist()
 
     # Refit each group with the segments lying on it; residuals of all refits at once.
     lying: list[list[int]] = [[] for _ in groups]
-    for g, s in zip(*(frac >= ABSORB_FRACTION).nonzero(), strict=True):
-        lying[g].append(int(s))
+    on_g, on_s = (frac >= ABSORB_FRACTION).nonzero()
+    for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
+        lying[g].append(s)
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     refits: dict[int, Ellipse | None] = {}
     for g, (segs, _) in enumerate(groups):
@@ -291,9 +310,9 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     todo = [g for g in range(len(finals)) if g not in residuals]
     residuals.update(zip(todo, rms([(finals[g][1], finals[g][0]) for g in todo]),
                          strict=True))
-    shares = support_shares([e for _, e in finals], support_map(edges))
+    shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse(ellipse=e, segments=tuple(segs), residual_px=residuals[k],
-                         support=float(shares[k]))
+                         support=shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
     out.sort(key=lambda m: -m.support)
     return out

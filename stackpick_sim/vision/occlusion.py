@@ -173,10 +173,12 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     cx, cy, reach = geo[:, 0:1], geo[:, 1:2], geo[:, 2:3]
     du = edge_points[:, 0] - cx
     dv = edge_points[:, 1] - cy
-    pe, pm = np.nonzero((np.abs(du) <= reach) & (np.abs(dv) <= reach))  # local pairs
+    pe, pm = ((np.abs(du) <= reach) & (np.abs(dv) <= reach)).nonzero()  # local pairs
     at = pe * edge_points.shape[0] + pm
     pdu, pdv = du.ravel()[at], dv.ravel()[at]
-    pc, ps, pa, pb, a_in, b_in, a_int, b_int = geo.T[3:][:, pe]
+    # The pairs run ellipse by ellipse: each ellipse's parameters repeated per pair.
+    per = np.bincount(pe, minlength=n_e)
+    pc, ps, pa, pb, a_in, b_in, a_int, b_int = geo.T[3:].repeat(per, axis=1)
     xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
     x, y = xr / pa, yr / pb
     # Sampson distance, as fitting.distances.
@@ -190,8 +192,8 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples.
     before, after = lines.cyclic(-1), lines.cyclic(1)
-    firsts = np.flatnonzero(~ok & ok[before])
-    lasts = np.flatnonzero(~ok & ok[after])
+    firsts = (~ok & ok[before]).nonzero()[0]
+    lasts = (~ok & ok[after]).nonzero()[0]
     sizes = counts.tolist()
     offsets = lines.offsets
     longest = [0 if ok[base] else n for base, n in zip(offsets[:-1].tolist(), sizes,
@@ -201,8 +203,8 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         # Each run's last sample: the first last at or after its first in its outline, else
         # (the run wraps round the outline's start) the outline's first last.
         owner = lines.owner[firsts]
-        j = np.searchsorted(lasts, firsts)
-        lo = np.searchsorted(lasts, offsets[:-1])
+        j = lasts.searchsorted(firsts)
+        lo = lasts.searchsorted(offsets[:-1])
         wrapped = lasts[np.minimum(j, lasts.size - 1)] >= offsets[1:][owner]
         wrapped |= j >= lasts.size
         stop = lasts[np.where(wrapped, lo[owner], j)]
@@ -213,18 +215,18 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                 runs[k] = length
         for k, length in runs.items():
             longest[k] = length
-        gap = lengths >= MIN_GAP_PX
-        ends = np.stack([before[firsts[gap]], after[stop[gap]]], axis=1).ravel()
+        gap = (lengths >= MIN_GAP_PX).nonzero()[0]
+        ends = np.concatenate([before[firsts[gap]], after[stop[gap]]])
     occluded_ends = [0] * n_e
-    off = np.flatnonzero(off_curve)
+    off = off_curve.nonzero()[0]
     if ends.size and off.size:
         end_e = lines.owner[ends]
         # Each end against the off-curve pairs of its own ellipse (a contiguous range: the
         # pairs run ellipse by ellipse).
-        bounds = np.searchsorted(pe[off], np.arange(n_e + 1))
+        bounds = pe[off].searchsorted(np.arange(n_e + 1))
         first, size = bounds[end_e], bounds[end_e + 1] - bounds[end_e]
-        which = np.repeat(np.arange(ends.size), size)
-        pick = off[np.arange(which.size) - np.repeat(np.cumsum(size) - size - first, size)]
+        which = np.arange(ends.size).repeat(size)
+        pick = off[np.arange(which.size) - (size.cumsum() - size - first).repeat(size)]
         end_u, end_v = samples[ends, 0][which], samples[ends, 1][which]
         at_m = pm[pick]
         d2 = (edge_points[at_m, 0] - end_u) ** 2 + (edge_points[at_m, 1] - end_v) ** 2

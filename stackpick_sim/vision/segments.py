@@ -187,7 +187,7 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     # The end-point test of all contour pixels at once, then each contour's share of it.
     every = np.concatenate(kept)
     is_end_px = is_end.ravel()[every[:, 1] * edges.shape[1] + every[:, 0]]
-    end_at = np.flatnonzero(is_end_px).tolist()
+    end_at = is_end_px.nonzero()[0].tolist()
     k = 0
     start = 0
     for pts in kept:
