@@ -311,9 +311,13 @@ def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
     if image.ndim != 3:
         return None
     chroma = _chromaticities(colours)
+    # The top rule asks for a face's radius several times (rest test, depth test).
+    known: dict[Ellipse, float | None] = {}
 
     def radius_of(ellipse: Ellipse) -> float | None:
-        return _nearest_kind(face_colour(ellipse, image), chroma, radii)
+        if ellipse not in known:
+            known[ellipse] = _nearest_kind(face_colour(ellipse, image), chroma, radii)
+        return known[ellipse]
 
     return radius_of
 

@@ -176,7 +176,7 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    cx, cy, a, b, c, s = np.repeat(rows, counts, axis=1)
+    cx, cy, a, b, c, s = rows.repeat(counts, axis=1)
     du, dv = pu - cx, pv - cy
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
@@ -273,7 +273,7 @@ def fit_pieces(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             counts = np.array([f[0][3].shape[0] for f in fitted])
             d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[:, 0],
                                   pts[:, 1])
-            which = np.repeat(np.arange(len(fitted)), counts)
+            which = np.arange(len(fitted)).repeat(counts)
             rms = np.sqrt(np.bincount(which, weights=d * d) / counts)
             for (p, e), r in zip(fitted, rms.tolist(), strict=True):
                 if r > MAX_RESIDUAL_PX:
@@ -298,10 +298,10 @@ def _bows(pieces: list[NDArray]) -> list[float]:
         return []
     p = np.concatenate(pieces).astype(np.float64)
     counts = np.array([q.shape[0] for q in pieces])
-    which = np.repeat(np.arange(len(pieces)), counts)
+    which = np.arange(len(pieces)).repeat(counts)
     mean_u = np.bincount(which, weights=p[:, 0]) / counts
     mean_v = np.bincount(which, weights=p[:, 1]) / counts
-    cu, cv = p[:, 0] - mean_u[which], p[:, 1] - mean_v[which]
+    cu, cv = p[:, 0] - mean_u.repeat(counts), p[:, 1] - mean_v.repeat(counts)
     sxx = np.bincount(which, weights=cu * cu)
     syy = np.bincount(which, weights=cv * cv)
     sxy = np.bincount(which, weights=cu * cv)

@@ -290,7 +290,7 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     is given. With neither, the smaller tilt is taken. ``face_rgb``: the face's (3,) colour in
     ``image`` (:func:`~stackpick_sim.vision.wall.face_colour`) when the caller has it.
     """
-    unit = circle_poses(ellipse, intrinsics, 1.0)
+    unit = _unit_circle_poses(ellipse, intrinsics)  # shared, read-only: not modified here
     radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
     tilts = [math.acos(min(1.0, float(s.normal_cam[2]))) for s in unit]
     best: int | None = None
@@ -315,5 +315,5 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     tx, ty = tilt_angles(chosen.normal_cam)
     return Pose(x=intrinsics.fx * cx / cz + intrinsics.cx,
                 y=intrinsics.fy * cy / cz + intrinsics.cy, theta_x_deg=tx, theta_y_deg=ty,
-                depth_m=cz, radius_m=radius, normal_cam=chosen.normal_cam,
+                depth_m=cz, radius_m=radius, normal_cam=chosen.normal_cam.copy(),
                 centre_cam=centre, wall_support=(scores[best], scores[1 - best]))

@@ -147,6 +147,17 @@ def _outside(band: NDArray[np.float64], ellipse: Ellipse, intrinsics: CameraIntr
              ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """The pixels (N, 2) of the (3, M) camera-frame points ``band`` that project more than
     WALL_MARGIN_PX outside ``ellipse``, and which of the M they are."""
+    pu, pv, keep = _project_outside(band, ellipse, intrinsics)
+    pts = np.empty((int(np.count_nonzero(keep)), 2))
+    pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
+    return pts, keep
+
+
+def _project_outside(band: NDArray[np.float64], ellipse: Ellipse,
+                     intrinsics: CameraIntrinsics
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """The pixels u, v (M,) each of the (3, M) camera-frame points ``band`` and which of
+    them lie more than WALL_MARGIN_PX outside ``ellipse``."""
     pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
     pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
     th = math.radians(ellipse.angle_deg)
@@ -157,10 +168,7 @@ def _outside(band: NDArray[np.float64], ellipse: Ellipse, intrinsics: CameraIntr
     # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses).
     rho = np.sqrt(x * x + y * y)
     outside = (rho - 1.0) * np.hypot(x * ellipse.a, y * ellipse.b) / np.maximum(rho, 1e-9)
-    keep = outside > WALL_MARGIN_PX
-    pts = np.empty((int(np.count_nonzero(keep)), 2))
-    pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
-    return pts, keep
+    return pu, pv, outside > WALL_MARGIN_PX
 
 
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -198,10 +206,9 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     bases = [_basis(n) for n, _ in solutions]
     # (3, solutions) each: normal, centre, u, v.
     normal, centre, u, v = np.array(
-        [[np.asarray(n, np.float64) for n, _ in solutions],
-         [np.asarray(c, np.float64) for _, c in solutions],
-         [b[0] for b in bases], [b[1] for b in bases]], np.float64).reshape(4, n_sol, 3
-                                                                            ).transpose(0, 2, 1)
+        [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
+         [np.asarray(c, np.float64).tolist() for _, c in solutions],
+         [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
     ct, st = unit_circle(WALL_RIM_POINTS)
     rim = centre[:, :, None] + ct * u[:, :, None]
     rim += st * v[:, :, None]
@@ -209,16 +216,15 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     band = rim[:, :, None, :] + (np.asarray(WALL_DEPTH_FRACTIONS).reshape(1, 1, -1, 1)
                                  * normal[:, :, None, None])
     per = band.shape[2] * band.shape[3]
-    pts, keep = _outside(band.reshape(3, -1), ellipse, intrinsics)
+    pu, pv, keep = _project_outside(band.reshape(3, -1), ellipse, intrinsics)
     h, w = image.shape[:2]
-    q = np.rint(pts).astype(np.int64)
-    inside = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
-    owner = (keep.nonzero()[0] // per)[inside]
+    qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
+    take = (keep & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
+    owner = take // per
     counts = np.bincount(owner, minlength=n_sol)
     colour = face.reshape(-1)
     face_sum = max(float(colour.sum()), 1.0)
-    q = q[inside]
-    cols = image[q[:, 1], q[:, 0]].astype(np.float64)
+    cols = image[qv[take], qu[take]].astype(np.float64)
     cols = cols[:, None] if cols.ndim == 1 else cols
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
