@@ -244,33 +244,25 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
     residuals of all pieces of one level are one array pass each (only the direct fit runs
     per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
     order :func:`fit_or_split` gives them chain after chain."""
-    return [(i, pts, e, r) for i, _, pts, e, r in fit_pieces(chains, shape, depth)]
-
-
-def fit_pieces(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
-               ) -> list[tuple[int, int, NDArray, Ellipse, float]]:
-    """:func:`fit_all` with where each piece starts in its chain: (chain index, start,
-    points, ellipse, residual) per accepted piece; ``points`` is ``chains[i][start:start +
-    len(points)]`` (a view)."""
-    # (chain index, split path, start, points): the path orders the pieces as the recursion.
-    pending: list[tuple[int, str, int, NDArray]] = [(i, "", 0, c) for i, c in enumerate(chains)]
-    found: list[tuple[tuple[int, str], int, NDArray, Ellipse, float]] = []
+    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
+    found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     for level in range(depth + 1):
         if not pending:
             break
-        long_enough = [p for p in pending if p[3].shape[0] >= MIN_FIT_PX]
-        bows = _bows([p[3] for p in long_enough])
-        fitted: list[tuple[tuple[int, str, int, NDArray], Ellipse]] = []
-        failed = [p for p in pending if p[3].shape[0] < MIN_FIT_PX]
+        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
+        bows = _bows([p[2] for p in long_enough])
+        fitted: list[tuple[tuple[int, str, NDArray], Ellipse]] = []
+        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
         for p, bow in zip(long_enough, bows, strict=True):
-            e = fit_ellipse(p[3]) if bow >= MIN_BOW_PX else None
+            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
             if e is None or not plausible(e, shape):
                 failed.append(p)
             else:
                 fitted.append((p, e))
         if fitted:
-            pts = np.concatenate([f[0][3] for f in fitted]).astype(np.float64)
-            counts = np.array([f[0][3].shape[0] for f in fitted])
+            pts = np.concatenate([f[0][2] for f in fitted]).astype(np.float64)
+            counts = np.array([f[0][2].shape[0] for f in fitted])
+            # The pieces' pixels run piece by piece: each fit's parameters repeated.
             d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[:, 0],
                                   pts[:, 1])
             which = np.arange(len(fitted)).repeat(counts)
@@ -279,17 +271,16 @@ def fit_pieces(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
                 if r > MAX_RESIDUAL_PX:
                     failed.append(p)
                 else:
-                    found.append(((p[0], p[1]), p[2], p[3], e, r))
+                    found.append(((p[0], p[1]), p[2], e, r))
         pending = []
         if level == depth:
             break
-        for i, path, start, pts_ in failed:
+        for i, path, pts_ in failed:
             if pts_.shape[0] >= 2 * MIN_FIT_PX:
                 half = pts_.shape[0] // 2
-                pending += [(i, path + "0", start, pts_[:half]),
-                            (i, path + "1", start + half, pts_[half:])]
+                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
     found.sort(key=lambda f: f[0])
-    return [(key[0], start, pts_, e, r) for key, start, pts_, e, r in found]
+    return [(key[0], pts_, e, r) for key, pts_, e, r in found]
 
 
 def _bows(pieces: list[NDArray]) -> list[float]:

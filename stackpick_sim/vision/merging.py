@@ -159,12 +159,29 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     members: list[list[int]] = [[i] for i, _ in fits]
     ellipses: list[Ellipse | None] = [e for _, e in fits]
     seg_of_piece = [i for i, _ in fits]
-    pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
-    points = pixels.astype(np.float64)
+    leading = seg_of_piece == list(range(len(fits)))
+    params = ellipse_params([e for _, e in fits])
+    rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+    everything: NDArray[np.float64] | None = None
+    if leading:
+        # The pieces lead ``chains``: the (group, pixel) pairs of their pixels and of all the
+        # later chains' in one pass; the latter serve the absorbing step while no merge
+        # changes an ellipse.
+        all_pixels = np.concatenate(chains)
+        all_points = all_pixels.astype(np.float64)
+        done = sum(chains[i].shape[0] for i in seg_of_piece)
+        pixels, points = all_pixels[:done], all_points[:done]  # int32: the fits' input
+        g_all, p_all = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
+        piece = p_all < done
+        pair_g, pair_p = g_all[piece], p_all[piece]
+        rest = (g_all[~piece], p_all[~piece])
+        everything = all_points
+    else:
+        pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
+        points = pixels.astype(np.float64)
+        # The (group, pixel) pairs within tolerance of the group's ellipse.
+        pair_g, pair_p = within_pairs(params, points, MERGE_TOLERANCE_PX)
     owner = np.arange(len(fits)).repeat([chains[i].shape[0] for i in seg_of_piece])
-    # The (group, pixel) pairs within tolerance of the group's ellipse.
-    pair_g, pair_p = within_pairs(ellipse_params([e for _, e in fits]), points,
-                                  MERGE_TOLERANCE_PX)
     refused: set[tuple[int, int]] = set()
     changed = True
     while changed:
@@ -198,6 +215,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
                 c[bi, bj] = c[bj, bi] = 0.0
                 continue
             ellipses[gi], ellipses[gj] = merged, None
+            rest = None  # the later chains' pairs are for the fits as they were
             members[gi] += members[gj]
             owner[owner == gj] = gi
             other = (pair_g != gi) & (pair_g != gj)
@@ -210,9 +228,9 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     final = -np.ones(len(ellipses), np.int64)
     final[[g for g, e in enumerate(ellipses) if e is not None]] = np.arange(
         sum(e is not None for e in ellipses))
-    leading = seg_of_piece == list(range(len(fits)))
     return _absorb_and_validate(chains, members, ellipses, edges,
-                                (final[pair_g], pair_p, points.shape[0]) if leading else None)
+                                (final[pair_g], pair_p, points.shape[0]) if leading else None,
+                                rest, everything)
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
@@ -228,18 +246,23 @@ def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tupl
 
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
                          ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
-                         known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None
+                         known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None,
+                         rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+                         everything: NDArray[np.float64] | None = None
                          ) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit, keep supported ones.
 
     ``known``: (group, pixel) index pairs (K,) each of the first P pixels of ``chains`` that
-    lie on each final ellipse, and P, when already computed."""
+    lie on each final ellipse, and P, when already computed; ``rest``: the pairs of the other
+    pixels too (pixel indices into all of ``chains``), when also computed; ``everything``:
+    all the chains' pixels concatenated (float64), when at hand."""
     groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
     if not groups:
         return []
     sizes = [c.shape[0] for c in chains]
     starts = np.array([0, *itertools.accumulate(sizes)], np.int64)
-    all_points = np.concatenate(chains).astype(np.float64)
+    all_points = (np.concatenate(chains).astype(np.float64) if everything is None
+                  else everything)
     seg_id = np.arange(len(chains)).repeat(sizes)
     params = ellipse_params([e for _, e in groups])
     # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
@@ -247,9 +270,13 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         g_on, p_on = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
     else:
         g_known, p_known, done = known
-        g_rest, p_rest = within_pairs(params, all_points[done:], MERGE_TOLERANCE_PX)
+        if rest is None:
+            g_rest, p_rest = within_pairs(params, all_points[done:], MERGE_TOLERANCE_PX)
+            p_rest = p_rest + done
+        else:
+            g_rest, p_rest = rest
         g_on = np.concatenate([g_known, g_rest])
-        p_on = np.concatenate([p_known, p_rest + done])
+        p_on = np.concatenate([p_known, p_rest])
     lengths = np.array(sizes, np.float64)
     hits = np.bincount(g_on * len(chains) + seg_id[p_on],
                        minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
