@@ -20,6 +20,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -205,7 +206,7 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     for shift in range(-(k // 2), k // 2 + 1):
         if shift:
             total += best[lines.cyclic(shift)]
-    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
+    return cast(NDArray[np.float64], np.abs(total / k) / SOBEL_GAIN)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

@@ -493,8 +493,7 @@ def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:
     if du == dv == 0:
         return ellipse
     # Built directly: dataclasses.replace costs several times the constructor.
-    return Ellipse(cx=ellipse.cx + du, cy=ellipse.cy + dv, a=ellipse.a, b=ellipse.b,
-                   angle_deg=ellipse.angle_deg)
+    return Ellipse.of(ellipse.cx + du, ellipse.cy + dv, ellipse.a, ellipse.b, ellipse.angle_deg)
 
 
 def detect(image: NDArray, config: DetectorConfig | None = None) -> Detection:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -71,7 +72,7 @@ class MergedEllipse:
 def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """(H, W) 0/1 map of pixels within SUPPORT_RADIUS_PX (Chebyshev) of an edge pixel."""
     side = 2 * SUPPORT_RADIUS_PX + 1
-    return np.asarray(cv2.dilate(edges, np.ones((side, side), np.uint8)), np.uint8)
+    return cast(NDArray[np.uint8], cv2.dilate(edges, np.ones((side, side), np.uint8)))
 
 
 def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
@@ -126,8 +127,8 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     v += 1
     hit = framed.ravel()[v] > 0
     owner = np.arange(len(counts)).repeat(counts)
-    return np.asarray(np.bincount(owner, weights=hit, minlength=len(ellipses))
-                      / np.array(counts), np.float64)
+    return cast(NDArray[np.float64], np.bincount(owner, weights=hit, minlength=len(ellipses))
+                / np.array(counts))
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
@@ -139,7 +140,7 @@ def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64
     hits = np.bincount(ellipse_of * n_groups + pixel_group,
                        minlength=n_groups * n_groups).reshape(n_groups, n_groups)
     counts = np.bincount(owner, minlength=n_groups).astype(np.float64)
-    return np.asarray(hits / np.maximum(counts, 1.0), np.float64)
+    return cast(NDArray[np.float64], hits / np.maximum(counts, 1.0))
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],

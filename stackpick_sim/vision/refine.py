@@ -16,6 +16,7 @@ faint arcs included, with outliers dropped (:func:`refine_on_profile`).
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -162,8 +163,8 @@ def _along_mask(ellipse: Ellipse, u: NDArray[np.float64], v: NDArray[np.float64]
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
     # |unit normal . gradient|, the normal rotated back to the image frame.
     cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
-    return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
-                      np.bool_)
+    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
+    return cast(NDArray[np.bool_], keep)
 
 
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
@@ -254,8 +255,8 @@ def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
     norm = np.sqrt(gx * gx + gy * gy)
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
     cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
-    return np.asarray((dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12)),
-                      np.bool_)
+    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
+    return cast(NDArray[np.bool_], keep)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
