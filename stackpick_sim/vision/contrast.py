@@ -206,7 +206,7 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     for shift in range(-(k // 2), k // 2 + 1):
         if shift:
             total += best[lines.cyclic(shift)]
-    return cast(NDArray[np.float64], np.abs(total / k) / SOBEL_GAIN)
+    return cast("NDArray[np.float64]", np.abs(total / k) / SOBEL_GAIN)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

@@ -103,14 +103,14 @@ def _planes(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], ...]:
     """The channels of an (H, W) or (H, W, C) uint8 image, each (H, W) contiguous."""
     if image.ndim == 2:
         return (image,)
-    return tuple(cast(NDArray[np.uint8], cv2.extractChannel(image, c))
+    return tuple(cast("NDArray[np.uint8]", cv2.extractChannel(image, c))
                  for c in range(image.shape[2]))
 
 
 def _sobel_pair(plane: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
     """3x3 Sobel (dx, dy), (H, W) int16 each, of an (H, W) uint8 plane (one OpenCV call)."""
     dx, dy = cv2.spatialGradient(plane)
-    return cast(NDArray[np.int16], dx), cast(NDArray[np.int16], dy)
+    return cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
 
 
 def _plane_gradients(planes: tuple[NDArray[np.uint8], ...]
@@ -212,7 +212,7 @@ STAIR_LUTS = _stair_luts()
 
 def neighbour_codes(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """(H, W) uint8 8-bit code of each pixel's set neighbours in a 0/1 image (see RING)."""
-    return cast(NDArray[np.uint8], cv2.filter2D(binary, cv2.CV_8U, RING_KERNEL,
+    return cast("NDArray[np.uint8]", cv2.filter2D(binary, cv2.CV_8U, RING_KERNEL,
                                                 borderType=cv2.BORDER_CONSTANT))
 
 
@@ -225,11 +225,11 @@ def remove_stairs(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     OpenCV's ``ximgproc.thinning`` leaves them in place and costs 10x more here.
     """
     # 0/1: on uint8, a binary threshold at 0 is (x > 0) in one call.
-    b = (cast(NDArray[np.uint8], cv2.threshold(edges, 0, 1, cv2.THRESH_BINARY)[1])
+    b = (cast("NDArray[np.uint8]", cv2.threshold(edges, 0, 1, cv2.THRESH_BINARY)[1])
          if edges.dtype == np.uint8 else (edges > 0).astype(np.uint8))
     for lut in STAIR_LUTS:
         removable = cv2.LUT(neighbour_codes(b), lut)
-        b = cast(NDArray[np.uint8], cv2.subtract(b, cv2.bitwise_and(removable, b)))
+        b = cast("NDArray[np.uint8]", cv2.subtract(b, cv2.bitwise_and(removable, b)))
     return b
 
 
@@ -252,11 +252,12 @@ def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
     """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image."""
     # The colour image blurred in one call (the same values as channel by channel, at about
     # half the cost), then split into the planes the gradients need.
-    blurred = cast(NDArray[np.uint8], cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE),
-                                                       GAUSSIAN_SIGMA_PX))
+    blurred = cast("NDArray[np.uint8]",
+                   cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE), GAUSSIAN_SIGMA_PX))
     gx, gy = _plane_gradients(_planes(blurred))
     low, high, noise = adaptive_thresholds(gx, gy)
-    edges = remove_stairs(cast(NDArray[np.uint8], cv2.Canny(gx, gy, low, high, L2gradient=True)))
+    canny = cv2.Canny(gx, gy, low, high, L2gradient=True)
+    edges = remove_stairs(cast("NDArray[np.uint8]", canny))
     return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)
 
 

@@ -129,7 +129,7 @@ def _scalar_distances(cx: float, cy: float, a: float, b: float, t: float, points
     y = (-s * du + c * dv) / b
     q = x * x + y * y - 1.0
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
-    return cast(NDArray[np.float64], np.abs(q) / grad)
+    return cast("NDArray[np.float64]", np.abs(q) / grad)
 
 
 def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
@@ -165,7 +165,7 @@ def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
-    return cast(NDArray[np.float64], np.abs(x * x + y * y - 1.0) / grad)
+    return cast("NDArray[np.float64]", np.abs(x * x + y * y - 1.0) / grad)
 
 
 def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
@@ -182,7 +182,7 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
     grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
-    return cast(NDArray[np.float64], np.abs(x * x + y * y - 1.0) / grad)
+    return cast("NDArray[np.float64]", np.abs(x * x + y * y - 1.0) / grad)
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:

@@ -72,7 +72,7 @@ class MergedEllipse:
 def support_map(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """(H, W) 0/1 map of pixels within SUPPORT_RADIUS_PX (Chebyshev) of an edge pixel."""
     side = 2 * SUPPORT_RADIUS_PX + 1
-    return cast(NDArray[np.uint8], cv2.dilate(edges, np.ones((side, side), np.uint8)))
+    return cast("NDArray[np.uint8]", cv2.dilate(edges, np.ones((side, side), np.uint8)))
 
 
 def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
@@ -127,7 +127,7 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     v += 1
     hit = framed.ravel()[v] > 0
     owner = np.arange(len(counts)).repeat(counts)
-    return cast(NDArray[np.float64], np.bincount(owner, weights=hit, minlength=len(ellipses))
+    return cast("NDArray[np.float64]", np.bincount(owner, weights=hit, minlength=len(ellipses))
                 / np.array(counts))
 
 
@@ -140,7 +140,7 @@ def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64
     hits = np.bincount(ellipse_of * n_groups + pixel_group,
                        minlength=n_groups * n_groups).reshape(n_groups, n_groups)
     counts = np.bincount(owner, minlength=n_groups).astype(np.float64)
-    return cast(NDArray[np.float64], hits / np.maximum(counts, 1.0))
+    return cast("NDArray[np.float64]", hits / np.maximum(counts, 1.0))
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],

@@ -164,7 +164,7 @@ def _along_mask(ellipse: Ellipse, u: NDArray[np.float64], v: NDArray[np.float64]
     # |unit normal . gradient|, the normal rotated back to the image frame.
     cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
     keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
-    return cast(NDArray[np.bool_], keep)
+    return cast("NDArray[np.bool_]", keep)
 
 
 def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.float64],
@@ -256,7 +256,7 @@ def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
     dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
     cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
     keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
-    return cast(NDArray[np.bool_], keep)
+    return cast("NDArray[np.bool_]", keep)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX

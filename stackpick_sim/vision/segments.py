@@ -62,7 +62,7 @@ def neighbour_count(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """
     box = cv2.boxFilter(binary, cv2.CV_8U, (3, 3), normalize=False,
                         borderType=cv2.BORDER_CONSTANT)
-    return cast(NDArray[np.uint8], cv2.subtract(box, binary))
+    return cast("NDArray[np.uint8]", cv2.subtract(box, binary))
 
 
 def find_junctions(edges: NDArray[np.uint8]) -> NDArray[np.bool_]:
