@@ -226,27 +226,17 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     return current
 
 
-def _along_columns(ellipses: list[Ellipse], which: NDArray[np.int64],
-                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
-    """(K,) bool: :func:`_along`'s test for K (ellipse ``which``, pixel) pairs given as
-    columns (u, v, gu, gv), each (K,): pixel and unit gradient."""
-    order = np.argsort(which, kind="stable")
-    keep = np.empty(which.shape[0], bool)
-    keep[order] = _along_grouped(ellipses, np.bincount(which, minlength=len(ellipses)),
-                                 tuple(c[order] for c in cols), tol_px)
-    return keep
-
-
 def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
                    cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
-    """:func:`_along_columns` of pairs that run ellipse by ellipse: the first ``counts[0]``
-    of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its parameters repeated, not
-    gathered: the same values)."""
+    """(K,) bool: :func:`_along`'s test of K (ellipse, pixel) pairs given as columns (u, v,
+    gu, gv), each (K,): pixel and unit gradient. The pairs run ellipse by ellipse: the first
+    ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its parameters
+    repeated per pair)."""
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(t), math.sin(t)))
-    cx, cy, ia, ib, c, s = np.repeat(np.array(rows, np.float64).T, counts, axis=1)
+    cx, cy, ia, ib, c, s = np.array(rows, np.float64).T.repeat(counts, axis=1)
     u, v, gu, gv = cols
     du, dv = u - cx, v - cy
     x = (c * du + s * dv) * ia
