@@ -115,9 +115,13 @@ def _eigh(q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float
     (the same values; the wrapper's checks and error state cost three times the
     decomposition), the wrapper itself when that is unavailable or does not converge."""
     if _EIGH_LO is not None:
-        evals, evecs = _EIGH_LO(q, signature="d->dd")
-        if np.isfinite(evals).all():
-            return evals, evecs
+        try:
+            evals, evecs = _EIGH_LO(q, signature="d->dd")
+        except TypeError:  # pragma: no cover - another numpy's gufunc signature
+            pass
+        else:
+            if np.isfinite(evals).all():
+                return evals, evecs
     evals, evecs = np.linalg.eigh(q)
     return evals, evecs
 

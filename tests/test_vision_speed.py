@@ -1,0 +1,59 @@
+"""The detector's speed helpers give what the plain forms give."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import outlines
+from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
+from stackpick_sim.vision.pose import _eigh
+from stackpick_sim.vision.wall import _floats
+
+RNG = np.random.default_rng(7)
+ELLIPSES = [Ellipse(cx=float(RNG.uniform(0, 200)), cy=float(RNG.uniform(0, 200)),
+                    a=float(a), b=float(a * RNG.uniform(0.3, 1.0)),
+                    angle_deg=float(RNG.uniform(0, 180)))
+            for a in RNG.uniform(3.0, 60.0, 7)]
+
+
+def test_ellipse_of_is_the_constructor() -> None:
+    e = Ellipse.of(1.5, 2.5, 30.0, 20.0, 45.0)
+    plain = Ellipse(cx=1.5, cy=2.5, a=30.0, b=20.0, angle_deg=45.0)
+    assert e == plain and hash(e) == hash(plain) and repr(e) == repr(plain)
+    with pytest.raises(AttributeError):
+        e.cx = 3.0  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("shift", [-20, -17, -16, -2, -1, 0, 1, 2, 15, 16, 40])
+def test_cyclic_index_is_the_modular_one(shift: int) -> None:
+    lines = outlines(ELLIPSES)
+    starts = lines.offsets[lines.owner]
+    counts = lines.counts[lines.owner]
+    np.testing.assert_array_equal(lines.cyclic(shift),
+                                  starts + (lines.local + shift) % counts)
+
+
+def test_grouped_distances_are_pair_distances() -> None:
+    params = ellipse_params(ELLIPSES)
+    counts = RNG.integers(0, 30, len(ELLIPSES))
+    which = np.repeat(np.arange(len(ELLIPSES)), counts)
+    points = RNG.uniform(-20, 220, (which.size, 2))
+    np.testing.assert_array_equal(
+        grouped_distances(params, counts, points[:, 0].copy(), points[:, 1].copy()),
+        pair_distances(params, points, which, np.arange(which.size)))
+
+
+def test_eigh_is_numpys() -> None:
+    for _ in range(20):
+        m = RNG.normal(size=(3, 3))
+        m = m + m.T
+        for got, want in zip(_eigh(m), np.linalg.eigh(m), strict=True):
+            np.testing.assert_array_equal(got, want)
+
+
+def test_floats_of_arrays_and_sequences() -> None:
+    assert _floats(np.array([1.0, -2.5, 3.25])) == [1.0, -2.5, 3.25]
+    assert _floats(np.array([1.0, 2.0, 3.0], np.float32)) == [1.0, 2.0, 3.0]
+    assert _floats((1, 2, 3)) == [1.0, 2.0, 3.0]
