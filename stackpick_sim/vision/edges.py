@@ -142,7 +142,8 @@ def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16]
         return (MIN_HIGH_THRESHOLD * LOW_RATIO * SOBEL_GAIN, MIN_HIGH_THRESHOLD * SOBEL_GAIN,
                 0.0)
     k50, k99 = mag.size // 2, min(mag.size - 1, int(0.99 * mag.size))
-    part = np.partition(mag, (k50, k99))
+    mag.partition((k50, k99))  # in place: mag is this function's own array
+    part = mag
     high = max(MIN_HIGH_THRESHOLD, NOISE_MULTIPLE * float(part[k50]),
                CONTRAST_FRACTION * float(part[k99]))
     return LOW_RATIO * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
@@ -157,7 +158,8 @@ def noise_level(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> float:
     if mag.size == 0:
         return 0.0
     k50 = mag.size // 2
-    return float(np.partition(mag, k50)[k50])
+    mag.partition(k50)  # in place: mag is this function's own array
+    return float(mag[k50])
 
 
 def _ring_groups(code: int) -> tuple[int, int]:
