@@ -16,11 +16,9 @@ at the noise level, so hidden arcs remain gaps.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -151,7 +149,8 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
         rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
     counts = np.array(sizes, np.int64)
-    offsets = np.array([0, *itertools.accumulate(sizes)], np.int64)
+    offsets = np.zeros(len(sizes) + 1, np.int64)
+    offsets[1:] = counts.cumsum()
     owner = np.arange(len(sizes)).repeat(counts)
     local = np.arange(int(offsets[-1])) - offsets[:-1].repeat(counts)
     # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
@@ -206,7 +205,7 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     for shift in range(-(k // 2), k // 2 + 1):
         if shift:
             total += best[lines.cyclic(shift)]
-    return cast("NDArray[np.float64]", np.abs(total / k) / SOBEL_GAIN)
+    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

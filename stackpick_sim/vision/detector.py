@@ -16,7 +16,6 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -27,20 +26,20 @@ from numpy.typing import NDArray
 
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import perimeter_px, refit_on_contrast, unit_circle
+from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import (
     MIN_SIDE_PX,
     EdgeImage,
     as_rgb_or_gray,
-    colour_gradients,
     edge_image,
-    noise_level,
+    unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, plausible
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_samples,
+    boundary_shares,
     merge_segments,
 )
 from stackpick_sim.vision.occlusion import (
@@ -426,35 +425,12 @@ def _same_outlines(ellipses: list[Ellipse], indices: list[int]) -> set[tuple[int
              <= max(ellipses[i].b, ellipses[j].b)]
     if not pairs:
         return set()
-    ways = [p for i, j in pairs for p in ((i, j), (j, i))]
-    # Per way: boundary samples of the first ellipse (merging.boundary_samples) and their
-    # distances (fitting.distances) to the second, all ways concatenated.
-    sizes, own, other = [], [], []
-    for i, j in ways:
-        one, two = ellipses[i], ellipses[j]
-        sizes.append(max(16, math.ceil(perimeter_px(one))))
-        th = math.radians(one.angle_deg)
-        own.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th)))
-        t = math.radians(two.angle_deg)
-        other.append((two.cx, two.cy, two.a, two.b, math.cos(t), math.sin(t)))
-    counts = np.array(sizes)
-    ct = np.concatenate([unit_circle(n)[0] for n in sizes])
-    st = np.concatenate([unit_circle(n)[1] for n in sizes])
-    cx, cy, a, b, c, s, ox, oy, oa, ob, oc, os_ = np.repeat(
-        np.array([r1 + r2 for r1, r2 in zip(own, other, strict=True)], np.float64).T, counts,
-        axis=1)
-    x, y = a * ct, b * st
-    du = cx + c * x - s * y - ox
-    dv = cy + s * x + c * y - oy
-    x = (oc * du + os_ * dv) / oa
-    y = (-os_ * du + oc * dv) / ob
-    d = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / oa) ** 2 + (y / ob) ** 2) + 1e-12)
-    close = np.bincount(np.repeat(np.arange(len(ways)), counts),
-                        weights=d < DUPLICATE_TOLERANCE_PX, minlength=len(ways))
-    share = (close / counts >= DUPLICATE_SHARE).tolist()
+    shares = boundary_shares([w for i, j in pairs for w in ((ellipses[i], ellipses[j]),
+                                                              (ellipses[j], ellipses[i]))],
+                             DUPLICATE_TOLERANCE_PX)
     same: set[tuple[int, int]] = set()
     for k, (i, j) in enumerate(pairs):
-        if share[2 * k] and share[2 * k + 1]:
+        if shares[2 * k] >= DUPLICATE_SHARE and shares[2 * k + 1] >= DUPLICATE_SHARE:
             same.update(((i, j), (j, i)))
     return same
 
@@ -470,9 +446,8 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -
     if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
         return ellipse
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
-    # unblurred_gradients of the window, built directly.
-    gx, gy = colour_gradients(window)
-    raw = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=gx, gy=gy, noise=noise_level(gx, gy))
+    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
+    raw = unblurred_gradients(window, box)
     fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
     return _moved(fit, c0, r0)
 
@@ -484,8 +459,13 @@ def _shifted(chains: tuple[NDArray[np.int32], ...], offset: NDArray[np.int32]
         return chains
     every = np.concatenate(chains)
     every += offset
-    ends = list(itertools.accumulate(c.shape[0] for c in chains))
-    return tuple(every[i - c.shape[0]:i] for c, i in zip(chains, ends, strict=True))
+    out = []
+    start = 0
+    for c in chains:
+        stop = start + c.shape[0]
+        out.append(every[start:stop])
+        start = stop
+    return tuple(out)
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

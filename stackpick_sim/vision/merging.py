@@ -88,6 +88,35 @@ def boundary_samples(ellipse: Ellipse) -> NDArray[np.float64]:
     return pts
 
 
+def boundary_shares(ways: list[tuple[Ellipse, Ellipse]], tol_px: float) -> list[float]:
+    """Per (one, other) pair: the share of one's :func:`boundary_samples` within ``tol_px``
+    of other (:func:`~stackpick_sim.vision.fitting.distances`), all pairs in one array pass
+    (the same values as pair by pair)."""
+    if not ways:
+        return []
+    sizes, rows = [], []
+    for one, other in ways:
+        sizes.append(max(16, math.ceil(perimeter_px(one))))
+        th = math.radians(one.angle_deg)
+        t = math.radians(other.angle_deg)
+        rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th),
+                     other.cx, other.cy, other.a, other.b, math.cos(t), math.sin(t)))
+    counts = np.array(sizes)
+    ct = np.concatenate([unit_circle(n)[0] for n in sizes])
+    st = np.concatenate([unit_circle(n)[1] for n in sizes])
+    cx, cy, a, b, c, s, ox, oy, oa, ob, oc, os_ = np.array(rows, np.float64).T.repeat(
+        counts, axis=1)
+    x, y = a * ct, b * st
+    du = cx + c * x - s * y - ox
+    dv = cy + s * x + c * y - oy
+    x = (oc * du + os_ * dv) / oa
+    y = (-os_ * du + oc * dv) / ob
+    d = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / oa) ** 2 + (y / ob) ** 2) + 1e-12)
+    close = np.bincount(np.arange(len(ways)).repeat(counts), weights=d < tol_px,
+                        minlength=len(ways))
+    return (close / counts).tolist()
+
+
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:
     """(n,) bool per boundary sample: is there an edge pixel near it (off-image: False)."""
     pts = np.rint(boundary_samples(ellipse)).astype(np.int64)
