@@ -35,15 +35,27 @@ from stackpick_sim.vision.edges import (
     edge_image,
     unblurred_gradients,
 )
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, plausible
+from stackpick_sim.vision.fitting import (
+    distances,
+    ellipse_distances,
+    ellipse_params,
+    fit_all,
+    plausible,
+    rms_residual,
+)
 from stackpick_sim.vision.merging import (
+    ABSORB_FRACTION,
+    MERGE_TOLERANCE_PX,
     MergedEllipse,
     boundary_samples,
     merge_segments,
+    support_map,
+    support_shares,
 )
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
+    select_rimmed,
     select_top,
     select_unobstructed,
 )
@@ -55,6 +67,7 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
+from stackpick_sim.vision.regroup import arc_pair_ellipses
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -236,6 +249,15 @@ class TopObjectDetector:
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of)
+        if choice.index is None:
+            # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
+            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
+            if rimmed is not None:
+                choice = replace(choice, index=rimmed, reason="")
+        if choice.index is None:
+            # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
+            merged, choice = _regroup_arcs(merged, choice, pieces, chains, grad, (points, grads),
+                                           crop, gate)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -364,6 +386,40 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
         return merged, False
     return [replace(m, ellipse=passed[i]) if i in passed else m
             for i, m in enumerate(merged)], True
+
+
+def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
+                  pieces: list[NDArray[np.int32]], chains: tuple[NDArray[np.int32], ...],
+                  grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
+                  shape: tuple[int, int], gate: tuple[float, float] | None
+                  ) -> tuple[list[MergedEllipse], TopChoice]:
+    """When no ellipse passed the top rule: the ellipses of pairs of fitted arcs
+    (:func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map like
+    the merged ones, through the top rule alone (no rival that already failed it can win).
+    Only one that passes is added (with its evidence) to ``merged`` and chosen; otherwise
+    both come back unchanged."""
+    found = arc_pair_ellipses(pieces, chains, shape, gate)
+    if not found:
+        return merged, choice
+    points, grads = edge_pixels
+    found = [e for e in refine_all(found, points, grads, shape)
+             if gate is None or gate[0] <= e.a <= gate[1]]
+    if not found:
+        return merged, choice
+    # The depth, wall and rest tests need no rivals here: every merged face failed already.
+    extra = select_top(found, grad, edge_points=points)
+    if extra.index is None:
+        return merged, choice
+    ellipse = found[extra.index]
+    support = float(support_shares([ellipse], support_map(grad.edges))[0])
+    on = tuple(k for k, c in enumerate(chains)
+               if float(np.mean(ellipse_distances(ellipse, c) < MERGE_TOLERANCE_PX))
+               >= ABSORB_FRACTION)
+    residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
+    merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
+                                     support=support)]
+    return merged, TopChoice(index=len(merged) - 1,
+                             evidence=(*choice.evidence, extra.evidence[extra.index]))
 
 
 def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
