@@ -4,9 +4,13 @@ Given a depth range, refined ellipses too small or too large for any face radius
 dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
 no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
 select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run. One face
-fitted twice is reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a
-face (RIM_OFFSET_RANGE).
+refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run; failing
+that, a whole face whose interior edges all lie in a band along its outline is taken (its own
+faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.
+select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
+(:mod:`~stackpick_sim.vision.regroup`) go through the rule. One face fitted twice is reported
+once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
+(RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -37,15 +41,12 @@ from stackpick_sim.vision.edges import (
 )
 from stackpick_sim.vision.fitting import (
     distances,
-    ellipse_distances,
     ellipse_params,
     fit_all,
     plausible,
     rms_residual,
 )
 from stackpick_sim.vision.merging import (
-    ABSORB_FRACTION,
-    MERGE_TOLERANCE_PX,
     MergedEllipse,
     boundary_samples,
     merge_segments,
@@ -67,7 +68,7 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
-from stackpick_sim.vision.regroup import arc_pair_ellipses
+from stackpick_sim.vision.regroup import arc_pair_ellipses, chains_on
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -412,9 +413,9 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
         return merged, choice
     ellipse = found[extra.index]
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
-    on = tuple(k for k, c in enumerate(chains)
-               if float(np.mean(ellipse_distances(ellipse, c) < MERGE_TOLERANCE_PX))
-               >= ABSORB_FRACTION)
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    on = chains_on(ellipse, np.concatenate(chains),
+                   np.repeat(np.arange(len(chains)), lengths.astype(np.int64)), lengths)
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]

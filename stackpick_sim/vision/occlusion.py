@@ -29,6 +29,9 @@ best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse,
 nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
 the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
 (FALLBACK_MIN_SUPPORT), lies under nothing visible; its gaps are boundaries too faint to see.
+After the detector's contrast refit, :func:`select_rimmed` is the next: a whole face whose
+only interior edges lie within RIM_BAND_PX of its outline (its own faint rim, fitted on a
+same-colour lower face's sliver beyond it).
 The rule needs only a list of ellipses and an edge map, so it applies to any detector's
 ellipses.
 """

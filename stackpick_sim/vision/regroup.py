@@ -52,6 +52,16 @@ def _bounds(points: NDArray[np.int32]) -> tuple[float, float, float, float]:
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
+def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int64],
+              lengths: NDArray[np.float64]) -> tuple[int, ...]:
+    """Indices of the chains with ABSORB_FRACTION of their pixels within MERGE_TOLERANCE_PX of
+    ``ellipse``, given all chains' pixels concatenated (N, 2), the chain of each (N,) and the
+    chains' lengths (C,) (one distance pass over all pixels)."""
+    near = ellipse_distances(ellipse, pixels) < MERGE_TOLERANCE_PX
+    hits = np.bincount(owner[near], minlength=lengths.shape[0])
+    return tuple(np.flatnonzero(hits >= ABSORB_FRACTION * lengths).tolist())
+
+
 def _rms(ellipse: Ellipse, points: NDArray) -> float:
     d = ellipse_distances(ellipse, points)
     return float(np.sqrt(np.mean(d * d)))
@@ -61,46 +71,50 @@ def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArra
                       shape: tuple[int, int],
                       axis_range: tuple[float, float] | None = None) -> list[Ellipse]:
     """Ellipses fitted to pairs of ``arcs`` (the fitted pieces, (N_i, 2) int32 (u, v)) and
-    grown by the ``chains`` (all edge segments, (N_j, 2) int32) lying on them; see the module
-    docstring. ``shape``: the (H, W) image; ``axis_range``: (min, max) semi-major axis (px)
-    of a face, or None. Each ellipse once (pairs of one face's arcs grow into the same set
-    of arcs, hence the same fit)."""
+    grown by the ``chains`` (all edge segments, (N_j, 2) int32, the arcs first: chain k < len
+    (arcs) is arc k) lying on them; see the module docstring. ``shape``: the (H, W) image;
+    ``axis_range``: (min, max) semi-major axis (px) of a face, or None. Each ellipse once: a
+    pair of arcs that both lie on an ellipse already grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
     boxes = [_bounds(a) for a in arcs]
+    pixels = np.concatenate(chains) if chains else np.zeros((0, 2), np.int32)
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    owner = np.repeat(np.arange(len(chains)), lengths.astype(np.int64))
     out: list[Ellipse] = []
-    seen: set[tuple[int, ...]] = set()
+    grown_sets: list[set[int]] = []
     for i in range(len(arcs)):
         for j in range(i + 1, len(arcs)):
             bi, bj = boxes[i], boxes[j]
-            # Both arcs within one face's extent.
+            # Both arcs within one face's extent, and not both on an ellipse grown already.
             if (max(bi[2], bj[2]) - min(bi[0], bj[0]) > 2.0 * hi
-                    or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi):
+                    or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi
+                    or any(i in g and j in g for g in grown_sets)):
                 continue
             union = np.concatenate([arcs[i], arcs[j]])
             fit = fit_ellipse(union)
             if (fit is None or not plausible(fit, shape)
                     or (axis_range is not None
-                        and not axis_range[0] <= fit.a <= axis_range[1])
-                    or _rms(fit, union) > MERGE_MAX_RESIDUAL_PX
-                    or any(float(np.mean(ellipse_distances(fit, a) < MERGE_TOLERANCE_PX))
-                           < ABSORB_FRACTION for a in (arcs[i], arcs[j]))):
+                        and not axis_range[0] <= fit.a <= axis_range[1])):
+                continue
+            d = ellipse_distances(fit, union)
+            n = arcs[i].shape[0]
+            if (float(np.sqrt(np.mean(d * d))) > MERGE_MAX_RESIDUAL_PX
+                    or np.count_nonzero(d[:n] < MERGE_TOLERANCE_PX) < ABSORB_FRACTION * n
+                    or np.count_nonzero(d[n:] < MERGE_TOLERANCE_PX)
+                    < ABSORB_FRACTION * (d.shape[0] - n)):
                 continue
             lying: tuple[int, ...] = ()
             for _ in range(GROW_ROUNDS):
-                on = tuple(k for k, c in enumerate(chains)
-                           if float(np.mean(ellipse_distances(fit, c) < MERGE_TOLERANCE_PX))
-                           >= ABSORB_FRACTION)
+                on = chains_on(fit, pixels, owner, lengths)
                 if on == lying:
                     break
                 lying = on
-                grown = np.unique(np.concatenate([union] + [chains[k] for k in lying]), axis=0)
+                grown = np.concatenate([union] + [chains[k] for k in lying if k not in (i, j)])
                 refit = fit_ellipse(grown)
                 if (refit is None or not plausible(refit, shape)
                         or _rms(refit, grown) > MAX_RESIDUAL_PX):
                     break
                 fit = refit
-            if lying in seen:
-                continue
-            seen.add(lying)
+            grown_sets.append({i, j, *lying})
             out.append(fit)
     return out
