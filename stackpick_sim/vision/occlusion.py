@@ -299,21 +299,28 @@ def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float6
     return out
 
 
-def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
-                  edge_points: NDArray[np.float64]) -> int | None:
-    """Index of the best-supported ellipse that failed the top rule on interior edges alone
-    (no T-junction end, support >= TOP_MIN_SUPPORT) and whose interior edge pixels all but
-    MAX_INTERIOR_SHARE of its perimeter lie within RIM_BAND_PX of its outline, or None: a
-    last resort when no ellipse passes the rule, nor after the contrast refit (see
-    RIM_BAND_PX). Ties within SUPPORT_TIE go to the larger ellipse."""
+def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+             edge_points: NDArray[np.float64]) -> list[int]:
+    """Indices of the ellipses that failed the top rule on interior edges alone (no
+    T-junction end, support >= TOP_MIN_SUPPORT) and whose interior edge pixels all but
+    MAX_INTERIOR_SHARE of the perimeter lie within RIM_BAND_PX of the outline (see
+    RIM_BAND_PX): a whole face with its own rim inside its fit."""
     failed = [i for i, ev in enumerate(evidence)
               if not ev.occluded_ends and ev.support >= TOP_MIN_SUPPORT
               and ev.interior_edge_px > MAX_INTERIOR_SHARE * ev.perimeter_px]
     if not failed:
-        return None
+        return []
     deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, RIM_BAND_PX)
-    ok = [i for i, d in zip(failed, deep, strict=True)
-          if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+    return [i for i, d in zip(failed, deep, strict=True)
+            if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+
+
+def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+                  edge_points: NDArray[np.float64]) -> int | None:
+    """Index of the best-supported of the :func:`rim_only` ellipses (ties within SUPPORT_TIE
+    to the larger), or None: a last resort when no ellipse passes the rule, nor after the
+    contrast refit (see RIM_BAND_PX)."""
+    ok = rim_only(ellipses, evidence, edge_points)
     if not ok:
         return None
     best = max(evidence[i].support for i in ok)
@@ -372,6 +379,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and _unobstructed(ev)]
+    if intrinsics is not None and radius_of is not None:
+        # So do whole faces whose only interior edges are their own rim (see RIM_BAND_PX).
+        pool += rim_only(ellipses, evidence, edge_points)
     if intrinsics is not None and len(pool) > 1:
         under = under_another([ellipses[i] for i in pool], intrinsics)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
