@@ -1,4 +1,5 @@
-"""The last resort for a face the merge never fitted: ellipses of pairs of arcs."""
+"""The detector's last resorts: ellipses of pairs of arcs for a face the merge never fitted,
+and a contrast refit with nothing crossing it."""
 
 from __future__ import annotations
 
@@ -85,3 +86,34 @@ def test_top_face_never_merged_is_found_from_pairs_of_its_arcs(
     monkeypatch.setattr(detector_module, "arc_pair_ellipses", lambda *a, **k: [])
     missed = detect(image, CONFIG)
     assert missed.top_ellipse is None, missed.reason
+
+
+#: Paper scene development frame 820 of ds_paper_dev4 (as FRAME_377): four small cylinders
+#: nearly square on; the top face lies on a lower face of its colour, its fits take in part of
+#: that face's outline, and only its contrast refit (support ~0.85, nothing crossing it)
+#: follows its own faint boundary.
+FRAME_820 = (
+    ((-0.0286, -0.0046, 0.2752), (0.0024, 0.0044, 1.0), (78, 153, 216)),
+    ((0.0132, -0.0334, 0.2752), (0.0043, 0.0002, 1.0), (80, 156, 219)),
+    ((-0.0277, -0.0325, 0.2505), (0.008, -0.0016, 1.0), (80, 156, 221)),
+    ((-0.0245, -0.0115, 0.2259), (0.004, -0.0292, 0.9996), (86, 168, 237)),
+)
+
+
+@pytest.mark.parametrize("seed", [2, 8])  # the noise draws on which no fit passes the rule
+def test_unobstructed_contrast_refit_is_the_very_last_resort(
+        seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    bodies = [(np.asarray(c, np.float64), np.asarray(n) / np.linalg.norm(n), 0.025, 0.025)
+              for c, n, _ in FRAME_820]
+    clean = render_cylinders(bodies, [rgb for _, _, rgb in FRAME_820], K, belt_grey=35.0)
+    rng = np.random.default_rng(seed)
+    image = np.clip(np.round(clean + rng.normal(0.0, 1.0, clean.shape)), 0, 255)
+    image = image.astype(np.uint8)
+    top = project_circle(bodies[-1][0], bodies[-1][1], 0.025, K)
+    found = detect(image, CONFIG)
+    assert found.top_ellipse is not None, found.reason
+    assert mask_iou(found.top_ellipse, top, SHAPE) > 0.85
+    retry = detector_module._retry_on_contrast
+    monkeypatch.setattr(detector_module, "_retry_on_contrast",
+                        lambda *a, **k: (*retry(*a, **k)[:2], None))
+    assert detect(image, CONFIG).top_ellipse is None

@@ -237,6 +237,7 @@ class TopObjectDetector:
         height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points, image=rgb, height_of=height_of)
+        spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
         if choice.index is None:
             # Before the contrast retry: a refit of a lower face can shrink past the outline
             # crossing it and pass (development seed 292).
@@ -246,7 +247,8 @@ class TopObjectDetector:
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
-            merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
+            merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
+                                                        gate)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of)
@@ -259,6 +261,15 @@ class TopObjectDetector:
             # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
             merged, choice = _regroup_arcs(merged, choice, pieces, chains, grad, (points, grads),
                                            crop, gate)
+        if choice.index is None and spare is not None:
+            # The very last: a contrast refit with no T-junction and no edge inside, most of
+            # its outline showing (select_unobstructed's evidence; development frame 820 of
+            # ds_paper_dev4: a top face over a lower face of its colour, fitted with part of
+            # that one's outline, refits onto its own faint boundary).
+            i, refit, refit_evidence = spare
+            merged[i] = replace(merged[i], ellipse=refit)
+            choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
+                                                  *choice.evidence[i + 1:]))
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -364,29 +375,37 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
-                       grad: EdgeImage, shape: tuple[int, int]
-                       ) -> tuple[list[MergedEllipse], bool]:
+                       grad: EdgeImage, shape: tuple[int, int],
+                       gate: tuple[float, float] | None = None
+                       ) -> tuple[list[MergedEllipse], bool,
+                                  tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
     support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
-    consistent edge; keep a refit where it passes the rule. Returns the ellipses and whether
-    any changed."""
+    consistent edge; keep a refit where it passes the rule. Returns the ellipses, whether
+    any changed, and, when none passed, the refit :func:`~stackpick_sim.vision.occlusion.
+    select_unobstructed` takes among those within the size ``gate`` ((min, max) semi-major
+    axis, px, or None) as (index of the ellipse it refits, refit, its evidence), else None."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
              and plausible(r, shape)]
     if not tries:
-        return merged, False
+        return merged, False, None
     checked = select_top([r for _, r in tries], grad).evidence
     passed: dict[int, Ellipse] = {}
     for (i, r), ev in zip(tries, checked, strict=True):
         if not ev.occluded and i not in passed:  # the strongest-edge refit first
             passed[i] = r
     if not passed:
-        return merged, False
+        sized = [k for k, (_, r) in enumerate(tries) if gate is None or gate[0] <= r.a <= gate[1]]
+        spare = select_unobstructed([checked[k] for k in sized])
+        return merged, False, (None if spare is None else
+                               (tries[sized[spare]][0], tries[sized[spare]][1],
+                                checked[sized[spare]]))
     return [replace(m, ellipse=passed[i]) if i in passed else m
-            for i, m in enumerate(merged)], True
+            for i, m in enumerate(merged)], True, None
 
 
 def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
