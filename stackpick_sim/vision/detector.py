@@ -8,8 +8,9 @@ refitted on the edge contrast (faint same-colour boundaries) and the rule is re-
 that, a whole face whose interior edges all lie in a band along its outline is taken (its own
 faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.
 select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
-(:mod:`~stackpick_sim.vision.regroup`) go through the rule. One face fitted twice is reported
-once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
+(:mod:`~stackpick_sim.vision.regroup`) go through the rule; the very last is a contrast refit
+with no T-junction and no edge inside, most of its outline showing. One face fitted twice is
+reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
 (RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a

@@ -24,7 +24,9 @@ T-junction) lies under it (:mod:`stackpick_sim.vision.resting`).
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
-failed on support alone with nothing crossing them take part in this test too. Otherwise the
+failed on support alone with nothing crossing them take part in this test too, and so do
+whole faces whose only interior edges lie within RIM_BAND_PX of their outline (:func:`rim_only`:
+their own rim inside a fit that took in a little beyond it). Otherwise the
 best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse, which is
 nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
 the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
@@ -350,7 +352,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
-    take part in this depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
+    and whole faces with only their own rim inside (:func:`rim_only`'s) take part in this
+    depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
     cylinder height, m, of a face radius, or None if unknown) and the (H, W, 3) RGB ``image``
     (the edge map's pixel frame), a candidate whose reconstructed cylinder another
     candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
