@@ -22,12 +22,7 @@ from stackpick_sim.vision import __all__ as vision_all
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
 from stackpick_sim.vision.edges import detect_edges, edge_image
-from stackpick_sim.vision.occlusion import (
-    rim_only,
-    select_rimmed,
-    select_top,
-    select_unobstructed,
-)
+from stackpick_sim.vision.occlusion import select_rimmed, select_top, select_unobstructed
 from stackpick_sim.vision.pose import choose_radius, circle_poses
 from stackpick_sim.vision.refine import edge_points
 from stackpick_sim.vision.synthetic import (
@@ -131,39 +126,6 @@ def test_rim_band_last_resort_takes_a_face_fitted_on_a_lower_sliver(seed: int) -
     choice = select_top([fit], grad)
     assert choice.index is None
     assert select_rimmed([fit], choice.evidence, points) is None
-
-
-@pytest.mark.parametrize("seed", [0, 1])
-def test_whole_face_with_its_rim_inside_its_fit_takes_part_in_the_depth_test(seed: int
-                                                                          ) -> None:
-    # The nearer face's fit took in a few px of its own dark wall beyond its rim (development
-    # frame 857 of ds_paper_dev4): the rim lies inside the fit, which fails on interior edges,
-    # and a farther whole face passes. Its interior edges all lie in the rim band, so it
-    # joins the depth test, which it wins by > DEPTH_TIE_M.
-    near = Ellipse(cx=210, cy=125, a=40, b=39, angle_deg=0)
-    wall = Ellipse(cx=206, cy=121, a=40, b=39, angle_deg=0)
-    far = Ellipse(cx=80, cy=120, a=34, b=33, angle_deg=0)
-    rng = np.random.default_rng(seed)
-    image = np.full(SHAPE, 35.0)
-    image[wall.mask(SHAPE)] = 100.0
-    image[near.mask(SHAPE)] = 160.0
-    image[far.mask(SHAPE)] = 150.0
-    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
-    right = image.copy()
-    right[:, :150] = 0
-    fit = _silhouette_fit(right)
-    grad = edge_image(image)
-    points, _ = edge_points(grad)
-
-    def radius_of(e: Ellipse) -> float:
-        return 0.025
-
-    ellipses = [far, fit]
-    plain = select_top(ellipses, grad, edge_points=points)
-    assert plain.index == 0 and plain.evidence[1].interior_edge_px > 0
-    assert rim_only(ellipses, plain.evidence, points) == [1]
-    assert select_top(ellipses, grad, K, radius_of, edge_points=points).index == 1
-    assert mask_iou(fit, near, SHAPE) > 0.9
 
 
 def test_a_duplicate_fit_of_the_nearest_face_is_no_depth_rival() -> None:

@@ -24,9 +24,7 @@ T-junction) lies under it (:mod:`stackpick_sim.vision.resting`).
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
-failed on support alone with nothing crossing them take part in this test too, and so do
-whole faces whose only interior edges lie within RIM_BAND_PX of their outline (:func:`rim_only`:
-their own rim inside a fit that took in a little beyond it). Otherwise the
+failed on support alone with nothing crossing them take part in this test too. Otherwise the
 best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse, which is
 nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
 the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
@@ -105,7 +103,10 @@ FALLBACK_MIN_SUPPORT = 0.75
 #: the fit (the contrast refit's inward reach, see REFIT_INNER_REACH_PX; 3-4 px on development
 #: frame 202 of ds_paper_dev3), and where it is too near the silhouette for the contrast refit
 #: to separate it, the fit keeps it inside as "interior edges". An occluder's outline runs
-#: across the face, deeper than this.
+#: across the face, deeper than this. Such a fit is too large by up to this much, so its depth
+#: from its size reads too near (up to ~2 cm for a small face at 0.22 m): it is no evidence
+#: in the depth test (a misfit of a lower face won it on development seed 198 of the paper
+#: scene with objects.count = [5, 5]), only a last resort.
 RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
 
 
@@ -352,8 +353,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
-    and whole faces with only their own rim inside (:func:`rim_only`'s) take part in this
-    depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
+    take part in this depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
     cylinder height, m, of a face radius, or None if unknown) and the (H, W, 3) RGB ``image``
     (the edge map's pixel frame), a candidate whose reconstructed cylinder another
     candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
@@ -382,9 +382,6 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and _unobstructed(ev)]
-    if intrinsics is not None and radius_of is not None:
-        # So do whole faces whose only interior edges are their own rim (see RIM_BAND_PX).
-        pool += rim_only(ellipses, evidence, edge_points)
     if intrinsics is not None and len(pool) > 1:
         under = under_another([ellipses[i] for i in pool], intrinsics)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
