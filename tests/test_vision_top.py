@@ -22,8 +22,9 @@ from stackpick_sim.vision import __all__ as vision_all
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
 from stackpick_sim.vision.edges import detect_edges, edge_image
-from stackpick_sim.vision.occlusion import select_top, select_unobstructed
+from stackpick_sim.vision.occlusion import select_rimmed, select_top, select_unobstructed
 from stackpick_sim.vision.pose import choose_radius, circle_poses
+from stackpick_sim.vision.refine import edge_points
 from stackpick_sim.vision.synthetic import (
     SyntheticConfig,
     draw_ellipses,
@@ -87,6 +88,44 @@ def test_last_resort_never_takes_a_face_with_a_t_junction() -> None:
     choice = select_top([left], detect_edges(image))  # the top disc was not fitted
     assert choice.index is None and choice.evidence[0].occluded_ends >= 1
     assert select_unobstructed(choice.evidence) is None
+
+
+def _silhouette_fit(image: np.ndarray) -> Ellipse:
+    """The ellipse fitted to the outer silhouette of the bright discs of a grey image."""
+    mask = (image > 90).astype(np.uint8)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    (cx, cy), (w, h), angle = cv2.fitEllipseDirect(max(contours, key=len).astype(np.float32))
+    return Ellipse(cx=cx, cy=cy, a=max(w, h) / 2, b=min(w, h) / 2,
+                   angle_deg=angle if w >= h else angle + 90.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rim_band_last_resort_takes_a_face_fitted_on_a_lower_sliver(seed: int) -> None:
+    # A top disc on a lower disc of its colour, a little darker, whose sliver shows up to
+    # ~5 px beyond the top's rim (development frame 202 of ds_paper_dev3): the fit on the
+    # strong silhouette holds the top's own faint rim inside, so it fails on interior edges.
+    upper = Ellipse(cx=165, cy=120, a=48, b=47, angle_deg=0)
+    lower = Ellipse(cx=158, cy=120, a=46, b=46, angle_deg=0)
+    rng = np.random.default_rng(seed)
+    image = np.full(SHAPE, 35.0)
+    image[lower.mask(SHAPE)] = 150.0
+    image[upper.mask(SHAPE)] = 160.0
+    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    fit = _silhouette_fit(image)
+    grad = edge_image(image)
+    points, _ = edge_points(grad)
+    choice = select_top([fit], grad)
+    assert choice.index is None and choice.evidence[0].interior_edge_px > 0
+    assert select_rimmed([fit], choice.evidence, points) == 0
+    assert mask_iou(fit, upper, SHAPE) > 0.9
+    # A smaller disc lying inside the face puts its outline deep inside: no last resort.
+    inner = Ellipse(cx=150, cy=125, a=20, b=18, angle_deg=0)
+    image[inner.mask(SHAPE)] = 200
+    grad = edge_image(image)
+    points, _ = edge_points(grad)
+    choice = select_top([fit], grad)
+    assert choice.index is None
+    assert select_rimmed([fit], choice.evidence, points) is None
 
 
 def test_a_duplicate_fit_of_the_nearest_face_is_no_depth_rival() -> None:

@@ -4,9 +4,14 @@ Given a depth range, refined ellipses too small or too large for any face radius
 dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
 no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
 select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run. One face
-fitted twice is reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a
-face (RIM_OFFSET_RANGE).
+refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run; failing
+that, a whole face whose interior edges all lie in a band along its outline is taken (its own
+faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.
+select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
+(:mod:`~stackpick_sim.vision.regroup`) go through the rule; the very last is a contrast refit
+with no T-junction and no edge inside, most of its outline showing. One face fitted twice is
+reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
+(RIM_OFFSET_RANGE).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -35,16 +40,25 @@ from stackpick_sim.vision.edges import (
     edge_image,
     unblurred_gradients,
 )
-from stackpick_sim.vision.fitting import distances, ellipse_params, fit_all, plausible
+from stackpick_sim.vision.fitting import (
+    distances,
+    ellipse_params,
+    fit_all,
+    plausible,
+    rms_residual,
+)
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_samples,
     boundary_shares,
     merge_segments,
+    support_map,
+    support_shares,
 )
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
+    select_rimmed,
     select_top,
     select_unobstructed,
 )
@@ -56,6 +70,7 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
+from stackpick_sim.vision.regroup import arc_pair_ellipses, chains_on
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -224,6 +239,7 @@ class TopObjectDetector:
         height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points, image=rgb, height_of=height_of)
+        spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
         if choice.index is None:
             # Before the contrast retry: a refit of a lower face can shrink past the outline
             # crossing it and pass (development seed 292).
@@ -233,10 +249,29 @@ class TopObjectDetector:
         if choice.index is None:
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
-            merged, retried = _retry_on_contrast(merged, choice.evidence, grad, crop)
+            merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
+                                                        gate)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of)
+        if choice.index is None:
+            # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
+            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
+            if rimmed is not None:
+                choice = replace(choice, index=rimmed, reason="")
+        if choice.index is None:
+            # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
+            merged, choice = _regroup_arcs(merged, choice, pieces, chains, grad, (points, grads),
+                                           crop, gate)
+        if choice.index is None and spare is not None:
+            # The very last: a contrast refit with no T-junction and no edge inside, most of
+            # its outline showing (select_unobstructed's evidence; development frame 820 of
+            # ds_paper_dev4: a top face over a lower face of its colour, fitted with part of
+            # that one's outline, refits onto its own faint boundary).
+            i, refit, refit_evidence = spare
+            merged[i] = replace(merged[i], ellipse=refit)
+            choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
+                                                  *choice.evidence[i + 1:]))
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -346,29 +381,71 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
-                       grad: EdgeImage, shape: tuple[int, int]
-                       ) -> tuple[list[MergedEllipse], bool]:
+                       grad: EdgeImage, shape: tuple[int, int],
+                       gate: tuple[float, float] | None = None
+                       ) -> tuple[list[MergedEllipse], bool,
+                                  tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
     support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
-    consistent edge; keep a refit where it passes the rule. Returns the ellipses and whether
-    any changed."""
+    consistent edge; keep a refit where it passes the rule. Returns the ellipses, whether
+    any changed, and, when none passed, the refit :func:`~stackpick_sim.vision.occlusion.
+    select_unobstructed` takes among those within the size ``gate`` ((min, max) semi-major
+    axis, px, or None) as (index of the ellipse it refits, refit, its evidence), else None."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
              and plausible(r, shape)]
     if not tries:
-        return merged, False
+        return merged, False, None
     checked = select_top([r for _, r in tries], grad).evidence
     passed: dict[int, Ellipse] = {}
     for (i, r), ev in zip(tries, checked, strict=True):
         if not ev.occluded and i not in passed:  # the strongest-edge refit first
             passed[i] = r
     if not passed:
-        return merged, False
+        sized = [k for k, (_, r) in enumerate(tries) if gate is None or gate[0] <= r.a <= gate[1]]
+        spare = select_unobstructed([checked[k] for k in sized])
+        return merged, False, (None if spare is None else
+                               (tries[sized[spare]][0], tries[sized[spare]][1],
+                                checked[sized[spare]]))
     return [replace(m, ellipse=passed[i]) if i in passed else m
-            for i, m in enumerate(merged)], True
+            for i, m in enumerate(merged)], True, None
+
+
+def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
+                  pieces: list[NDArray[np.int32]], chains: tuple[NDArray[np.int32], ...],
+                  grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
+                  shape: tuple[int, int], gate: tuple[float, float] | None
+                  ) -> tuple[list[MergedEllipse], TopChoice]:
+    """When no ellipse passed the top rule: the ellipses of pairs of fitted arcs
+    (:func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map like
+    the merged ones, through the top rule alone (no rival that already failed it can win).
+    Only one that passes is added (with its evidence) to ``merged`` and chosen; otherwise
+    both come back unchanged."""
+    found = arc_pair_ellipses(pieces, chains, shape, gate)
+    if not found:
+        return merged, choice
+    points, grads = edge_pixels
+    found = [e for e in refine_all(found, points, grads, shape)
+             if gate is None or gate[0] <= e.a <= gate[1]]
+    if not found:
+        return merged, choice
+    # The depth, wall and rest tests need no rivals here: every merged face failed already.
+    extra = select_top(found, grad, edge_points=points)
+    if extra.index is None:
+        return merged, choice
+    ellipse = found[extra.index]
+    support = float(support_shares([ellipse], support_map(grad.edges))[0])
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    on = chains_on(ellipse, np.concatenate(chains),
+                   np.repeat(np.arange(len(chains)), lengths.astype(np.int64)), lengths)
+    residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
+    merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
+                                     support=support)]
+    return merged, TopChoice(index=len(merged) - 1,
+                             evidence=(*choice.evidence, extra.evidence[extra.index]))
 
 
 def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:

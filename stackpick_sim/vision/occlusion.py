@@ -29,6 +29,9 @@ best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse,
 nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
 the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
 (FALLBACK_MIN_SUPPORT), lies under nothing visible; its gaps are boundaries too faint to see.
+After the detector's contrast refit, :func:`select_rimmed` is the next: a whole face whose
+only interior edges lie within RIM_BAND_PX of its outline (its own faint rim, fitted on a
+same-colour lower face's sliver beyond it).
 The rule needs only a list of ellipses and an edge map, so it applies to any detector's
 ellipses.
 """
@@ -43,7 +46,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
+from stackpick_sim.vision.contrast import (
+    REFIT_INNER_REACH_PX,
+    contrast_profiles,
+    contrast_threshold,
+    outlines,
+)
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import circle_poses
@@ -87,6 +95,19 @@ SUPPORT_TIE = 0.02
 #: (development seeds, paper scene), so this evidence is used only when nothing passes, or
 #: with the DEPTH_TIE_M margin. Placeholder from the development seeds, not tuned further.
 FALLBACK_MIN_SUPPORT = 0.75
+
+#: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
+#: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
+#: own colour and about its size is fitted on the lower face's strong silhouette where the
+#: lower face shows a sliver beyond it; its own faint boundary then lies up to a few px inside
+#: the fit (the contrast refit's inward reach, see REFIT_INNER_REACH_PX; 3-4 px on development
+#: frame 202 of ds_paper_dev3), and where it is too near the silhouette for the contrast refit
+#: to separate it, the fit keeps it inside as "interior edges". An occluder's outline runs
+#: across the face, deeper than this. Such a fit is too large by up to this much, so its depth
+#: from its size reads too near (up to ~2 cm for a small face at 0.22 m): it is no evidence
+#: in the depth test (a misfit of a lower face won it on development seed 198 of the paper
+#: scene with objects.count = [5, 5]), only a last resort.
+RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -280,6 +301,49 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     passes it (see FALLBACK_MIN_SUPPORT)."""
     ok = [i for i, ev in enumerate(evidence) if _unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
+
+
+def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
+                     depth_px: float) -> list[int]:
+    """Per ellipse: how many edge pixels (M, 2) (u, v) lie inside it by more than
+    ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures)."""
+    out = []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        du, dv = edge_points[:, 0] - e.cx, edge_points[:, 1] - e.cy
+        x = (math.cos(t) * du + math.sin(t) * dv) / max(e.a - depth_px, 1e-6)
+        y = (-math.sin(t) * du + math.cos(t) * dv) / max(e.b - depth_px, 1e-6)
+        out.append(int(np.count_nonzero(x * x + y * y < 1.0)))
+    return out
+
+
+def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+             edge_points: NDArray[np.float64]) -> list[int]:
+    """Indices of the ellipses that failed the top rule on interior edges alone (no
+    T-junction end, support >= TOP_MIN_SUPPORT) and whose interior edge pixels all but
+    MAX_INTERIOR_SHARE of the perimeter lie within RIM_BAND_PX of the outline (see
+    RIM_BAND_PX): a whole face with its own rim inside its fit."""
+    failed = [i for i, ev in enumerate(evidence)
+              if not ev.occluded_ends and ev.support >= TOP_MIN_SUPPORT
+              and ev.interior_edge_px > MAX_INTERIOR_SHARE * ev.perimeter_px]
+    if not failed:
+        return []
+    deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, RIM_BAND_PX)
+    return [i for i, d in zip(failed, deep, strict=True)
+            if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+
+
+def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+                  edge_points: NDArray[np.float64]) -> int | None:
+    """Index of the best-supported of the :func:`rim_only` ellipses (ties within SUPPORT_TIE
+    to the larger), or None: a last resort when no ellipse passes the rule, nor after the
+    contrast refit (see RIM_BAND_PX)."""
+    ok = rim_only(ellipses, evidence, edge_points)
+    if not ok:
+        return None
+    best = max(evidence[i].support for i in ok)
+    return max((i for i in ok if evidence[i].support >= best - SUPPORT_TIE),
+               key=lambda i: ellipses[i].area)
 
 
 def _unobstructed(ev: OcclusionEvidence) -> bool:

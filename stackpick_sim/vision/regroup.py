@@ -1,0 +1,120 @@
+"""Last resort for a face the merge never fitted: ellipses of pairs of fitted arcs.
+
+The merge (:mod:`~stackpick_sim.vision.merging`, paper Eq. 3) joins two arcs only when each
+lies on the other's own ellipse. A face lying on faces of its own colour keeps only short
+arcs of its outline between the junctions with theirs (the faint boundaries between same-
+colour faces break it up, and Canny links the rest with the lower faces' silhouettes): an
+arc of a sixth of the outline or less fits an ellipse that extrapolates far off the face, no
+pair of its arcs scores C > MERGE_K, and the face is never fitted although most of its
+outline lies in the edge map (development frames 217 and 377 of ds_paper_dev3, both top
+faces).
+
+So when no ellipse passes the top rule, the ellipse of each pair of fitted arcs is fitted
+directly, held to the merge's own checks on a merged pair (RMS residual at most
+MERGE_MAX_RESIDUAL_PX, each arc staying on it by ABSORB_FRACTION), then grown by every edge
+chain lying on it (ABSORB_FRACTION, as the merge's leftovers) and refitted while the residual
+stays within MAX_RESIDUAL_PX (GROW_ROUNDS). Whether such an ellipse is a face at all, and
+the top one, is left to the top rule: a fit of arcs of two outlines shows little edge
+contrast along the rest of its outline, and a lower face has edges inside it or
+T-junctions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.fitting import (
+    MAX_RESIDUAL_PX,
+    ellipse_distances,
+    fit_ellipse,
+    plausible,
+)
+from stackpick_sim.vision.merging import (
+    ABSORB_FRACTION,
+    MERGE_MAX_RESIDUAL_PX,
+    MERGE_TOLERANCE_PX,
+)
+
+#: Rounds of growing a pair's ellipse by the chains lying on it and refitting: the pair's
+#: own fit extrapolates up to a few px off the face's far arcs, the first refit on the arcs
+#: near it pulls it within the merge's tolerance of the rest.
+GROW_ROUNDS = 3
+
+
+def _bounds(points: NDArray[np.int32]) -> tuple[float, float, float, float]:
+    """(u0, v0, u1, v1) bounding box of (N, 2) pixels."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
+
+
+def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int64],
+              lengths: NDArray[np.float64]) -> tuple[int, ...]:
+    """Indices of the chains with ABSORB_FRACTION of their pixels within MERGE_TOLERANCE_PX of
+    ``ellipse``, given all chains' pixels concatenated (N, 2), the chain of each (N,) and the
+    chains' lengths (C,) (one distance pass over all pixels)."""
+    near = ellipse_distances(ellipse, pixels) < MERGE_TOLERANCE_PX
+    hits = np.bincount(owner[near], minlength=lengths.shape[0])
+    return tuple(np.flatnonzero(hits >= ABSORB_FRACTION * lengths).tolist())
+
+
+def _rms(ellipse: Ellipse, points: NDArray) -> float:
+    d = ellipse_distances(ellipse, points)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
+                      shape: tuple[int, int],
+                      axis_range: tuple[float, float] | None = None) -> list[Ellipse]:
+    """Ellipses fitted to pairs of ``arcs`` (the fitted pieces, (N_i, 2) int32 (u, v)) and
+    grown by the ``chains`` (all edge segments, (N_j, 2) int32, the arcs first: chain k < len
+    (arcs) is arc k) lying on them; see the module docstring. ``shape``: the (H, W) image;
+    ``axis_range``: (min, max) semi-major axis (px) of a face, or None. Each ellipse once: a
+    pair of arcs that both lie on an ellipse already grown is not fitted again."""
+    hi = math.hypot(*shape) if axis_range is None else axis_range[1]
+    boxes = [_bounds(a) for a in arcs]
+    pixels = np.concatenate(chains) if chains else np.zeros((0, 2), np.int32)
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    owner = np.repeat(np.arange(len(chains)), lengths.astype(np.int64))
+    out: list[Ellipse] = []
+    grown_sets: list[set[int]] = []
+    for i in range(len(arcs)):
+        for j in range(i + 1, len(arcs)):
+            bi, bj = boxes[i], boxes[j]
+            # Both arcs within one face's extent, and not both on an ellipse grown already.
+            if (max(bi[2], bj[2]) - min(bi[0], bj[0]) > 2.0 * hi
+                    or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi
+                    or any(i in g and j in g for g in grown_sets)):
+                continue
+            union = np.concatenate([arcs[i], arcs[j]])
+            fit = fit_ellipse(union)
+            if (fit is None or not plausible(fit, shape)
+                    or (axis_range is not None
+                        and not axis_range[0] <= fit.a <= axis_range[1])):
+                continue
+            d = ellipse_distances(fit, union)
+            n = arcs[i].shape[0]
+            if (float(np.sqrt(np.mean(d * d))) > MERGE_MAX_RESIDUAL_PX
+                    or np.count_nonzero(d[:n] < MERGE_TOLERANCE_PX) < ABSORB_FRACTION * n
+                    or np.count_nonzero(d[n:] < MERGE_TOLERANCE_PX)
+                    < ABSORB_FRACTION * (d.shape[0] - n)):
+                continue
+            lying: tuple[int, ...] = ()
+            for _ in range(GROW_ROUNDS):
+                on = chains_on(fit, pixels, owner, lengths)
+                if on == lying:
+                    break
+                lying = on
+                grown = np.concatenate([union] + [chains[k] for k in lying if k not in (i, j)])
+                refit = fit_ellipse(grown)
+                if (refit is None or not plausible(refit, shape)
+                        or _rms(refit, grown) > MAX_RESIDUAL_PX):
+                    break
+                fit = refit
+            grown_sets.append({i, j, *lying})
+            out.append(fit)
+    return out
