@@ -193,11 +193,13 @@ class TargetEstimator:
         """Lowest monocular height of the face centre over the whole track, world z, m (0
         before any detection).
 
-        The one-sided error of a monocular height: an outline that takes in more than the
-        face (the side wall of the face's colour, seen obliquely as the camera approaches;
-        a neighbour's rim) is larger, so read as nearer: too high. Paper development seeds
-        633 and 653: the look pose's heights within 0.3 mm, the approach's and servo's 10-18
-        mm too high. So the face is not expected below this bound.
+        The large errors of a monocular height are one-sided: an outline that takes in more
+        than the face (the side wall of the face's colour, seen obliquely as the camera
+        approaches; a neighbour's rim) is larger, so read as nearer: too high. Paper
+        development seeds 633 and 653: the look pose's heights within 0.3 mm, the
+        approach's and servo's 10-18 mm too high; seed 1: a look-pose outline with the wall,
+        20 mm too high. So the face is expected at or above this bound, whatever the median
+        of the latest heights (:attr:`face_z`) says.
         """
         return min(self._zs) if self._zs else 0.0
 
