@@ -19,9 +19,11 @@ from stackpick_sim.control.reach import (
     tilted_axis,
 )
 from stackpick_sim.episodes.arm import ArmController
+from stackpick_sim.episodes.episode import run_episode
 from stackpick_sim.episodes.hypotheses import RadiusHypotheses
 from stackpick_sim.episodes.pick import (
     DESCENT_WAIT,
+    descent_floor,
     descent_missed,
     floor_time,
     lift_position,
@@ -32,6 +34,7 @@ from stackpick_sim.geometry import CameraIntrinsics, project_circle
 from stackpick_sim.sim import robot
 from stackpick_sim.sim.cell import build_cell
 from stackpick_sim.sim.ik import tool_down_pose
+from stackpick_sim.sim.stacks import generate_scene
 from stackpick_sim.vision import circle_poses
 
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -430,3 +433,53 @@ def test_a_first_detection_is_confirmed_by_later_views_cut_by_the_border() -> No
     assert est.initialised
     t = 2 * FRAME_DT
     assert np.linalg.norm(est.state(t, cam).centre - _on_belt(t, start)) < 1e-3
+
+
+def test_the_descent_goes_on_to_the_lowest_height_the_track_measured() -> None:
+    overtravel, tallest = 0.006, 0.03
+    # Heights agree: the overtravel past the predicted face, as before.
+    assert descent_floor(overtravel, 0.18, 0.18, tallest) == pytest.approx(-overtravel)
+    # The latest views read the face 14 mm higher than the earliest: on down to that depth.
+    assert descent_floor(overtravel, 0.194, 0.18, tallest) == pytest.approx(-0.020)
+    # Never further than the tallest object kind (lower is another layer of the pile) ...
+    assert descent_floor(overtravel, 0.30, 0.18, tallest) == pytest.approx(-0.036)
+    # ... never up again once deeper, and never short of the overtravel.
+    assert descent_floor(overtravel, 0.18, 0.18, tallest, -0.02) == pytest.approx(-0.02)
+    assert descent_floor(overtravel, 0.17, 0.18, tallest) == pytest.approx(-overtravel)
+
+
+def _enlarged(obs: Observation, scale: float) -> Observation:
+    """``obs`` with each face's outline (and so its monocular pose) ``scale`` times nearer:
+    an outline that takes in part of the side wall looks larger, so nearer."""
+    cands = tuple(replace(c, centre_cam=None if c.centre_cam is None else c.centre_cam / scale,
+                          ellipse=None if c.ellipse is None else replace(
+                              c.ellipse, a=c.ellipse.a * scale, b=c.ellipse.b * scale))
+                  for c in obs.candidates)
+    return replace(obs, candidates=cands)
+
+
+def test_the_lowest_face_height_outlasts_later_views_that_read_the_face_too_high() -> None:
+    # Paper development seeds 633, 653: the look pose reads the face height right; later
+    # views' outlines take in the side wall and read it 10-18 mm too high, and the median
+    # of the latest heights follows them. The lowest height stays the face's, and the
+    # descent's floor reaches the true face.
+    est = TargetEstimator(CFG, K, oracle=True)
+    first = _observation(0.0, [_on_belt(0.0)])
+    est.start(first, first.candidates[0])
+    for i in range(1, 3):
+        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    for i in range(3, 15):
+        t = i * FRAME_DT
+        assert est.offer(_enlarged(_observation(t, [_on_belt(t)]), 1.07))
+    assert est.face_z > FACE[2] + 0.01
+    assert est.lowest_face_z == pytest.approx(FACE[2], abs=1e-4)
+    floor = descent_floor(0.006, est.face_z, est.lowest_face_z, 0.03)
+    assert est.face_z + floor < FACE[2] - 0.005  # the cup is sent below the true face
+
+
+def test_a_face_read_too_high_by_the_approach_views_is_still_picked() -> None:
+    # Paper development seed 653 (vision): the approach's and servo's outlines of the face
+    # take in its side wall, and the track puts the face 13 mm too high; the descent used to
+    # stop 7 mm above it (missed_grasp).
+    rec = run_episode(generate_scene(load_scene("paper", []), 653))
+    assert rec.success, f"{rec.failure}: {rec.failure_detail}"

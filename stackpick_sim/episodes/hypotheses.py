@@ -94,6 +94,14 @@ class RadiusHypotheses:
         return self.active.normal
 
     @property
+    def face_z(self) -> float:
+        return self.active.face_z
+
+    @property
+    def lowest_face_z(self) -> float:
+        return self.active.lowest_face_z
+
+    @property
     def radius(self) -> float | None:
         return self.active.radius
 

@@ -73,6 +73,7 @@ class PhaseLogic(ArmPhases):
         self._planned_normal = np.array([0.0, 0.0, -1.0])
         self._redetections = 0
         self._at_floor = 0.0
+        self._floor = 0.0
         self._last_lateral = 0.0
         self._now = 0.0
 

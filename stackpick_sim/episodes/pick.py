@@ -79,13 +79,29 @@ def floor_time(at_floor: float, depth_error: float, standoff: float, floor: floa
     return at_floor
 
 
+def descent_floor(overtravel: float, face_z: float, lowest_face_z: float, tallest: float,
+                  previous: float = 0.0) -> float:
+    """Deepest standoff (m, negative: past the predicted face) a descent is commanded to.
+
+    ``overtravel`` m past the predicted face (at height ``face_z``, world z, m), and further
+    by as much as the track's lowest monocular height ``lowest_face_z`` m lies below it, by
+    at most ``tallest`` m (the tallest object kind: lower down is another layer of the
+    pile); never above ``previous``, the floor of an earlier tick (m). A monocular height
+    errs one way, too high (see
+    :attr:`~stackpick_sim.episodes.target.TargetEstimator.lowest_face_z`), so a face not
+    met by then is missed; a face met earlier ends the descent at contact as before.
+    """
+    below = min(max(face_z - lowest_face_z, 0.0), tallest)
+    return min(previous, -overtravel - below)
+
+
 def descent_missed(depth_error: float, standoff: float, floor: float,
                    at_floor: float) -> bool:
     """Whether a descent has passed the predicted face without contact.
 
     ``depth_error`` m: the tool's distance short of its commanded ``standoff`` m (positive:
-    above it); ``floor`` m: the deepest command (``-overtravel``); ``at_floor`` s: how long
-    the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
+    above it); ``floor`` m: the deepest command (:func:`descent_floor`); ``at_floor`` s: how
+    long the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
     follows the commanded descent some millimetres late: a miss is the tool itself past the
     predicted face, or the tool resting near the floor for DESCENT_WAIT. A tool still far
     above (slowed by the wrist's J5 = 0 singularity, paper seed 242: 10-20 mm behind) is
@@ -121,6 +137,7 @@ class ArmPhases:
     _face_share: float
     _planned_normal: NDArray[np.float64]
     _at_floor: float
+    _floor: float
     _last_lateral: float
     _settled: int
     _lift_from: NDArray[np.float64] | None
@@ -228,7 +245,7 @@ class ArmPhases:
             self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
             self._enter("grasp", t)
             return self._servo_step(t, dt, self._standoff, 0.0)
-        floor = -cfg.overtravel
+        floor = self._descent_floor(cfg.overtravel)
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
@@ -241,6 +258,14 @@ class ArmPhases:
             self.fail("missed_grasp", "the descent passed the predicted face without contact")
             return None
         return err
+
+    def _descent_floor(self, overtravel: float) -> float:
+        """This tick's :func:`descent_floor` (m), remembered for the next."""
+        est = self.ep.estimator
+        tallest = max(t.height for t in self.ep.scene.cell.cfg.object_types.values())
+        self._floor = descent_floor(overtravel, est.face_z, est.lowest_face_z, tallest,
+                                    self._floor)
+        return self._floor
 
     def _pick_moment(self, t: float) -> None:
         ep, rec = self.ep, self.ep.record

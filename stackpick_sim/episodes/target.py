@@ -188,6 +188,21 @@ class TargetEstimator:
         """Height of the face centre, world z, m (median of the last detections' heights)."""
         return float(np.median(self._zs[-FACE_Z_WINDOW:])) if self._zs else 0.0
 
+    @property
+    def lowest_face_z(self) -> float:
+        """Lowest monocular height of the face centre over the whole track, world z, m (0
+        before any detection).
+
+        The large errors of a monocular height are one-sided: an outline that takes in more
+        than the face (the side wall of the face's colour, seen obliquely as the camera
+        approaches; a neighbour's rim) is larger, so read as nearer: too high. Paper
+        development seeds 633 and 653: the look pose's heights within 0.3 mm, the
+        approach's and servo's 10-18 mm too high; seed 1: a look-pose outline with the wall,
+        20 mm too high. So the face is expected at or above this bound, whatever the median
+        of the latest heights (:attr:`face_z`) says.
+        """
+        return min(self._zs) if self._zs else 0.0
+
     def start(self, obs: Observation, cand: Candidate, radius: float | None = None) -> None:
         """Begin with the first detection of the face to pick (its pose must be known).
 
