@@ -263,7 +263,9 @@ class EpisodeCfg:
     descend_speed: float = 0.35
     """Speed of the descent along the approach axis, m/s."""
     overtravel: float = 0.006
-    """How far past the predicted face the descent goes before calling a miss, m."""
+    """How far past the predicted face the descent goes before calling a miss, m (further
+    by as much as the track's lowest monocular face height lies below the predicted one, at
+    most the tallest object's height: :func:`stackpick_sim.episodes.pick.descent_floor`)."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s."""
     lift_height: float = 0.10
