@@ -64,6 +64,17 @@ def test_isolated_disc_is_top_candidate_and_rule_takes_foreign_ellipses() -> Non
     assert choice.evidence[0].support < 0.2
 
 
+def _two_discs(lower: Ellipse, lower_level: float, upper: Ellipse, upper_level: float,
+               seed: int) -> np.ndarray:
+    """A grey image: ``upper`` drawn over ``lower`` (grey levels given) on a dark background,
+    seeded noise of std 1."""
+    rng = np.random.default_rng(seed)
+    image = np.full(SHAPE, 35.0)
+    image[lower.mask(SHAPE)] = lower_level
+    image[upper.mask(SHAPE)] = upper_level
+    return np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_last_resort_takes_a_face_whose_gap_is_an_invisible_boundary(seed: int) -> None:
     # A top disc on a lower one of the very same shade (development seed 292): the boundary
@@ -71,11 +82,7 @@ def test_last_resort_takes_a_face_whose_gap_is_an_invisible_boundary(seed: int) 
     # or an edge inside, and the top shows more of its outline.
     lower = Ellipse(cx=140, cy=120, a=30, b=26, angle_deg=20)
     upper = Ellipse(cx=185, cy=125, a=42, b=37, angle_deg=110)
-    rng = np.random.default_rng(seed)
-    image = np.full(SHAPE, 35.0)
-    image[lower.mask(SHAPE)] = 150.0
-    image[upper.mask(SHAPE)] = 150.0
-    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    image = _two_discs(lower, 150.0, upper, 150.0, seed)
     choice = select_top([lower, upper], detect_edges(image))
     assert choice.index is None
     assert select_unobstructed(choice.evidence) == 1
@@ -106,11 +113,7 @@ def test_rim_band_last_resort_takes_a_face_fitted_on_a_lower_sliver(seed: int) -
     # strong silhouette holds the top's own faint rim inside, so it fails on interior edges.
     upper = Ellipse(cx=165, cy=120, a=48, b=47, angle_deg=0)
     lower = Ellipse(cx=158, cy=120, a=46, b=46, angle_deg=0)
-    rng = np.random.default_rng(seed)
-    image = np.full(SHAPE, 35.0)
-    image[lower.mask(SHAPE)] = 150.0
-    image[upper.mask(SHAPE)] = 160.0
-    image = np.clip(np.round(image + rng.normal(0.0, 1.0, SHAPE)), 0, 255).astype(np.uint8)
+    image = _two_discs(lower, 150.0, upper, 160.0, seed)
     fit = _silhouette_fit(image)
     grad = edge_image(image)
     points, _ = edge_points(grad)
