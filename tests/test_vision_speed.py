@@ -8,7 +8,6 @@ import pytest
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outlines
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
-from stackpick_sim.vision.pose import _eigh
 from stackpick_sim.vision.wall import _floats
 
 RNG = np.random.default_rng(7)
@@ -43,14 +42,6 @@ def test_grouped_distances_are_pair_distances() -> None:
     np.testing.assert_array_equal(
         grouped_distances(params, counts, points[:, 0].copy(), points[:, 1].copy()),
         pair_distances(params, points, which, np.arange(which.size)))
-
-
-def test_eigh_is_numpys() -> None:
-    for _ in range(20):
-        m = RNG.normal(size=(3, 3))
-        m = m + m.T
-        for got, want in zip(_eigh(m), np.linalg.eigh(m), strict=True):
-            np.testing.assert_array_equal(got, want)
 
 
 def test_floats_of_arrays_and_sequences() -> None:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -110,31 +110,6 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
                        centre_cam=unit[1].centre_cam * radius))
 
 
-def _eigh(q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``np.linalg.eigh`` of a symmetric (3, 3) matrix: its LAPACK routine called directly
-    (the same values; the wrapper's checks and error state cost three times the
-    decomposition), the wrapper itself when that is unavailable or does not converge."""
-    if _EIGH_LO is not None:
-        try:
-            evals, evecs = _EIGH_LO(q, signature="d->dd")
-        except TypeError:  # pragma: no cover - another numpy's gufunc signature
-            pass
-        else:
-            if np.isfinite(evals).all():
-                return evals, evecs
-    evals, evecs = np.linalg.eigh(q)
-    return evals, evecs
-
-
-try:
-    from numpy.linalg import _umath_linalg
-
-    _EIGH_LO: Callable[..., tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
-        _umath_linalg.eigh_lo)
-except (ImportError, AttributeError):  # pragma: no cover - another numpy layout
-    _EIGH_LO = None
-
-
 @functools.lru_cache(maxsize=256)
 def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                        ) -> tuple[CirclePose, CirclePose]:
@@ -148,7 +123,7 @@ def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     q00, q01, q02 = fx * fx * m00, fx * fy * m01, fx * r0
     q11, q12 = fy * fy * m11, fy * r1
     q22 = cx * r0 + cy * r1 + (d0 * cx + d1 * cy + f)
-    evals, evecs = _eigh(np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]]))
+    evals, evecs = np.linalg.eigh(np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]]))
     l_lo, l_mid, l_hi = evals.tolist()
     (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs.tolist()
     if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:  # one positive: negate the form
