@@ -33,6 +33,7 @@ from stackpick_sim.vision.fitting import (
     ellipse_distances,
     fit_ellipse,
     plausible,
+    rms_residual,
 )
 from stackpick_sim.vision.merging import (
     ABSORB_FRACTION,
@@ -60,11 +61,6 @@ def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int
     near = ellipse_distances(ellipse, pixels) < MERGE_TOLERANCE_PX
     hits = np.bincount(owner[near], minlength=lengths.shape[0])
     return tuple(np.flatnonzero(hits >= ABSORB_FRACTION * lengths).tolist())
-
-
-def _rms(ellipse: Ellipse, points: NDArray) -> float:
-    d = ellipse_distances(ellipse, points)
-    return float(np.sqrt(np.mean(d * d)))
 
 
 def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
@@ -112,7 +108,7 @@ def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArra
                 grown = np.concatenate([union] + [chains[k] for k in lying if k not in (i, j)])
                 refit = fit_ellipse(grown)
                 if (refit is None or not plausible(refit, shape)
-                        or _rms(refit, grown) > MAX_RESIDUAL_PX):
+                        or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
                     break
                 fit = refit
             grown_sets.append({i, j, *lying})
