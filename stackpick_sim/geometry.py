@@ -138,6 +138,16 @@ class Ellipse:
         hh = math.hypot(self.a * math.sin(th), self.b * math.cos(th))
         return self.cx - hw, self.cy - hh, self.cx + hw, self.cy + hh
 
+    def inside(self, points: NDArray[np.float64], margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """(M,) bool: points (M, 2) (u, v) more than ``margin_px`` inside the ellipse (strictly
+        inside its axes shrunk by that much)."""
+        t = math.radians(self.angle_deg)
+        c, s = math.cos(t), math.sin(t)
+        du, dv = points[:, 0] - self.cx, points[:, 1] - self.cy
+        x = (c * du + s * dv) / max(self.a - margin_px, 1e-6)
+        y = (-s * du + c * dv) / max(self.b - margin_px, 1e-6)
+        return np.asarray(x * x + y * y < 1.0, np.bool_)
+
     def mask(self, shape: tuple[int, int]) -> NDArray[np.bool_]:
         """(H, W) bool mask of the pixel centres inside the ellipse."""
         h, w = shape

@@ -328,8 +328,7 @@ def test_one_face_fitted_twice_is_reported_once() -> None:
     face = Ellipse(cx=160, cy=120, a=40, b=30, angle_deg=30)
     near = replace(face, cx=face.cx + 0.8, a=face.a - 0.5)
     other = Ellipse(cx=160, cy=120, a=25, b=18, angle_deg=30)  # concentric, not the same
-    assert detector_module._same_outline(face, near)
-    assert not detector_module._same_outline(face, other)
+    assert detector_module._same_outlines([face, near, other], [0, 1, 2]) == {(0, 1), (1, 0)}
     evidence = select_top([face, near, other], np.zeros(SHAPE, np.uint8))
     kept = detector_module._distinct([0, 1, 2], [face, near, other], evidence)
     assert len(kept) == 2 and 2 in kept

@@ -41,15 +41,12 @@ from stackpick_sim.vision.edges import (
     unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import (
-    distances,
-    ellipse_params,
     fit_all,
     plausible,
     rms_residual,
 )
 from stackpick_sim.vision.merging import (
     MergedEllipse,
-    boundary_samples,
     boundary_shares,
     merge_segments,
     support_map,
@@ -483,20 +480,11 @@ def _far_rim(rim: Ellipse, face: Ellipse) -> bool:
     return along >= math.cos(math.radians(RIM_ANGLE_DEG))
 
 
-def _same_outline(e1: Ellipse, e2: Ellipse) -> bool:
-    """Whether each outline lies on the other (see :func:`_distinct`)."""
-    if math.hypot(e1.cx - e2.cx, e1.cy - e2.cy) > max(e1.b, e2.b):
-        return False
-    for one, other in ((e1, e2), (e2, e1)):
-        d = distances(ellipse_params([other]), boundary_samples(one))[0]
-        if float(np.mean(d < DUPLICATE_TOLERANCE_PX)) < DUPLICATE_SHARE:
-            return False
-    return True
-
-
 def _same_outlines(ellipses: list[Ellipse], indices: list[int]) -> set[tuple[int, int]]:
-    """The pairs (i, j), both ways, of ``indices`` whose ellipses have the same outline
-    (:func:`_same_outline`), every pair's two shares computed in one array pass."""
+    """The pairs (i, j), both ways, of ``indices`` whose ellipses have the same outline (see
+    :func:`_distinct`): centres within the larger semi-minor axis, and each outline within
+    DUPLICATE_TOLERANCE_PX of the other along DUPLICATE_SHARE of it, every pair's two shares
+    computed in one array pass."""
     pairs = [(i, j) for k, i in enumerate(indices) for j in indices[k + 1:]
              if math.hypot(ellipses[i].cx - ellipses[j].cx, ellipses[i].cy - ellipses[j].cy)
              <= max(ellipses[i].b, ellipses[j].b)]

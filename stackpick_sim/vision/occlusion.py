@@ -307,14 +307,7 @@ def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float6
                      depth_px: float) -> list[int]:
     """Per ellipse: how many edge pixels (M, 2) (u, v) lie inside it by more than
     ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures)."""
-    out = []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        du, dv = edge_points[:, 0] - e.cx, edge_points[:, 1] - e.cy
-        x = (math.cos(t) * du + math.sin(t) * dv) / max(e.a - depth_px, 1e-6)
-        y = (-math.sin(t) * du + math.cos(t) * dv) / max(e.b - depth_px, 1e-6)
-        out.append(int(np.count_nonzero(x * x + y * y < 1.0)))
-    return out
+    return [int(np.count_nonzero(e.inside(edge_points, depth_px))) for e in ellipses]
 
 
 def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
@@ -339,10 +332,15 @@ def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
     to the larger), or None: a last resort when no ellipse passes the rule, nor after the
     contrast refit (see RIM_BAND_PX)."""
     ok = rim_only(ellipses, evidence, edge_points)
-    if not ok:
-        return None
-    best = max(evidence[i].support for i in ok)
-    return max((i for i in ok if evidence[i].support >= best - SUPPORT_TIE),
+    return _best_supported(ok, ellipses, evidence) if ok else None
+
+
+def _best_supported(indices: Sequence[int], ellipses: Sequence[Ellipse],
+                    evidence: Sequence[OcclusionEvidence]) -> int:
+    """The best-supported of ``indices`` (non-empty); ties within SUPPORT_TIE go to the larger
+    ellipse, which is nearer the camera for equal radii."""
+    best = max(evidence[i].support for i in indices)
+    return max((i for i in indices if evidence[i].support >= best - SUPPORT_TIE),
                key=lambda i: ellipses[i].area)
 
 
@@ -417,7 +415,4 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         nearest = _clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
         if nearest is not None:
             return TopChoice(index=pool[nearest], evidence=evidence)
-    best_support = max(evidence[i].support for i in candidates)
-    tied = [i for i in candidates if evidence[i].support >= best_support - SUPPORT_TIE]
-    index = max(tied, key=lambda i: ellipses[i].area)
-    return TopChoice(index=index, evidence=evidence)
+    return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)

@@ -15,8 +15,6 @@ hit needs a second whole face right beside this face's rim, on the side a wall w
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -36,15 +34,6 @@ COVER_DEPTH_FRACTIONS: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
 COVER_MARGIN_PX = 1.0
 
 
-def _inside(ellipse: Ellipse, points: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """(M,) bool: points (M, 2) (u, v) more than COVER_MARGIN_PX inside ``ellipse``."""
-    t = math.radians(ellipse.angle_deg)
-    du, dv = points[:, 0] - ellipse.cx, points[:, 1] - ellipse.cy
-    x = (math.cos(t) * du + math.sin(t) * dv) / max(ellipse.a - COVER_MARGIN_PX, 1e-6)
-    y = (-math.sin(t) * du + math.cos(t) * dv) / max(ellipse.b - COVER_MARGIN_PX, 1e-6)
-    return np.asarray(x * x + y * y < 1.0, np.bool_)
-
-
 def _bands(face: Ellipse, intrinsics: CameraIntrinsics) -> list[NDArray[np.float64]]:
     """Predicted wall bands (N_i, 2) px of the two pose solutions of ``face`` that show at
     least MIN_BAND_SAMPLES points (a face seen square on shows none)."""
@@ -56,7 +45,7 @@ def _bands(face: Ellipse, intrinsics: CameraIntrinsics) -> list[NDArray[np.float
 
 def _share(bands: list[NDArray[np.float64]], other: Ellipse) -> float:
     """Largest share of any of ``bands`` lying inside ``other``; 0 without bands."""
-    return max((float(np.mean(_inside(other, b))) for b in bands), default=0.0)
+    return max((float(np.mean(other.inside(b, COVER_MARGIN_PX))) for b in bands), default=0.0)
 
 
 def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -> float:
