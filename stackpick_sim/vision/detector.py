@@ -67,7 +67,7 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
-from stackpick_sim.vision.regroup import arc_pair_ellipses, chains_on
+from stackpick_sim.vision.regroup import arc_pair_ellipses, chain_table, chains_on
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -435,9 +435,7 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
         return merged, choice
     ellipse = found[extra.index]
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
-    lengths = np.array([c.shape[0] for c in chains], np.float64)
-    on = chains_on(ellipse, np.concatenate(chains),
-                   np.repeat(np.arange(len(chains)), lengths.astype(np.int64)), lengths)
+    on = chains_on(ellipse, *chain_table(chains))
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]

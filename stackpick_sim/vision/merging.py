@@ -95,23 +95,17 @@ def boundary_shares(ways: list[tuple[Ellipse, Ellipse]], tol_px: float) -> list[
     if not ways:
         return []
     sizes, rows = [], []
-    for one, other in ways:
+    for one, _ in ways:
         sizes.append(max(16, math.ceil(perimeter_px(one))))
         th = math.radians(one.angle_deg)
-        t = math.radians(other.angle_deg)
-        rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th),
-                     other.cx, other.cy, other.a, other.b, math.cos(t), math.sin(t)))
+        rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th)))
     counts = np.array(sizes)
     ct = np.concatenate([unit_circle(n)[0] for n in sizes])
     st = np.concatenate([unit_circle(n)[1] for n in sizes])
-    cx, cy, a, b, c, s, ox, oy, oa, ob, oc, os_ = np.array(rows, np.float64).T.repeat(
-        counts, axis=1)
+    cx, cy, a, b, c, s = np.array(rows, np.float64).T.repeat(counts, axis=1)
     x, y = a * ct, b * st
-    du = cx + c * x - s * y - ox
-    dv = cy + s * x + c * y - oy
-    x = (oc * du + os_ * dv) / oa
-    y = (-os_ * du + oc * dv) / ob
-    d = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / oa) ** 2 + (y / ob) ** 2) + 1e-12)
+    d = grouped_distances(ellipse_params([other for _, other in ways]), counts,
+                          cx + c * x - s * y, cy + s * x + c * y)
     close = np.bincount(np.arange(len(ways)).repeat(counts), weights=d < tol_px,
                         minlength=len(ways))
     return (close / counts).tolist()

@@ -53,6 +53,15 @@ def _bounds(points: NDArray[np.int32]) -> tuple[float, float, float, float]:
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
+def chain_table(chains: Sequence[NDArray[np.int32]]
+                ) -> tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`chains_on`'s input from the chains (N_i, 2): all their pixels concatenated
+    (N, 2), the chain of each pixel (N,) and the chains' lengths (C,)."""
+    pixels = np.concatenate(chains) if chains else np.zeros((0, 2), np.int32)
+    lengths = np.array([c.shape[0] for c in chains], np.float64)
+    return pixels, np.repeat(np.arange(len(chains)), lengths.astype(np.int64)), lengths
+
+
 def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int64],
               lengths: NDArray[np.float64]) -> tuple[int, ...]:
     """Indices of the chains with ABSORB_FRACTION of their pixels within MERGE_TOLERANCE_PX of
@@ -73,9 +82,7 @@ def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArra
     pair of arcs that both lie on an ellipse already grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
     boxes = [_bounds(a) for a in arcs]
-    pixels = np.concatenate(chains) if chains else np.zeros((0, 2), np.int32)
-    lengths = np.array([c.shape[0] for c in chains], np.float64)
-    owner = np.repeat(np.arange(len(chains)), lengths.astype(np.int64))
+    pixels, owner, lengths = chain_table(chains)
     out: list[Ellipse] = []
     grown_sets: list[set[int]] = []
     for i in range(len(arcs)):
