@@ -18,8 +18,9 @@ from stackpick_sim.vision.fitting import (
     within,
     within_pairs,
 )
+from stackpick_sim.vision.merging import MergedEllipse
 from stackpick_sim.vision.occlusion import evidence_all
-from stackpick_sim.vision.refine import _along, edge_points, refine_all
+from stackpick_sim.vision.refine import _along, _along_grouped, _along_mask, edge_points, refine_all
 from stackpick_sim.vision.segments import link_segments, neighbour_count
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import column_median
@@ -126,6 +127,25 @@ def test_refine_collects_the_pixels_along_each_fit(
     # The face's visible outline: many pixels, all within the tolerance.
     assert kept.shape[0] > 100
     assert np.all(distances(ellipse_params([STACK[0]]), kept)[0] < 1.5)
+
+
+def test_along_grouped_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    points, grads = edge_points(edge_image(image))
+    counts = np.full(len(probes), points.shape[0])
+    cols = tuple(np.tile(c, len(probes)) for c in (*points.T, *grads.T))
+    for tol in (1.2, 2.5):
+        expected = np.concatenate([_along_mask(e, *points.T, *grads.T, tol) for e in probes])
+        np.testing.assert_array_equal(_along_grouped(probes, counts, cols, tol), expected)
+
+
+def test_merged_ellipse_of_equals_the_constructor() -> None:
+    args = (STACK[0], (2, 5), 0.3, 0.75)
+    made = MergedEllipse.of(*args)
+    assert made == MergedEllipse(ellipse=args[0], segments=args[1], residual_px=args[2],
+                                 support=args[3])
+    assert hash(made) == hash(MergedEllipse(ellipse=args[0], segments=args[1],
+                                            residual_px=args[2], support=args[3]))
 
 
 def test_evidence_all_matches_one_at_a_time(scene: tuple[np.ndarray, list[Ellipse]]) -> None:

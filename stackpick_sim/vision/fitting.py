@@ -173,16 +173,36 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
     ``counts[1]`` to ellipse 1, ... (the same values; one repeat instead of six gathers)."""
-    rows = np.empty((6, params.shape[0]))
+    rows = np.empty((7, params.shape[0]))
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    cx, cy, a, b, c, s = rows.repeat(counts, axis=1)
+    np.negative(rows[5], out=rows[6])
+    cx, cy, a, b, c, s, minus_s = rows.repeat(counts, axis=1)
+    # :func:`distances` term by term, each written into a fresh or spent array (the same
+    # values, fewer allocations).
     du, dv = pu - cx, pv - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
-    return cast("NDArray[np.float64]", np.abs(x * x + y * y - 1.0) / grad)
+    x = c * du
+    x += s * dv
+    x /= a
+    y = minus_s * du
+    y += c * dv
+    y /= b
+    grad = x / a
+    grad *= grad
+    yb = y / b
+    yb *= yb
+    grad += yb
+    np.sqrt(grad, out=grad)
+    grad *= 2.0
+    grad += 1e-12
+    x *= x
+    y *= y
+    x += y
+    x -= 1.0
+    np.abs(x, out=x)
+    x /= grad
+    return x
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
@@ -261,11 +281,12 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             else:
                 fitted.append((p, e))
         if fitted:
-            pts = np.concatenate([f[0][2] for f in fitted]).astype(np.float64)
+            # (2, N): contiguous u and v rows.
+            pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
             counts = np.array([f[0][2].shape[0] for f in fitted])
             # The pieces' pixels run piece by piece: each fit's parameters repeated.
-            d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[:, 0],
-                                  pts[:, 1])
+            d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0],
+                                  pts[1])
             which = np.arange(len(fitted)).repeat(counts)
             rms = np.sqrt(np.bincount(which, weights=d * d) / counts)
             for (p, e), r in zip(fitted, rms.tolist(), strict=True):
@@ -288,12 +309,12 @@ def _bows(pieces: list[NDArray]) -> list[float]:
     """:func:`bow_px` of each piece (N_i, 2), in one pass."""
     if not pieces:
         return []
-    p = np.concatenate(pieces).astype(np.float64)
+    u, v = np.concatenate(pieces).T.astype(np.float64)  # contiguous rows
     counts = np.array([q.shape[0] for q in pieces])
     which = np.arange(len(pieces)).repeat(counts)
-    mean_u = np.bincount(which, weights=p[:, 0]) / counts
-    mean_v = np.bincount(which, weights=p[:, 1]) / counts
-    cu, cv = p[:, 0] - mean_u.repeat(counts), p[:, 1] - mean_v.repeat(counts)
+    mean_u = np.bincount(which, weights=u) / counts
+    mean_v = np.bincount(which, weights=v) / counts
+    cu, cv = u - mean_u.repeat(counts), v - mean_v.repeat(counts)
     sxx = np.bincount(which, weights=cu * cu)
     syy = np.bincount(which, weights=cv * cv)
     sxy = np.bincount(which, weights=cu * cv)

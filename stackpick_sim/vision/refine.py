@@ -124,7 +124,7 @@ def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float
     w = edges.shape[1]
     # flatnonzero of a bool map: np.nonzero's row-major order at a fifth of findNonZero's
     # cost.
-    at = np.flatnonzero(edges.astype(np.bool_))
+    at = np.flatnonzero(edges.view(np.bool_))  # 0/1 bytes are valid bools
     pts = np.empty((2, at.shape[0]))
     np.floor_divide(at, w, out=pts[1], casting="unsafe")
     np.remainder(at, w, out=pts[0], casting="unsafe")
@@ -183,9 +183,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     if not current or points.shape[0] == 0:
         return current
     n = len(current)
-    reach = np.array([e.a for e in current]) + TOLERANCES_PX[0] + 1
-    cx = np.array([e.cx for e in current])
-    cy = np.array([e.cy for e in current])
+    a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T
+    reach = a + TOLERANCES_PX[0] + 1
     pu, pv = points[:, 0], points[:, 1]
     pe, pm = np.nonzero((np.abs(pu - cx[:, None]) <= reach[:, None])
                         & (np.abs(pv - cy[:, None]) <= reach[:, None]))
@@ -235,18 +234,45 @@ def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, math.cos(t), math.sin(t)))
-    cx, cy, ia, ib, c, s = np.array(rows, np.float64).T.repeat(counts, axis=1)
+        c, s = math.cos(t), math.sin(t)
+        rows.append((e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, c, s, -s))
+    cx, cy, ia, ib, c, s, minus_s = np.array(rows, np.float64).T.repeat(counts, axis=1)
     u, v, gu, gv = cols
+    # Each term written into a fresh or spent array (fewer allocations; the same values as
+    # the plain expressions in the comments).
     du, dv = u - cx, v - cy
-    x = (c * du + s * dv) * ia
-    y = (-s * du + c * dv) * ib
+    x = c * du
+    x += s * dv
+    x *= ia  # (c du + s dv) ia
+    y = minus_s * du
+    y += c * dv
+    y *= ib  # (-s du + c dv) ib
     gx, gy = x * ia, y * ib
-    norm = np.sqrt(gx * gx + gy * gy)
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
-    cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
-    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
-    return cast("NDArray[np.bool_]", keep)
+    norm = gx * gx
+    norm += gy * gy
+    np.sqrt(norm, out=norm)
+    x *= x
+    y *= y
+    x += y
+    x -= 1.0
+    dist = np.abs(x, out=x)
+    den = 2.0 * norm
+    den += 1e-12
+    dist /= den
+    cos = c * gx
+    cos -= s * gy
+    cos *= gu
+    s *= gx
+    c *= gy
+    s += c
+    s *= gv
+    cos += s
+    np.abs(cos, out=cos)  # |unit normal . gradient| times norm
+    np.maximum(norm, 1e-12, out=norm)
+    norm *= MIN_NORMAL_COS
+    keep = dist < tol_px
+    keep &= cos >= norm
+    return keep
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX

@@ -55,20 +55,19 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     report the miss) or when the belt level cannot be read.
     """
     h, w = image.shape[:2]
-    whole = Roi(u0=0, v0=0, u1=w, v1=h)
     small = cv2.resize(image, (max(1, w // DECIMATION), max(1, h // DECIMATION)),
                        interpolation=cv2.INTER_AREA)
     level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
              if small.ndim == 3 else small)
     if min(level.shape) < 3:
-        return whole
+        return Roi(u0=0, v0=0, u1=w, v1=h)
     border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])
     belt = float(column_median(border))
     fg = cv2.absdiff(level, np.full_like(level, round(belt))) > FOREGROUND_DELTA
     # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
     bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
     if bw == 0 or bh == 0:
-        return whole
+        return Roi(u0=0, v0=0, u1=w, v1=h)
     u0 = max(0, bu * DECIMATION - MARGIN_PX)
     v0 = max(0, bv * DECIMATION - MARGIN_PX)
     u1 = min(w, (bu + bw) * DECIMATION + MARGIN_PX)

@@ -174,7 +174,6 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     kept_px = on & (box < 4)
     cut = kept_px.view(np.uint8)
     box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
-    is_end = kept_px & (box <= 2)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     chains: list[NDArray[np.int32]] = []
     if hierarchy is None:
@@ -185,9 +184,10 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
         return EdgeSegments(chains=(), junctions=junctions, edges=edges)
-    # The end-point test of all contour pixels at once, then each contour's share of it.
+    # The end-point test of all contour pixels at once (each is a kept pixel: only its 3x3
+    # sum is read), then each contour's share of it.
     every = np.concatenate(kept)
-    is_end_px = is_end.ravel()[every[:, 1] * edges.shape[1] + every[:, 0]]
+    is_end_px = box.ravel()[every[:, 1] * edges.shape[1] + every[:, 0]] <= 2
     end_at = is_end_px.nonzero()[0].tolist()
     k = 0
     start = 0
@@ -198,7 +198,10 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
             ends.append(end_at[k] - start)
             k += 1
         start = stop
-        for arc in split_chain(_order_by_ends(pts, ends), closed=not ends):
+        chain = _order_by_ends(pts, ends)
+        if chain.shape[0] < MIN_CHAIN_PX:
+            continue  # its arcs would be shorter still
+        for arc in split_chain(chain, closed=not ends):
             if arc.shape[0] >= MIN_CHAIN_PX:
                 chains.append(arc)
     return EdgeSegments(chains=tuple(chains), junctions=junctions, edges=edges)
