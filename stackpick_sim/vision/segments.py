@@ -45,13 +45,17 @@ class EdgeSegments:
     """Edge segments of one image.
 
     ``chains``: ordered pixel chains, each (N_i, 2) int32 (u, v).
-    ``junctions``: (H, W) bool, edge pixels with three or more edge neighbours.
     ``edges``: (H, W) uint8 0/1 one-pixel-wide edge map the chains came from.
     """
 
     chains: tuple[NDArray[np.int32], ...]
-    junctions: NDArray[np.bool_]
     edges: NDArray[np.uint8]
+
+    @property
+    def junctions(self) -> NDArray[np.bool_]:
+        """(H, W) bool, edge pixels with three or more edge neighbours (:func:`find_junctions`
+        of ``edges``, on request: the detector does not read them)."""
+        return find_junctions(self.edges)
 
 
 def neighbour_count(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -165,25 +169,23 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
 
 def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments."""
-    # Junctions: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel included) of
-    # 4+; end points of the map without them: a 3x3 sum of at most 2.
-    on = edges != 0
+    # Junctions, cut out: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel
+    # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
     box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
                         borderType=cv2.BORDER_CONSTANT)
-    junctions = on & (box >= 4)
-    kept_px = on & (box < 4)
+    kept_px = (edges != 0) & (box < 4)
     cut = kept_px.view(np.uint8)
     box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     chains: list[NDArray[np.int32]] = []
     if hierarchy is None:
-        return EdgeSegments(chains=(), junctions=junctions, edges=edges)
+        return EdgeSegments(chains=(), edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
     parents = hierarchy[0][:, 3].tolist()
     kept = [c.reshape(-1, 2) for c, parent in zip(contours, parents, strict=True)
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
-        return EdgeSegments(chains=(), junctions=junctions, edges=edges)
+        return EdgeSegments(chains=(), edges=edges)
     # The end-point test of all contour pixels at once (each is a kept pixel: only its 3x3
     # sum is read), then each contour's share of it.
     every = np.concatenate(kept)
@@ -204,4 +206,4 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
         for arc in split_chain(chain, closed=not ends):
             if arc.shape[0] >= MIN_CHAIN_PX:
                 chains.append(arc)
-    return EdgeSegments(chains=tuple(chains), junctions=junctions, edges=edges)
+    return EdgeSegments(chains=tuple(chains), edges=edges)
