@@ -112,7 +112,7 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 
 @functools.lru_cache(maxsize=256)
 def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
-                       ) -> tuple[CirclePose, CirclePose]:
+                      ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
     # Three-vectors and 3x3 forms on Python floats (numpy's matmul, inv and array
     # construction cost more than the arithmetic on this size); numpy for the eigenvectors.

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
-from stackpick_sim.vision.wall import face_colour, faces_wall_evidences
+from stackpick_sim.vision.wall import face_colour, wall_evidences
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
@@ -99,18 +99,15 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3)."""
     n = len(faces)
     under = [False] * n
-    known = []  # (index, radius, height, unit-radius solutions) of each face taking part
+    bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []
     for i, face in enumerate(faces):
         radius = radius_of(face)
         height = None if radius is None else height_of(radius)
-        if radius is not None and height is not None:
-            known.append((i, radius, height, unit_circle_poses(face, intrinsics)))
-    # Every face's two wall bands in one array pass.
-    evidence = faces_wall_evidences(
-        [(faces[i], face_colour(faces[i], image), [(s.normal_cam, s.centre_cam) for s in unit])
-         for i, _, _, unit in known], intrinsics, image) if known else []
-    bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []
-    for (i, radius, height, unit), bands in zip(known, evidence, strict=True):
+        if radius is None or height is None:
+            continue
+        unit = unit_circle_poses(face, intrinsics)
+        bands = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], face, intrinsics,
+                               image, face_colour(face, image))
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the

@@ -140,24 +140,26 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
     unit-radius face, camera frame (a unit-radius :class:`~stackpick_sim.vision.pose.
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
-    pu, pv, keep = solution_bands([(normal_cam, centre_cam)], [ellipse], intrinsics, depths)
+    pu, pv, keep = solution_bands([(normal_cam, centre_cam)], ellipse, intrinsics, depths)
     pts = np.empty((int(np.count_nonzero(keep)), 2))
     pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
     return pts
 
 
 def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
-                   ellipses: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                   faces: Ellipse | Sequence[Ellipse], intrinsics: CameraIntrinsics,
                    depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """The predicted wall bands of S unit-radius solutions (normal_cam (3,), centre_cam (3,),
-    as in :func:`band_points`), each of the face ``ellipses[s]`` (parallel), in one array
-    pass: pixels u, v (S, P) of every band point (P = len(depths) x WALL_RIM_POINTS, depth by
-    depth) and which of them lie more than WALL_MARGIN_PX outside the solution's face."""
+    as in :func:`band_points`) of one face ellipse, or each of the face ``faces[s]``
+    (parallel), in one array pass: pixels u, v (S, P) of every band point (P = len(depths) x
+    WALL_RIM_POINTS, depth by depth; (S * P,) for one face ellipse) and which of them lie
+    more than WALL_MARGIN_PX outside the solution's face."""
     bases = [_basis(n) for n, _ in solutions]
     # (3, solutions) each: normal, centre, u, v.
     normal, centre, u, v = np.array(
-        [[_floats(n) for n, _ in solutions], [_floats(c) for _, c in solutions],
+        [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
+         [np.asarray(c, np.float64).tolist() for _, c in solutions],
          [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
     ct, st = unit_circle(WALL_RIM_POINTS)
     rim = centre[:, :, None] + ct * u[:, :, None]
@@ -165,22 +167,20 @@ def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     # (3, solutions, depths, rim points).
     band = rim[:, :, None, :] + (np.asarray(depths, np.float64).reshape(1, 1, -1, 1)
                                  * normal[:, :, None, None])
-    return _project_outside(band.reshape(3, len(solutions), -1), ellipses, intrinsics)
+    # One face: flat rows (its terms are scalars; numpy broadcasts them at less cost).
+    shape = (3, -1) if isinstance(faces, Ellipse) else (3, len(solutions), -1)
+    return _project_outside(band.reshape(shape), faces, intrinsics)
 
 
-def _project_outside(band: NDArray[np.float64], ellipses: Sequence[Ellipse],
+def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],
                      intrinsics: CameraIntrinsics
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` and which of them
-    lie more than WALL_MARGIN_PX outside ``ellipses[s]`` (one per row s)."""
+    lie more than WALL_MARGIN_PX outside ``faces[s]`` (one per row s); for one face ellipse,
+    the same of (3, N) points."""
     pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
     pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
-    rows = []
-    for e in ellipses:
-        th = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, math.cos(th), math.sin(th), e.a, e.b))
-    # (S, 1) columns of each face's parameters.
-    cx, cy, c, s, a, b = np.array(rows, np.float64).T[:, :, None]
+    cx, cy, c, s, a, b = _face_terms(faces)
     du, dv = pu - cx, pv - cy
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
@@ -188,6 +188,20 @@ def _project_outside(band: NDArray[np.float64], ellipses: Sequence[Ellipse],
     rho = np.sqrt(x * x + y * y)
     outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9)
     return pu, pv, outside > WALL_MARGIN_PX
+
+
+def _face_terms(faces: Ellipse | Sequence[Ellipse]) -> tuple[float | NDArray[np.float64], ...]:
+    """Centre, cos and sin of the angle and semi-axes (cx, cy, c, s, a, b) of one ellipse as
+    Python floats, or of each of a sequence as (S, 1) columns (the same values)."""
+    if isinstance(faces, Ellipse):
+        return _terms(faces)
+    return tuple(np.array([_terms(e) for e in faces], np.float64).T[:, :, None])
+
+
+def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
+    """(cx, cy, cos angle, sin angle, a, b) of an ellipse."""
+    th = math.radians(e.angle_deg)
+    return e.cx, e.cy, math.cos(th), math.sin(th), e.a, e.b
 
 
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -221,46 +235,27 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
                    face: NDArray[np.float64]) -> list[WallEvidence]:
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
-    return faces_wall_evidences([(ellipse, face, solutions)], intrinsics, image)[0]
-
-
-def faces_wall_evidences(faces: Sequence[tuple[Ellipse, NDArray[np.float64],
-                                               Sequence[tuple[NDArray[np.float64],
-                                                              NDArray[np.float64]]]]],
-                         intrinsics: CameraIntrinsics, image: NDArray[np.uint8]
-                         ) -> list[list[WallEvidence]]:
-    """:func:`wall_evidences` of several faces, (ellipse, colour (3,), unit-radius solutions)
-    each, in one array pass (the same results): per face, the evidence of each solution."""
-    solutions = [sol for _, _, sols in faces for sol in sols]
-    owners = [(ellipse, colour) for ellipse, colour, sols in faces for _ in sols]
-    pu, pv, keep = solution_bands(solutions, [e for e, _ in owners], intrinsics)
-    n_sol, per = keep.shape
+    n_sol = len(solutions)
+    pu, pv, keep = solution_bands(solutions, ellipse, intrinsics)
+    per = keep.shape[0] // n_sol
     h, w = image.shape[:2]
-    qu, qv = np.rint(pu.ravel()).astype(np.int64), np.rint(pv.ravel()).astype(np.int64)
-    take = (keep.ravel() & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
+    qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
+    take = (keep & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
     owner = take // per
     counts = np.bincount(owner, minlength=n_sol)
-    # Per solution: its face's chromaticity, brightness floor and wall brightness ceiling.
-    chroma_of, darkest, brightest = [], [], []
-    for (normal, centre), (_, colour) in zip(solutions, owners, strict=True):
-        face_sum = max(float(colour.sum()), 1.0)
-        chroma_of.append(colour.reshape(-1) / face_sum)
-        darkest.append(MIN_RELATIVE_BRIGHTNESS * face_sum)
-        brightest.append((_tan_tilt(normal, centre) + WALL_BRIGHTNESS_MARGIN) * face_sum)
+    colour = face.reshape(-1)
+    face_sum = max(float(colour.sum()), 1.0)
     cols = image[qv[take], qu[take]].astype(np.float64)
     cols = cols[:, None] if cols.ndim == 1 else cols
     sums = cols.sum(axis=1)
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - np.array(chroma_of)[owner]).sum(axis=1)
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= np.array(darkest)[owner])
-          & (sums <= np.array(brightest)[owner]))
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
+    brightest = np.array([(_tan_tilt(n, c) + WALL_BRIGHTNESS_MARGIN) * face_sum
+                          for n, c in solutions])
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+          & (sums <= brightest[owner]))
     hits = np.bincount(owner, weights=ok, minlength=n_sol)
-    evidence = [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
-                for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
-    out, start = [], 0
-    for _, _, sols in faces:
-        out.append(evidence[start:start + len(sols)])
-        start += len(sols)
-    return out
+    return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
+            for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
 
 def _tan_tilt(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]) -> float:
