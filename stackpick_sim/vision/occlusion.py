@@ -54,7 +54,7 @@ from stackpick_sim.vision.contrast import (
 )
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
-from stackpick_sim.vision.pose import circle_poses
+from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
 from stackpick_sim.vision.wall_cover import under_another
 
@@ -284,8 +284,11 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
         radius = radius_of(face)
         if radius is None:
             return None
-        sols = circle_poses(face, intrinsics, radius)
-        depths.append(0.5 * float(sols[0].centre_cam[2] + sols[1].centre_cam[2]))
+        # The unit-radius solutions' depths scaled on floats (the same values as
+        # circle_poses' scaled centres, without their arrays).
+        unit = unit_circle_poses(face, intrinsics)
+        depths.append(0.5 * (float(unit[0].centre_cam[2]) * radius
+                             + float(unit[1].centre_cam[2]) * radius))
     nearest = int(np.argmin(depths))
     rivals = [d for face, d in zip(faces, depths, strict=True)
               if not (_holds_centre(face, faces[nearest])

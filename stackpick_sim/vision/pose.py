@@ -103,7 +103,7 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
     computed once per (ellipse, intrinsics) (cached: the top rule and the pose ask for the
     same ellipses several times) and scaled; callers get their own arrays.
     """
-    unit = _unit_circle_poses(ellipse, intrinsics)
+    unit = unit_circle_poses(ellipse, intrinsics)
     return (CirclePose(normal_cam=unit[0].normal_cam.copy(),
                        centre_cam=unit[0].centre_cam * radius),
             CirclePose(normal_cam=unit[1].normal_cam.copy(),
@@ -111,8 +111,8 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 
 
 @functools.lru_cache(maxsize=256)
-def _unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
-                       ) -> tuple[CirclePose, CirclePose]:
+def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
+                      ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
     # Three-vectors and 3x3 forms on Python floats (numpy's matmul, inv and array
     # construction cost more than the arithmetic on this size); numpy for the eigenvectors.
@@ -269,7 +269,7 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     is given. With neither, the smaller tilt is taken. ``face_rgb``: the face's (3,) colour in
     ``image`` (:func:`~stackpick_sim.vision.wall.face_colour`) when the caller has it.
     """
-    unit = _unit_circle_poses(ellipse, intrinsics)  # shared, read-only: not modified here
+    unit = unit_circle_poses(ellipse, intrinsics)  # shared, read-only: not modified here
     radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
     tilts = [math.acos(min(1.0, float(s.normal_cam[2]))) for s in unit]
     best: int | None = None

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, circle_poses
+from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
 from stackpick_sim.vision.wall import face_colour, wall_evidences
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
@@ -105,7 +105,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         height = None if radius is None else height_of(radius)
         if radius is None or height is None:
             continue
-        unit = circle_poses(face, intrinsics, 1.0)
+        unit = unit_circle_poses(face, intrinsics)
         bands = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], face, intrinsics,
                                image, face_colour(face, image))
         pick = choose_by_band(bands)

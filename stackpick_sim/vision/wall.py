@@ -140,42 +140,68 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
     unit-radius face, camera frame (a unit-radius :class:`~stackpick_sim.vision.pose.
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
-    u, v = _basis(normal_cam)
-    ct, st = unit_circle(WALL_RIM_POINTS)
-    # Component-major (3, depths, rim points): the rim at each depth along the normal.
-    rim = np.asarray(centre_cam, np.float64).reshape(3, 1) + ct * np.array(u).reshape(3, 1)
-    rim += st * np.array(v).reshape(3, 1)
-    band = rim[:, None, :] + (np.asarray(depths, np.float64).reshape(1, -1, 1)
-                              * np.asarray(normal_cam, np.float64).reshape(3, 1, 1))
-    return _outside(band.reshape(3, -1), ellipse, intrinsics)[0]
-
-
-def _outside(band: NDArray[np.float64], ellipse: Ellipse, intrinsics: CameraIntrinsics
-             ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """The pixels (N, 2) of the (3, M) camera-frame points ``band`` that project more than
-    WALL_MARGIN_PX outside ``ellipse``, and which of the M they are."""
-    pu, pv, keep = _project_outside(band, ellipse, intrinsics)
+    pu, pv, keep = solution_bands([(normal_cam, centre_cam)], ellipse, intrinsics, depths)
     pts = np.empty((int(np.count_nonzero(keep)), 2))
     pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
-    return pts, keep
+    return pts
 
 
-def _project_outside(band: NDArray[np.float64], ellipse: Ellipse,
+def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                   faces: Ellipse | Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                   depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """The predicted wall bands of S unit-radius solutions (normal_cam (3,), centre_cam (3,),
+    as in :func:`band_points`) of one face ellipse, or each of the face ``faces[s]``
+    (parallel), in one array pass: pixels u, v (S, P) of every band point (P = len(depths) x
+    WALL_RIM_POINTS, depth by depth; (S * P,) for one face ellipse) and which of them lie
+    more than WALL_MARGIN_PX outside the solution's face."""
+    bases = [_basis(n) for n, _ in solutions]
+    # (3, solutions) each: normal, centre, u, v.
+    normal, centre, u, v = np.array(
+        [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
+         [np.asarray(c, np.float64).tolist() for _, c in solutions],
+         [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    rim = centre[:, :, None] + ct * u[:, :, None]
+    rim += st * v[:, :, None]
+    # (3, solutions, depths, rim points).
+    band = rim[:, :, None, :] + (np.asarray(depths, np.float64).reshape(1, 1, -1, 1)
+                                 * normal[:, :, None, None])
+    # One face: flat rows (its terms are scalars; numpy broadcasts them at less cost).
+    shape = (3, -1) if isinstance(faces, Ellipse) else (3, len(solutions), -1)
+    return _project_outside(band.reshape(shape), faces, intrinsics)
+
+
+def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],
                      intrinsics: CameraIntrinsics
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """The pixels u, v (M,) each of the (3, M) camera-frame points ``band`` and which of
-    them lie more than WALL_MARGIN_PX outside ``ellipse``."""
+    """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` and which of them
+    lie more than WALL_MARGIN_PX outside ``faces[s]`` (one per row s); for one face ellipse,
+    the same of (3, N) points."""
     pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
     pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
-    th = math.radians(ellipse.angle_deg)
-    c, s = math.cos(th), math.sin(th)
-    du, dv = pu - ellipse.cx, pv - ellipse.cy
-    x = (c * du + s * dv) / ellipse.a
-    y = (-s * du + c * dv) / ellipse.b
+    cx, cy, c, s, a, b = _face_terms(faces)
+    du, dv = pu - cx, pv - cy
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
     # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses).
     rho = np.sqrt(x * x + y * y)
-    outside = (rho - 1.0) * np.hypot(x * ellipse.a, y * ellipse.b) / np.maximum(rho, 1e-9)
+    outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9)
     return pu, pv, outside > WALL_MARGIN_PX
+
+
+def _face_terms(faces: Ellipse | Sequence[Ellipse]) -> tuple[float | NDArray[np.float64], ...]:
+    """Centre, cos and sin of the angle and semi-axes (cx, cy, c, s, a, b) of one ellipse as
+    Python floats, or of each of a sequence as (S, 1) columns (the same values)."""
+    if isinstance(faces, Ellipse):
+        return _terms(faces)
+    return tuple(np.array([_terms(e) for e in faces], np.float64).T[:, :, None])
+
+
+def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
+    """(cx, cy, cos angle, sin angle, a, b) of an ellipse."""
+    th = math.radians(e.angle_deg)
+    return e.cx, e.cy, math.cos(th), math.sin(th), e.a, e.b
 
 
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -210,20 +236,8 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
     n_sol = len(solutions)
-    bases = [_basis(n) for n, _ in solutions]
-    # (3, solutions) each: normal, centre, u, v.
-    normal, centre, u, v = np.array(
-        [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
-         [np.asarray(c, np.float64).tolist() for _, c in solutions],
-         [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
-    ct, st = unit_circle(WALL_RIM_POINTS)
-    rim = centre[:, :, None] + ct * u[:, :, None]
-    rim += st * v[:, :, None]
-    # (3, solutions, depths, rim points), flattened in that order.
-    band = rim[:, :, None, :] + (np.asarray(WALL_DEPTH_FRACTIONS).reshape(1, 1, -1, 1)
-                                 * normal[:, :, None, None])
-    per = band.shape[2] * band.shape[3]
-    pu, pv, keep = _project_outside(band.reshape(3, -1), ellipse, intrinsics)
+    pu, pv, keep = solution_bands(solutions, ellipse, intrinsics)
+    per = keep.shape[0] // n_sol
     h, w = image.shape[:2]
     qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
     take = (keep & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]

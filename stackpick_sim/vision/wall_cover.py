@@ -15,12 +15,15 @@ hit needs a second whole face right beside this face's rim, on the side a wall w
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses
-from stackpick_sim.vision.wall import band_points
+from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, unit_circle_poses
+from stackpick_sim.vision.wall import solution_bands
 
 #: A face is under another when at least this share of one solution's predicted wall band
 #: lies inside the other face. Placeholder from the development seeds 0-299.
@@ -34,27 +37,43 @@ COVER_DEPTH_FRACTIONS: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
 COVER_MARGIN_PX = 1.0
 
 
-def _bands(face: Ellipse, intrinsics: CameraIntrinsics) -> list[NDArray[np.float64]]:
-    """Predicted wall bands (N_i, 2) px of the two pose solutions of ``face`` that show at
-    least MIN_BAND_SAMPLES points (a face seen square on shows none)."""
-    bands = [band_points(sol.normal_cam, sol.centre_cam, face, intrinsics,
-                         COVER_DEPTH_FRACTIONS)
-             for sol in circle_poses(face, intrinsics, 1.0)]
-    return [b for b in bands if b.shape[0] >= MIN_BAND_SAMPLES]
+def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics) -> NDArray[np.float64]:
+    """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
+    its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
+    pixel frame of ``intrinsics``; every band and pair in one array pass.
 
-
-def _share(bands: list[NDArray[np.float64]], other: Ellipse) -> float:
-    """Largest share of any of ``bands`` lying inside ``other``; 0 without bands."""
-    return max((float(np.mean(other.inside(b, COVER_MARGIN_PX))) for b in bands), default=0.0)
+    Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0.
+    """
+    n = len(faces)
+    sols = [(s.normal_cam, s.centre_cam) for f in faces for s in unit_circle_poses(f, intrinsics)]
+    pu, pv, keep = solution_bands(sols, [f for f in faces for _ in range(2)], intrinsics,
+                                  COVER_DEPTH_FRACTIONS)
+    samples = keep.sum(axis=1)
+    # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
+    rows = []
+    for f in faces:
+        t = math.radians(f.angle_deg)
+        rows.append((f.cx, f.cy, math.cos(t), math.sin(t), max(f.a - COVER_MARGIN_PX, 1e-6),
+                     max(f.b - COVER_MARGIN_PX, 1e-6)))
+    cx, cy, c, s, a, b = np.array(rows, np.float64).T[:, None, :, None]
+    du, dv = pu[:, None, :] - cx, pv[:, None, :] - cy
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    inside = np.count_nonzero((x * x + y * y < 1.0) & keep[:, None, :], axis=2)
+    share = np.zeros((n, n))
+    for k, (count, hits) in enumerate(zip(samples.tolist(), inside.tolist(), strict=True)):
+        if count >= MIN_BAND_SAMPLES:
+            i = k // 2
+            share[i] = np.maximum(share[i], [h / count for h in hits])
+    np.fill_diagonal(share, 0.0)
+    return share
 
 
 def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -> float:
     """Largest share (0-1), over the two pose solutions of ``face``, of its predicted wall
-    band lying inside ``other`` (both ellipses in the pixel frame of ``intrinsics``).
-
-    Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0.
-    """
-    return _share(_bands(face, intrinsics), other)
+    band lying inside ``other`` (both ellipses in the pixel frame of ``intrinsics``); see
+    :func:`covered_shares`."""
+    return float(covered_shares([face, other], intrinsics)[0, 1])
 
 
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics) -> list[bool]:
@@ -63,12 +82,6 @@ def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics) -> list[bo
     When each of two faces' bands runs under the other (one of them through its wrong pose
     solution), the face with the larger covered share is the one under.
     """
-    n = len(faces)
-    bands = [_bands(f, intrinsics) for f in faces]
-    share = np.zeros((n, n))
-    for i in range(n):
-        for j in range(n):
-            if i != j:
-                share[i, j] = _share(bands[i], faces[j])
+    share = covered_shares(faces, intrinsics)
     return [bool(np.any((share[i] >= MIN_COVERED_SHARE) & (share[i] > share[:, i])))
-            for i in range(n)]
+            for i in range(len(faces))]
