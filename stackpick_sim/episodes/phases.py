@@ -25,7 +25,7 @@ from stackpick_sim.episodes.sensing import (
     oracle_candidate,
 )
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
-from stackpick_sim.episodes.topvote import SAME_FACE_M, TopVote, belt_position, posed_top
+from stackpick_sim.episodes.topvote import TopVote, posed_top
 from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle, tilt_angles
@@ -231,10 +231,9 @@ class PhaseLogic(ArmPhases):
         top = posed_top(obs)
         if top is None or self._wanted is None:
             return top
-        distance = float(np.linalg.norm(belt_position(top, obs, self._vote.belt_velocity)
-                                        - self._wanted))
         waited = self._now - self.phase_start
-        if distance <= SAME_FACE_M or waited > RETARGET_WAIT_FRAMES * ep.sensor.period:
+        if (self._vote.is_face(top, obs, self._wanted)
+                or waited > RETARGET_WAIT_FRAMES * ep.sensor.period):
             return top
         return None
 

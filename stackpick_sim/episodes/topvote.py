@@ -1,7 +1,9 @@
 """The detector's top choice, voted over the frames of a track.
 
-The detector names one top face in every frame, and on a small share of frames (~0.5-0.8 %
-on paper scenes) it names a wrong one: a face partly under another. The episode commits to
+The detector names one top face in every frame, and on a small share of frames it names a
+wrong one: a face partly under another (paper development seeds 0-405: 19 of 6932 track,
+approach and servo frames named a face not among the true top ones, 16 of them single
+frames between right ones). The episode commits to
 the top face of the first detection frame, so one wrong frame there picked a wrong object.
 The detector keeps running on every frame of the track, the approach and the servo (the
 belt moves the pile, the approach changes the view), so the later frames vote:
@@ -35,8 +37,9 @@ from stackpick_sim.geometry import Ellipse
 FloatArray = NDArray[np.float64]
 
 #: A rival face takes over once it has this many votes, and more than the tracked face:
-#: one wrong frame (the detector's mistakes are single frames, rarely two in a row) must
-#: not move the pick. Placeholder, chosen from the rates, not tuned on episodes.
+#: one wrong frame (the detector's mistakes are mostly single frames, see above) must not
+#: move the pick, and three frames (0.1 s at 30 fps) keep the re-target early in the
+#: approach. Placeholder from those rates, not tuned on episodes.
 RETARGET_VOTES = 3
 #: Two top faces whose centres on the belt lie within this distance are one face, m: the
 #: tracker's association distance (half the small face radius).
@@ -125,6 +128,12 @@ class TopVote:
         else:  # the running mean follows a face whose belt position drifts with the jitter
             rival.position = (rival.position * rival.votes + position) / (rival.votes + 1)
             rival.votes += 1
+
+    def is_face(self, cand: Candidate, obs: Observation, position: FloatArray) -> bool:
+        """Whether ``cand`` (with its ``centre_cam``) of ``obs`` lies within SAME_FACE_M of
+        ``position`` (2,), a face centre on the belt (m, :func:`belt_position`)."""
+        here = belt_position(cand, obs, self.belt_velocity)
+        return float(np.linalg.norm(here - position)) <= SAME_FACE_M
 
     def nearest(self, position: FloatArray) -> Rival | None:
         """The rival nearest ``position`` (2,) m on the belt within SAME_FACE_M, or None."""
