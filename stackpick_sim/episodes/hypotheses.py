@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import NIS_SWITCH_MARGIN, TargetEstimator, TargetState
-from stackpick_sim.geometry import CameraIntrinsics
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 
 FloatArray = NDArray[np.float64]
 
@@ -80,6 +80,12 @@ class RadiusHypotheses:
     def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
         """The active hypothesis' prediction at ``t`` s."""
         return self.active.state(t, world_T_cam_now)
+
+    def expected_ellipse(self, obs: Observation) -> Ellipse | None:
+        """The active hypothesis' ellipse of the face in ``obs``'s image, or None
+        (:meth:`TargetEstimator.expected_ellipse`)."""
+        expected = self.active.expected_ellipse(obs)
+        return None if expected is None else expected[0]
 
     @property
     def initialised(self) -> bool:

@@ -25,6 +25,7 @@ from stackpick_sim.episodes.sensing import (
     oracle_candidate,
 )
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
+from stackpick_sim.episodes.topvote import TopVote, posed_top
 from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle, tilt_angles
@@ -46,6 +47,14 @@ MAX_REDETECTIONS = 2
 #: The track phase hands over as soon as the filter is initialised once this many frame
 #: periods have passed without a fused detection.
 TRACK_FADING_FRAMES = 1.5
+#: Phases whose frames vote on the top face (:mod:`stackpick_sim.episodes.topvote`): the arm
+#: is not yet committed to the face. A rival face that outvotes the tracked one is taken
+#: instead, at most MAX_RETARGETS times; the detection after a re-target waits up to
+#: RETARGET_WAIT_FRAMES frame periods for the detector to name the rival top again (three
+#: frames: latency and one missed frame), then takes whatever it names top.
+VOTING_PHASES = ("track", "approach", "servo")
+MAX_RETARGETS = 1
+RETARGET_WAIT_FRAMES = 3.5
 
 
 class PhaseLogic(ArmPhases):
@@ -72,6 +81,10 @@ class PhaseLogic(ArmPhases):
         self._face_share = 1.0
         self._planned_normal = np.array([0.0, 0.0, -1.0])
         self._redetections = 0
+        self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))
+        self._retargets = 0
+        self._wanted: np.ndarray | None = None
+        """(2,) belt position of the face a re-target detects again (topvote), or None."""
         self._at_floor = 0.0
         self._floor = 0.0
         self._last_lateral = 0.0
@@ -164,9 +177,12 @@ class PhaseLogic(ArmPhases):
         cfg = self.ep.scene.cell.cfg.episode
         if self.phase not in ("look", "detect"):
             for obs in observations:
+                self._count_vote(obs)
                 self.ep.estimator.offer(obs)
         if t - self.phase_start > getattr(cfg, f"timeout_{self.phase}") + 1e-9:
             self._time_out(t)
+            return None
+        if self._retarget_if_outvoted(t):
             return None
         handler = getattr(self, f"_{self.phase}")
         result: ServoErrors | None = handler(t, dt, observations)
@@ -212,7 +228,39 @@ class PhaseLogic(ArmPhases):
             obj = next(o for o in ep.scene.cell.objects if o.name == best.name)
             ep.sensor.target = obj
             return self._oracle_first.get(obs.capture_time, {}).get(obj.name)
-        return next((c for c in obs.candidates if c.is_top and c.normal_cam is not None), None)
+        top = posed_top(obs)
+        if top is None or self._wanted is None:
+            return top
+        waited = self._now - self.phase_start
+        if (self._vote.is_face(top, obs, self._wanted)
+                or waited > RETARGET_WAIT_FRAMES * ep.sensor.period):
+            return top
+        return None
+
+    def _count_vote(self, obs: Observation) -> None:
+        """Count ``obs``'s vote on the top face while the arm is not committed to it."""
+        if (self.phase in VOTING_PHASES and self.ep.sensor.detector != "oracle"
+                and obs.candidates):
+            self._vote.add(obs, self.ep.estimator.expected_ellipse(obs))
+
+    def _retarget_if_outvoted(self, t: float) -> bool:
+        """Detect again, arm still, if a rival face outvoted the tracked one; True if so.
+
+        The frames' votes say the first detection named a face the detector since sees as
+        not the top (see :mod:`stackpick_sim.episodes.topvote`); the detection after this
+        takes the rival's face if the detector names it top within RETARGET_WAIT_FRAMES.
+        """
+        if self.phase not in VOTING_PHASES or self._retargets >= MAX_RETARGETS:
+            return False
+        winner = self._vote.winner()
+        if winner is None:
+            return False
+        self._retargets += 1
+        self.ep.record.retargets = self._retargets
+        self._wanted = winner.position
+        self.ep.estimator.reset()
+        self._enter("detect", t)
+        return True
 
     def _start(self, obs: Observation, cand: Candidate, truth: FrameTruth) -> None:
         ep, rec = self.ep, self.ep.record
@@ -230,6 +278,8 @@ class PhaseLogic(ArmPhases):
                            *tilt_angles(cand.normal_cam)),
                 actual=(*t_obj.face_center_px, t_obj.theta_x_deg, t_obj.theta_y_deg))
         ep.estimator.start(obs, cand)
+        self._vote.start()
+        self._wanted = None
 
     def _update_sensor_hints(self) -> None:
         ep = self.ep

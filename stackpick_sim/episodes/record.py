@@ -82,6 +82,9 @@ class EpisodeRecord:
     ``grasp_tilt_share``)."""
     redetections: int = 0
     """Times the first detection went unconfirmed and the top object was detected again."""
+    retargets: int = 0
+    """Times later frames outvoted the tracked face as the top one and the top object was
+    detected again (:mod:`stackpick_sim.episodes.topvote`)."""
     grasp_tilt_share: float | None = None
     """Share of the tilt the tool takes at the face where it is predicted at the grasp (1
     unless the arm cannot meet the face square-on there)."""

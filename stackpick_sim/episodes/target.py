@@ -231,7 +231,7 @@ class TargetEstimator:
             predicted = self._predicted_measurement(obs)
         except EstimationError:
             return False
-        expected = self._expected_ellipse(obs)
+        expected = self.expected_ellipse(obs)
         shift = None
         if expected is not None and self.correct_centres:
             shift = np.asarray(expected[1] - np.array([expected[0].cx, expected[0].cy]))
@@ -266,7 +266,7 @@ class TargetEstimator:
             return False  # another object's face: neither a measurement nor a rejection
         return self._fuse(obs, best, CUT_STD_FACTOR * self.pixel_std if cut else None)
 
-    def _expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
+    def expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
         """The tracked face as ``obs``'s camera should see it: its ellipse and the (2,) pixel
         of its centre, from the estimate; None before the first detection (belt frame) or
         before the filter is set (image frame).
