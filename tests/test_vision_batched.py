@@ -20,7 +20,14 @@ from stackpick_sim.vision.fitting import (
 )
 from stackpick_sim.vision.merging import MergedEllipse
 from stackpick_sim.vision.occlusion import evidence_all
-from stackpick_sim.vision.refine import _along, _along_grouped, _along_mask, edge_points, refine_all
+from stackpick_sim.vision.refine import (
+    MIN_NORMAL_COS,
+    _along,
+    _along_grouped,
+    _along_mask,
+    edge_points,
+    refine_all,
+)
 from stackpick_sim.vision.segments import link_segments, neighbour_count
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import column_median
@@ -137,6 +144,32 @@ def test_along_grouped_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellip
     for tol in (1.2, 2.5):
         expected = np.concatenate([_along_mask(e, *points.T, *grads.T, tol) for e in probes])
         np.testing.assert_array_equal(_along_grouped(probes, counts, cols, tol), expected)
+
+
+def test_along_mask_is_the_sampson_distance_and_normal_angle_test() -> None:
+    # The quadratic-form test, compared squared, against the distance and the angle written
+    # out (Sampson distance as fitting.distances, unit normal of the implicit form).
+    rng = np.random.default_rng(3)
+    e = STACK[0]
+    t = rng.uniform(0.0, 2.0 * np.pi, 4000)
+    r = 1.0 + rng.uniform(-0.1, 0.1, t.size)
+    th = np.radians(e.angle_deg)
+    x, y = e.a * r * np.cos(t), e.b * r * np.sin(t)
+    u = e.cx + np.cos(th) * x - np.sin(th) * y
+    v = e.cy + np.sin(th) * x + np.cos(th) * y
+    phi = rng.uniform(0.0, 2.0 * np.pi, t.size)
+    gu, gv = np.cos(phi), np.sin(phi)
+    pts = np.stack([u, v], axis=1)
+    dist = distances(ellipse_params([e]), pts)[0]
+    # The normal: the implicit form's gradient, in the ellipse's frame rotated back.
+    xn = (np.cos(th) * (u - e.cx) + np.sin(th) * (v - e.cy)) / e.a ** 2
+    yn = (-np.sin(th) * (u - e.cx) + np.cos(th) * (v - e.cy)) / e.b ** 2
+    nu, nv = np.cos(th) * xn - np.sin(th) * yn, np.sin(th) * xn + np.cos(th) * yn
+    cos = np.abs(nu * gu + nv * gv) / np.hypot(nu, nv)
+    for tol in (1.2, 2.5):
+        expected = (dist < tol) & (cos >= MIN_NORMAL_COS)
+        assert 0 < expected.sum() < expected.size
+        np.testing.assert_array_equal(_along_mask(e, u, v, gu, gv, tol), expected)
 
 
 def test_merged_ellipse_of_equals_the_constructor() -> None:

@@ -153,17 +153,53 @@ def _along_mask(ellipse: Ellipse, u: NDArray[np.float64], v: NDArray[np.float64]
                 gu: NDArray[np.float64], gv: NDArray[np.float64], tol_px: float
                 ) -> NDArray[np.bool_]:
     """:func:`_along`'s test of pixels and unit gradients given as (M,) columns."""
+    cx, cy, fa, fh, fb = _form(ellipse)
+    return _along_test(cx, cy, fa, fh, fb, u, v, gu, gv, tol_px)
+
+
+def _form(ellipse: Ellipse) -> tuple[float, float, float, float, float]:
+    """The centre and the quadratic form's entries (cx, cy, A, H, B) of ``ellipse``: a pixel
+    (u, v) at (du, dv) from the centre lies on it where A du^2 + 2 H du dv + B dv^2 = 1."""
     t = math.radians(ellipse.angle_deg)
     c, s = math.cos(t), math.sin(t)
-    du, dv = u - ellipse.cx, v - ellipse.cy
-    x = (c * du + s * dv) / ellipse.a
-    y = (-s * du + c * dv) / ellipse.b
-    gx, gy = x / ellipse.a, y / ellipse.b
-    norm = np.sqrt(gx * gx + gy * gy)
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * norm + 1e-12)
-    # |unit normal . gradient|, the normal rotated back to the image frame.
-    cos = np.abs((c * gx - s * gy) * gu + (s * gx + c * gy) * gv)
-    keep = (dist < tol_px) & (cos >= MIN_NORMAL_COS * np.maximum(norm, 1e-12))
+    ia, ib = 1.0 / (ellipse.a * ellipse.a), 1.0 / (ellipse.b * ellipse.b)
+    return (ellipse.cx, ellipse.cy, c * c * ia + s * s * ib, c * s * (ia - ib),
+            s * s * ia + c * c * ib)
+
+
+def _along_test(cx: float | NDArray[np.float64], cy: float | NDArray[np.float64],
+                fa: float | NDArray[np.float64], fh: float | NDArray[np.float64],
+                fb: float | NDArray[np.float64], u: NDArray[np.float64],
+                v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                tol_px: float) -> NDArray[np.bool_]:
+    """:func:`_along`'s test of pixels (u, v) with unit gradients (gu, gv), (M,) each,
+    against an ellipse's :func:`_form` (scalars, or (M,) per pixel; the same arithmetic, so
+    the same results, either way).
+
+    With F = A du^2 + 2 H du dv + B dv^2 - 1 and half its gradient n = (A du + H dv,
+    H du + B dv), the Sampson distance is |F| / (2 |n|) and the normal is n / |n|: both
+    tests are compared squared, without a square root or a division (few array passes:
+    the cost here is their count).
+    """
+    du = u - cx
+    dv = v - cy
+    nu = fa * du
+    nu += fh * dv
+    nv = fb * dv
+    nv += fh * du
+    f = du * nu
+    dv *= nv
+    f += dv
+    f -= 1.0
+    f *= f  # F^2
+    n2 = nu * nu
+    n2 += nv * nv  # |n|^2
+    nu *= gu
+    nv *= gv
+    nu += nv
+    nu *= nu  # (n . gradient)^2
+    keep = f < (4.0 * tol_px * tol_px) * n2
+    keep &= nu >= (MIN_NORMAL_COS * MIN_NORMAL_COS) * n2
     return cast("NDArray[np.bool_]", keep)
 
 
@@ -229,50 +265,12 @@ def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
                    cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
     """(K,) bool: :func:`_along`'s test of K (ellipse, pixel) pairs given as columns (u, v,
     gu, gv), each (K,): pixel and unit gradient. The pairs run ellipse by ellipse: the first
-    ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its parameters
-    repeated per pair)."""
-    rows = []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        c, s = math.cos(t), math.sin(t)
-        rows.append((e.cx, e.cy, 1.0 / e.a, 1.0 / e.b, c, s, -s))
-    cx, cy, ia, ib, c, s, minus_s = np.array(rows, np.float64).T.repeat(counts, axis=1)
+    ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its
+    :func:`_form` repeated per pair)."""
+    cx, cy, fa, fh, fb = np.array([_form(e) for e in ellipses], np.float64).T.repeat(
+        counts, axis=1)
     u, v, gu, gv = cols
-    # Each term written into a fresh or spent array (fewer allocations; the same values as
-    # the plain expressions in the comments).
-    du, dv = u - cx, v - cy
-    x = c * du
-    x += s * dv
-    x *= ia  # (c du + s dv) ia
-    y = minus_s * du
-    y += c * dv
-    y *= ib  # (-s du + c dv) ib
-    gx, gy = x * ia, y * ib
-    norm = gx * gx
-    norm += gy * gy
-    np.sqrt(norm, out=norm)
-    x *= x
-    y *= y
-    x += y
-    x -= 1.0
-    dist = np.abs(x, out=x)
-    den = 2.0 * norm
-    den += 1e-12
-    dist /= den
-    cos = c * gx
-    cos -= s * gy
-    cos *= gu
-    s *= gx
-    c *= gy
-    s += c
-    s *= gv
-    cos += s
-    np.abs(cos, out=cos)  # |unit normal . gradient| times norm
-    np.maximum(norm, 1e-12, out=norm)
-    norm *= MIN_NORMAL_COS
-    keep = dist < tol_px
-    keep &= cos >= norm
-    return keep
+    return _along_test(cx, cy, fa, fh, fb, u, v, gu, gv, tol_px)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
