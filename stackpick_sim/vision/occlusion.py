@@ -365,7 +365,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     or, better, the whole :class:`~stackpick_sim.vision.edges.EdgeImage` (then faint but
     consistent edges count as support too). With ``intrinsics`` (K in the edge map's pixel
     frame), a candidate whose side wall runs under another candidate's face loses to it
-    (:mod:`stackpick_sim.vision.wall_cover`). With ``intrinsics`` and ``radius_of`` (an
+    (:mod:`stackpick_sim.vision.wall_cover`; with ``radius_of``, only where that face lies in
+    front of the wall). With ``intrinsics`` and ``radius_of`` (an
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
     it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
@@ -399,7 +400,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and _unobstructed(ev)]
     if intrinsics is not None and len(pool) > 1:
-        under = under_another([ellipses[i] for i in pool], intrinsics)
+        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or candidates
