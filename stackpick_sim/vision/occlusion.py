@@ -111,6 +111,10 @@ FALLBACK_MIN_SUPPORT = 0.75
 #: in the depth test (a misfit of a lower face won it on development seed 198 of the paper
 #: scene with objects.count = [5, 5]), only a last resort.
 RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
+#: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
+#: factor on the paper scene's frames (see detector.SIZE_GATE_SLACK): the slack of a depth
+#: compared through r / a.
+PERSPECTIVE_ENLARGEMENT = 1.04
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -274,15 +278,6 @@ def _holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
     return x * x + y * y < 1.0
 
 
-def _face_depth(face: Ellipse, intrinsics: CameraIntrinsics, radius: float) -> float:
-    """Face-centre depth (m, camera z) of a face of ``radius`` (m): the mean of its two pose
-    solutions'."""
-    # The unit-radius solutions' depths scaled on floats (the same values as circle_poses'
-    # scaled centres, without their arrays).
-    unit = unit_circle_poses(face, intrinsics)
-    return 0.5 * (float(unit[0].centre_cam[2]) * radius + float(unit[1].centre_cam[2]) * radius)
-
-
 def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                      radius_of: Callable[[Ellipse], float | None]) -> int | None:
     """Index of the face nearer the camera than every other by DEPTH_TIE_M (face-centre
@@ -296,7 +291,11 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
         radius = radius_of(face)
         if radius is None:
             return None
-        depths.append(_face_depth(face, intrinsics, radius))
+        # The unit-radius solutions' depths scaled on floats (the same values as
+        # circle_poses' scaled centres, without their arrays).
+        unit = unit_circle_poses(face, intrinsics)
+        depths.append(0.5 * (float(unit[0].centre_cam[2]) * radius
+                             + float(unit[1].centre_cam[2]) * radius))
     nearest = int(np.argmin(depths))
     rivals = [d for face, d in zip(faces, depths, strict=True)
               if not (_holds_centre(face, faces[nearest])
@@ -337,6 +336,15 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
             if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
 
 
+def _deep_edges_near(ellipse: Ellipse, edge_points: NDArray[np.float64], depth_px: float
+                     ) -> int:
+    """:func:`deep_edge_counts` of one ellipse, for edge pixels (M, 2) (u, v) in
+    ``np.nonzero`` order (sorted by v): only the rows the ellipse spans are tested."""
+    rows = edge_points[:, 1]
+    lo, hi = rows.searchsorted([ellipse.cy - ellipse.a, ellipse.cy + ellipse.a])
+    return int(np.count_nonzero(ellipse.inside(edge_points[lo:hi], depth_px)))
+
+
 def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
                   edge_points: NDArray[np.float64]) -> int | None:
     """Index of the best-supported of the :func:`rim_only` ellipses (ties within SUPPORT_TIE
@@ -363,32 +371,34 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     best-supported (:func:`select_rimmed`'s order).
 
     The refit and the rest test (~1 ms) run only for a rimmed face whose fit reads nearer
-    the camera than the chosen face (a cost gate, on about one frame in fifty of the paper
-    scene's; one in nine has a rimmed face): the fit is too large, so it reads nearer than
-    its face is, and a face reading farther lies below the chosen one; such a lower face
-    resting on it (a lean on its wall, below its face) is left to the top rule."""
+    the camera than the chosen face, up to PERSPECTIVE_ENLARGEMENT (a cost gate, on about one
+    frame in fifty of the paper scene's; one in nine has a rimmed face): the fit is too large,
+    so it reads nearer than its face is, and a face reading farther lies below the chosen
+    one; such a lower face resting on it (a lean on its wall, below its face) is left to the
+    top rule."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
-    # rim_only's cheap evidence test first, then the depth gate, then its edge count.
+    # rim_only's test (its edge count on the rows the face spans), then the depth gate.
     failed = [i for i, ev in enumerate(evidence)
               if not ev.occluded_ends and ev.support >= TOP_MIN_SUPPORT
               and ev.interior_edge_px > MAX_INTERIOR_SHARE * ev.perimeter_px]
-    if not failed:
+    rimmed = [i for i in failed
+              if _deep_edges_near(ellipses[i], edge_points, RIM_BAND_PX)
+              <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+    if not rimmed:
         return None
     chosen = ellipses[choice.index]
     radius = radius_of(chosen)
     if radius is None:
         return None
-    depth = _face_depth(chosen, intrinsics, radius)
-    nearer = [i for i in failed if (own := radius_of(ellipses[i])) is not None
-              and _face_depth(ellipses[i], intrinsics, own) < depth]
-    if not nearer:
-        return None
-    rimmed = [nearer[k] for k in rim_only([ellipses[i] for i in nearer],
-                                          [evidence[i] for i in nearer], edge_points)]
+    # Depth ~ radius / semi-major axis (f r / a; perspective enlarges a by up to
+    # PERSPECTIVE_ENLARGEMENT, either face): a gate, not a measurement.
+    depth = radius / chosen.a * PERSPECTIVE_ENLARGEMENT
+    nearer = [i for i in rimmed if (own := radius_of(ellipses[i])) is not None
+              and own / ellipses[i].a < depth]
     above = []
-    for i in rimmed:
+    for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True) or ellipses[i]
         if rests_on([chosen, face], intrinsics, radius_of, height_of, image)[0]:
             above.append(i)
