@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses
-from stackpick_sim.vision.wall import band_points
+from stackpick_sim.vision.wall import band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
     COVER_DEPTH_FRACTIONS,
     COVER_MARGIN_PX,
     MIN_COVERED_SHARE,
+    band_depths,
     covered_share,
     covered_shares,
     under_another,
@@ -60,3 +62,37 @@ def test_covered_shares_are_each_bands_share_inside_each_face() -> None:
                         default=0.0)
             assert shares[i, j] == (0.0 if i == j else alone)
     assert shares[0, 1] >= MIN_COVERED_SHARE
+
+
+def test_band_depths_are_the_depths_of_the_projected_band_points() -> None:
+    """band_depths follows solution_bands' point order: the points rebuilt from it project
+    onto solution_bands' pixels."""
+    sols = [(s.normal_cam, s.centre_cam) for s in circle_poses(TILTED, K, 1.0)]
+    pu, pv, _ = solution_bands(sols, [TILTED, TILTED], K, COVER_DEPTH_FRACTIONS)
+    depth = band_depths(sols)
+    assert depth.shape == pu.shape
+    for k, (normal, centre) in enumerate(sols):
+        # Back-project each pixel to its depth: it must land on the solution's wall cylinder
+        # (unit radius) at the given depth fraction of the axis.
+        ray = np.stack([(pu[k] - K.cx) / K.fx, (pv[k] - K.cy) / K.fy, np.ones_like(pu[k])])
+        xyz = ray * depth[k]
+        rel = xyz - np.asarray(centre)[:, None]
+        along = np.asarray(normal) @ rel
+        radial = np.linalg.norm(rel - np.outer(normal, along), axis=0)
+        assert np.allclose(radial, 1.0, atol=1e-9)
+        assert np.allclose(np.sort(np.unique(np.round(along, 9))), COVER_DEPTH_FRACTIONS)
+
+
+@pytest.mark.parametrize(("over_radius_m", "under"), [(0.02, True), (0.035, False)])
+def test_a_face_covers_a_wall_only_from_in_front(over_radius_m: float, under: bool) -> None:
+    """The same image cover, with the covering disc's radius putting it in front of
+    TILTED's wall (0.02 m: ~0.23 m deep) or far behind it (0.035 m: ~0.41 m; TILTED lies at
+    0.28 m): only a face in front can hide the wall."""
+    over = _disc_over_band(0, 25.0)
+    radii = {TILTED: 0.035, over: over_radius_m}
+    assert under_another([TILTED, over], K) == [True, False]  # the image test alone
+    assert under_another([TILTED, over], K, radii.get) == [under, False]
+    shares = covered_shares([TILTED, over], K, [0.035, over_radius_m])
+    assert (shares[0, 1] >= MIN_COVERED_SHARE) == under
+    # An unknown radius leaves the image test as it was.
+    assert under_another([TILTED, over], K, {TILTED: 0.035}.get) == [True, False]

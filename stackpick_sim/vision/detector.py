@@ -13,6 +13,11 @@ with no T-junction and no edge inside, most of its outline showing. One face fit
 reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
 (RIM_OFFSET_RANGE).
 
+When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
+(:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
+the chosen face's takes the choice instead (:func:`~stackpick_sim.vision.occlusion.
+select_resting_rimmed`): nothing may rest on a top object.
+
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
 input that is not an image at all (wrong dtype, shape, NaN), one
@@ -55,6 +60,7 @@ from stackpick_sim.vision.merging import (
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
+    select_resting_rimmed,
     select_rimmed,
     select_top,
     select_unobstructed,
@@ -242,6 +248,15 @@ class TopObjectDetector:
         height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points, image=rgb, height_of=height_of)
+        if (choice.index is not None and radius_of is not None and height_of is not None
+                and rgb is not None):
+            # A whole lower face that a top face rests on, that face's fit taking in a
+            # same-colour sliver beyond it (development frames 1769 of ds_paper_h1k, 2241 of
+            # ds_paper_h2k, 857 of ds_paper_dev4).
+            above = select_resting_rimmed([m.ellipse for m in merged], choice, grad, points,
+                                          k_crop, radius_of, height_of, rgb)
+            if above is not None:
+                choice = replace(choice, index=above)
         spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
         if choice.index is None:
             # Before the contrast retry: a refit of a lower face can shrink past the outline

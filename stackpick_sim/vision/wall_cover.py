@@ -11,19 +11,27 @@ object's wall silhouette would be, and the wall's contour ends at it.
 The face's tilt is known only up to the two-fold ambiguity, so both solutions' bands are
 checked; a face counts as under another when either solution's band runs under it. A false
 hit needs a second whole face right beside this face's rim, on the side a wall would show.
+
+Given each face's radius (from its colour), the test also asks that the cover be physically
+possible: a face hides a wall point only if it lies nearer the camera there. A band point
+counts as covered only where the other face's plane (the nearer of its two pose solutions,
+scaled by its radius) is in front of the point, within COVER_DEPTH_TOLERANCE_M. A face seen
+nearly square on next to a lower, farther face (its wrong solution's band falling on that
+face) is then not under it.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.contrast import unit_circle
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, unit_circle_poses
-from stackpick_sim.vision.wall import solution_bands
+from stackpick_sim.vision.wall import WALL_RIM_POINTS, plane_basis, solution_bands
 
 #: A face is under another when at least this share of one solution's predicted wall band
 #: lies inside the other face. Placeholder from the development seeds 0-299.
@@ -35,14 +43,24 @@ COVER_DEPTH_FRACTIONS: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
 #: Band points must lie this far (px) inside the other ellipse: its blurred outline and the
 #: fit error are not evidence.
 COVER_MARGIN_PX = 1.0
+#: A band point counts as covered by another face only where that face's plane lies nearer the
+#: camera than the point, or farther by at most this (m): a face's depth error (~1 mm) plus a
+#: 1-2 deg tilt error moving its far rim ~1 mm, on each of the two faces (as resting.
+#: CONTACT_GAP_M). A real cover has the covering object's body between its face and the wall,
+#: so its face lies well in front.
+COVER_DEPTH_TOLERANCE_M = 0.003
 
 
-def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics) -> NDArray[np.float64]:
+def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                   radii: Sequence[float | None] | None = None) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
     its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
     pixel frame of ``intrinsics``; every band and pair in one array pass.
 
-    Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0.
+    Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0. With ``radii``
+    (each face's radius, m, or None if unknown; parallel to ``faces``), a band point inside
+    face j counts only where face j lies in front of it (see COVER_DEPTH_TOLERANCE_M) when
+    both radii are known.
     """
     n = len(faces)
     sols = [(s.normal_cam, s.centre_cam) for f in faces for s in unit_circle_poses(f, intrinsics)]
@@ -59,7 +77,10 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics) -> ND
     du, dv = pu[:, None, :] - cx, pv[:, None, :] - cy
     x = (c * du + s * dv) / a
     y = (-s * du + c * dv) / b
-    inside = np.count_nonzero((x * x + y * y < 1.0) & keep[:, None, :], axis=2)
+    covered = (x * x + y * y < 1.0) & keep[:, None, :]
+    if radii is not None:
+        covered &= _in_front(sols, pu, pv, radii, intrinsics)
+    inside = np.count_nonzero(covered, axis=2)
     share = np.zeros((n, n))
     for k, (count, hits) in enumerate(zip(samples.tolist(), inside.tolist(), strict=True)):
         if count >= MIN_BAND_SAMPLES:
@@ -69,6 +90,46 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics) -> ND
     return share
 
 
+def band_depths(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]
+                ) -> NDArray[np.float64]:
+    """(S, P) depth (camera z, unit radius) of every point of the wall bands of S unit-radius
+    solutions (normal_cam (3,), centre_cam (3,)) at COVER_DEPTH_FRACTIONS, in the order of
+    :func:`~stackpick_sim.vision.wall.solution_bands` (depth by depth, WALL_RIM_POINTS each)."""
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    rows = []
+    for normal, centre in solutions:
+        u, v = plane_basis(normal)
+        rim = float(centre[2]) + ct * float(u[2]) + st * float(v[2])
+        rows.append(np.concatenate([rim + d * float(normal[2]) for d in COVER_DEPTH_FRACTIONS]))
+    return np.array(rows, np.float64)
+
+
+def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+              pu: NDArray[np.float64], pv: NDArray[np.float64], radii: Sequence[float | None],
+              intrinsics: CameraIntrinsics) -> NDArray[np.bool_]:
+    """(S, n, P): whether face j's plane (the nearer of its two solutions, scaled by its
+    radius) lies in front of solution s's band point p (scaled by its face's radius), within
+    COVER_DEPTH_TOLERANCE_M; True where either radius is unknown. ``solutions``: two unit
+    solutions per face, face by face; ``pu``, ``pv``: (S, P) band pixels."""
+    known = np.array([r is not None for r in radii])
+    scale = np.array([0.0 if r is None else float(r) for r in radii])
+    wall = band_depths(solutions) * scale.repeat(2)[:, None]  # (S, P) metres
+    rx = (pu - intrinsics.cx) / intrinsics.fx
+    ry = (pv - intrinsics.cy) / intrinsics.fy
+    normals = np.array([nc[0] for nc in solutions], np.float64)  # (S, 3)
+    offsets = np.array([float(nc[0] @ nc[1]) for nc in solutions]) * scale.repeat(2)
+    # Depth of each plane k (a solution of face k // 2) along each band point's ray.
+    along = (normals[:, 0, None, None] * rx[None] + normals[:, 1, None, None] * ry[None]
+             + normals[:, 2, None, None])  # (planes, S, P)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = offsets[:, None, None] / along
+    depth[~(depth > 0.0)] = np.inf  # a plane the ray meets behind the camera, or never
+    plane = np.minimum(depth[0::2], depth[1::2])  # (n, S, P): face j's nearer solution
+    front = plane.transpose(1, 0, 2) <= wall[:, None, :] + COVER_DEPTH_TOLERANCE_M
+    both = known.repeat(2)[:, None, None] & known[None, :, None]
+    return front | ~both
+
+
 def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -> float:
     """Largest share (0-1), over the two pose solutions of ``face``, of its predicted wall
     band lying inside ``other`` (both ellipses in the pixel frame of ``intrinsics``); see
@@ -76,12 +137,17 @@ def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -
     return float(covered_shares([face, other], intrinsics)[0, 1])
 
 
-def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics) -> list[bool]:
+def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
+                  radius_of: Callable[[Ellipse], float | None] | None = None) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
-    solution), the face with the larger covered share is the one under.
+    solution), the face with the larger covered share is the one under. With ``radius_of``
+    (a face's radius, m, or None if unknown), a cover must also be possible in depth (see
+    COVER_DEPTH_TOLERANCE_M); that is checked only when the shares alone find one.
     """
     share = covered_shares(faces, intrinsics)
+    if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
+        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces])
     return [bool(np.any((share[i] >= MIN_COVERED_SHARE) & (share[i] > share[:, i])))
             for i in range(len(faces))]
