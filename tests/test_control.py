@@ -21,6 +21,7 @@ from stackpick_sim.control.servo import (
     AdaptiveGain,
     ServoConfig,
     damped_pinv,
+    saturated_servo_velocity,
     servo_velocity,
     target_feature_rate,
 )
@@ -267,3 +268,34 @@ def test_vs060_chain_matches_finite_differences() -> None:
     assert _chain_fd_error(vs_arm, data, LOOK_Q) < FD_TOL
     # The wrist camera looks along the approach axis (paper, sec. 4): optical z || tool z.
     assert vs_arm.cam_T_ee(data)[:3, 2] @ np.array([0.0, 0.0, 1.0]) > 0.999
+
+
+def test_saturated_servo_keeps_the_face_centre_and_cuts_the_turn_first() -> None:
+    # A wrist near its singularity: the normal's rows ask one joint for far more than its
+    # speed limit. Scaling the whole law would slow the centre's rows with it; the
+    # saturated law keeps them exact and takes what the limits leave for the normal.
+    rng = np.random.default_rng(5)
+    j = rng.normal(size=(5, 6))
+    j[3:] *= 0.02  # the normal's rows nearly singular: a turn costs fast joints
+    e = rng.normal(size=5) * 0.1
+    cfg = ServoConfig()
+    free = servo_velocity(j, e, cfg)
+    limit = np.full(6, 0.5 * np.max(np.abs(free)))
+    q = saturated_servo_velocity(j, e, cfg, limit)
+    assert np.all(np.abs(q) <= limit + 1e-12)
+    lam = cfg.gain(float(np.max(np.abs(e))))
+    assert np.allclose(j[:3] @ q, -lam * e[:3], atol=1e-9)  # the centre's rows exact
+    scaled = free / np.max(np.abs(free) / limit)
+    assert np.linalg.norm(j[:3] @ scaled + lam * e[:3]) > 0.1 * np.linalg.norm(lam * e[:3])
+    # Some joint is at its limit: the normal got the largest share the limits allow.
+    assert np.isclose(np.max(np.abs(q) / limit), 1.0)
+    # Within the limits (and undamped) the two tasks are both met.
+    undamped = ServoConfig(damping_threshold=1e-9, max_damping=0.0)
+    q_free = saturated_servo_velocity(j, e, undamped, np.full(6, 1e6))
+    assert np.allclose(j @ q_free, -lam * e, atol=1e-9)
+    # A primary task beyond the limits on its own is scaled as a whole.
+    tiny = saturated_servo_velocity(j, e, cfg, np.full(6, 1e-6))
+    assert np.isclose(np.max(np.abs(tiny)), 1e-6)
+    assert np.allclose(np.cross(j[:3] @ tiny, -lam * e[:3]), 0.0, atol=1e-15)
+    with pytest.raises(ControlError, match="disagree"):
+        saturated_servo_velocity(j, e, cfg, np.ones(5))

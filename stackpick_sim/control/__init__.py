@@ -18,6 +18,7 @@ from stackpick_sim.control.servo import (
     AdaptiveGain,
     ServoConfig,
     damped_pinv,
+    saturated_servo_velocity,
     servo_velocity,
     target_feature_rate,
 )
@@ -51,6 +52,7 @@ __all__ = [
     "plane_coefficients",
     "point_interaction",
     "rotate_twist_matrix",
+    "saturated_servo_velocity",
     "servo_velocity",
     "skew",
     "target_feature_rate",

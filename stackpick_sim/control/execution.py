@@ -79,6 +79,11 @@ class JointVelocityExecutor:
         ]
         self._speed_limit = np.array([velocity_limits.get(n, np.inf) for n in arm.joint_names])
 
+    @property
+    def speed_limit(self) -> FloatArray:
+        """(n,) joint speed limits, rad/s, in the arm's joint order (inf where none)."""
+        return self._speed_limit.copy()
+
     def feasible_velocity(self, qpos: FloatArray, qdot_des: FloatArray, dt: float) -> FloatArray:
         """(n,) arm joint velocity closest to ``qdot_des`` (n,) within limits over ``dt`` s.
 

@@ -29,6 +29,7 @@ from stackpick_sim.control import (
     circle_pose_interaction,
     desired_circle_pose_features,
     invert_transform,
+    saturated_servo_velocity,
     servo_velocity,
     target_feature_rate,
 )
@@ -159,6 +160,9 @@ class ArmController:
         rate = target_feature_rate(interaction, r.T, target.velocity) - ds_star
         error = s - s_star
         qdot = servo_velocity(jac, error, self.servo, rate)
+        limit = self.executor.speed_limit
+        if np.any(np.abs(qdot) > limit):  # the face centre first, the tool's turn after it
+            qdot = saturated_servo_velocity(jac, error, self.servo, limit, rate)
         feasible = self.executor.feasible_velocity(self.full_qpos(), qdot, dt)
         tool = self.eih.world_T_ee(data)
         c_tool = invert_transform(tool) @ np.r_[target.centre, 1.0]

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.estimation import (
+    PRIOR_RESTART,
     ConstantVelocityTracker,
     EstimationError,
     TrackerConfig,
@@ -405,7 +406,9 @@ class TargetEstimator:
             elif not result.reason.startswith("initialising: need"):
                 self._first = (obs.capture_time, z, r, obs.world_T_cam)
         self.nis += min(result.mahalanobis_sq, self.tracker.config.gate_chi2)
-        accepted = bool(result) or result.reason.startswith("initialising: first")
+        # A measurement the tracker keeps as the first of its start is the track's latest.
+        accepted = bool(result) or result.reason.startswith(("initialising: first",
+                                                             PRIOR_RESTART))
         if result.reason.startswith("gated"):
             self._rejected = [*self._rejected[-(REACQUIRE_AFTER - 1):],
                               (obs.capture_time, z, r, obs.world_T_cam)]

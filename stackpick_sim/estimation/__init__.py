@@ -10,6 +10,7 @@ from stackpick_sim.estimation.backproject import (
     transfer_via_plane,
 )
 from stackpick_sim.estimation.kalman import (
+    PRIOR_RESTART,
     ConstantVelocityTracker,
     Prediction,
     TrackerConfig,
@@ -21,6 +22,7 @@ from stackpick_sim.estimation.kalman import (
 from stackpick_sim.exceptions import EstimationError
 
 __all__ = [
+    "PRIOR_RESTART",
     "ConstantVelocityTracker",
     "EstimationError",
     "Prediction",
