@@ -1,13 +1,14 @@
 """Reproduce the detection benchmark results in benchmarks/results/.
 
 Runs ``stackpick bench-detect`` for the held-out paper seeds (frames from a data set written by
-``stackpick dataset --scene paper --seeds 1000:2000 --out DATA``) and for the cluttered scene
-(rendered in-process). Usage::
+``stackpick dataset --scene paper --seeds 3000:4000 --out DATA``) and for the cluttered scene
+(frames from a data set given by --cluttered-data, else rendered in-process). Usage::
 
-    python benchmarks/bench_detect.py --paper-data /work/data/ds_paper_holdout \\
-        [--paper-seeds 1000:2000] [--cluttered-seeds 0:200]
+    python benchmarks/bench_detect.py --paper-data /work/data/ds_paper_h3k \\
+        [--paper-seeds 3000:4000] [--cluttered-data DIR] [--cluttered-seeds 3000:3150]
 
-Development used seeds 0-299 of the paper scene; the reported numbers are on other seeds.
+Development used paper seeds 0-2999; the reported numbers are on seeds 3000-3999 (paper) and
+3000-3149 (cluttered), never used in development.
 """
 
 from __future__ import annotations
@@ -24,13 +25,16 @@ def run() -> int:
     """Run both benchmarks; return the first non-zero exit code, else 0."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--paper-data", type=Path, required=True)
-    p.add_argument("--paper-seeds", default="1000:2000")
-    p.add_argument("--cluttered-seeds", default="0:200")
+    p.add_argument("--paper-seeds", default="3000:4000")
+    p.add_argument("--cluttered-data", type=Path, default=None)
+    p.add_argument("--cluttered-seeds", default="3000:3150")
     p.add_argument("--methods", default="ours,rht,findellipses,edgedrawing")
     args = p.parse_args()
     code = main(["bench-detect", "--data", str(args.paper_data), "--seeds", args.paper_seeds,
                  "--methods", args.methods, "--out", str(RESULTS / "paper_holdout")])
-    code2 = main(["bench-detect", "--scene", "cluttered", "--seeds", args.cluttered_seeds,
+    source = (["--data", str(args.cluttered_data)] if args.cluttered_data is not None
+              else ["--scene", "cluttered"])
+    code2 = main(["bench-detect", *source, "--seeds", args.cluttered_seeds,
                   "--methods", args.methods, "--out", str(RESULTS / "cluttered")])
     return code or code2
 
