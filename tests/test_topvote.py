@@ -7,9 +7,10 @@ from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
+import pytest
 
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.episodes.phases import MAX_RETARGETS, RETARGET_WAIT_FRAMES, PhaseLogic
+from stackpick_sim.episodes.phases import RETARGET_WAIT_FRAMES, PhaseLogic
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.topvote import (
@@ -19,6 +20,7 @@ from stackpick_sim.episodes.topvote import (
     belt_position,
     frame_vote,
 )
+from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import Ellipse
 
 #: The camera 0.3 m above the belt, axes along the world's (the vote needs only a pose).
@@ -125,8 +127,12 @@ class _Estimator:
         self.resets += 1
 
 
-def _logic() -> tuple[PhaseLogic, Any]:
-    cfg = load_scene("paper", ())
+#: Re-targets the PhaseLogic tests allow (the scenes' default is 0: never).
+MAX_RETARGETS = 2
+
+
+def _logic(max_retargets: int = MAX_RETARGETS) -> tuple[PhaseLogic, Any]:
+    cfg = load_scene("paper", (f"episode.max_retargets={max_retargets}",))
     cell = SimpleNamespace(cfg=cfg, world_T_cam=lambda: WORLD_T_CAM)
     ep = SimpleNamespace(scene=SimpleNamespace(cell=cell), estimator=_Estimator(),
                          sensor=SimpleNamespace(detector="ours", period=1 / cfg.camera.fps),
@@ -171,3 +177,18 @@ def test_retargets_are_bounded() -> None:
         logic._count_vote(_rival_top(0.5 + 0.033 * i))
     assert not logic._retarget_if_outvoted(0.7)
     assert logic.phase == "approach" and ep.record.retargets == MAX_RETARGETS
+
+
+def test_no_retarget_by_default() -> None:
+    assert load_scene("paper", ()).episode.max_retargets == 0
+    logic, ep = _logic(max_retargets=0)
+    for i in range(RETARGET_VOTES + 1):
+        logic._count_vote(_rival_top(0.033 * (i + 1)))
+    assert logic._vote.winner() is None  # frames are not even counted
+    assert not logic._retarget_if_outvoted(0.2)
+    assert logic.phase == "approach" and ep.record.retargets == 0
+
+
+def test_max_retargets_is_validated() -> None:
+    with pytest.raises(ConfigError, match=r"episode\.max_retargets"):
+        load_scene("paper", ("episode.max_retargets=-1",))

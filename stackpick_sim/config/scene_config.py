@@ -247,6 +247,11 @@ class EpisodeCfg:
     """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
     track_frames: int = 3
     """Detections fused before the approach starts (two initialise the filter)."""
+    max_retargets: int = 0
+    """Times an episode may drop its tracked face for one that later frames voted top
+    (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
+    every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
+    cost picks (README, "Which face is picked")."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
@@ -296,6 +301,8 @@ class EpisodeCfg:
                  self.tracker_frame, ", ".join(TRACKER_FRAMES))
         _require(math.isfinite(self.control_period) and 1e-3 <= self.control_period <= 0.1,
                  "episode.control_period", self.control_period, "0.001 to 0.1 s")
+        _require(0 <= self.max_retargets <= 3, "episode.max_retargets", self.max_retargets,
+                 "an integer 0-3")
         _require(2 <= self.track_frames <= 30, "episode.track_frames", self.track_frames,
                  "2 to 30 frames")
         for key in ("standoff", "approach_gain", "servo_lateral_tol", "servo_depth_tol",

@@ -49,11 +49,11 @@ MAX_REDETECTIONS = 2
 TRACK_FADING_FRAMES = 1.5
 #: Phases whose frames vote on the top face (:mod:`stackpick_sim.episodes.topvote`): the arm
 #: is not yet committed to the face. A rival face that outvotes the tracked one is taken
-#: instead, at most MAX_RETARGETS times; the detection after a re-target waits up to
-#: RETARGET_WAIT_FRAMES frame periods for the detector to name the rival top again (three
-#: frames: latency and one missed frame), then takes whatever it names top.
+#: instead, at most ``episode.max_retargets`` times (default 0: never); the detection after a
+#: re-target waits up to RETARGET_WAIT_FRAMES frame periods for the detector to name the
+#: rival top again (three frames: latency and one missed frame), then takes whatever it
+#: names top.
 VOTING_PHASES = ("track", "approach", "servo")
-MAX_RETARGETS = 1
 RETARGET_WAIT_FRAMES = 3.5
 
 
@@ -238,9 +238,10 @@ class PhaseLogic(ArmPhases):
         return None
 
     def _count_vote(self, obs: Observation) -> None:
-        """Count ``obs``'s vote on the top face while the arm is not committed to it."""
+        """Count ``obs``'s vote on the top face while the arm is not committed to it (only
+        when re-targets are allowed: ``episode.max_retargets`` > 0)."""
         if (self.phase in VOTING_PHASES and self.ep.sensor.detector != "oracle"
-                and obs.candidates):
+                and self.ep.scene.cell.cfg.episode.max_retargets > 0 and obs.candidates):
             self._vote.add(obs, self.ep.estimator.expected_ellipse(obs))
 
     def _retarget_if_outvoted(self, t: float) -> bool:
@@ -250,7 +251,8 @@ class PhaseLogic(ArmPhases):
         not the top (see :mod:`stackpick_sim.episodes.topvote`); the detection after this
         takes the rival's face if the detector names it top within RETARGET_WAIT_FRAMES.
         """
-        if self.phase not in VOTING_PHASES or self._retargets >= MAX_RETARGETS:
+        if (self.phase not in VOTING_PHASES
+                or self._retargets >= self.ep.scene.cell.cfg.episode.max_retargets):
             return False
         winner = self._vote.winner()
         if winner is None:

@@ -17,7 +17,9 @@ belt moves the pile, the approach changes the view), so the later frames vote:
 Once a rival has at least :data:`RETARGET_VOTES` votes and more than the tracked face (whose
 first detection counts as one), the detector has consistently seen that face as the top and
 the tracked one as not: the episode detects again, taking the rival's face
-(:class:`~stackpick_sim.episodes.phases.PhaseLogic`). Votes accumulate over the whole track,
+(:class:`~stackpick_sim.episodes.phases.PhaseLogic`), if the scene allows re-targets
+(``episode.max_retargets``, default 0: on unseen seeds nearly every re-target moved between
+two true top faces, see the README). Votes accumulate over the whole track,
 so a track confirmed over many frames is not dropped when the detector later alternates
 between two true top faces.
 """
