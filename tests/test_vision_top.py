@@ -408,9 +408,9 @@ def test_object_kinds_give_colours_only_when_kinds_differ_in_colour() -> None:
 
 
 def test_deep_edge_count_on_the_spanned_rows_equals_the_full_count() -> None:
-    """select_resting_rimmed's row-sliced count (edge pixels in np.nonzero order) is
-    deep_edge_counts' exactly."""
-    from stackpick_sim.vision.occlusion import _deep_edges_near, deep_edge_counts
+    """deep_edge_counts' row-sliced count (edge pixels in np.nonzero order) is the count of
+    Ellipse.inside over all the pixels, exactly."""
+    from stackpick_sim.vision.occlusion import deep_edge_counts
 
     rng = np.random.default_rng(3)
     vv, uu = np.nonzero(rng.random((240, 320)) < 0.05)
@@ -420,5 +420,5 @@ def test_deep_edge_count_on_the_spanned_rows_equals_the_full_count() -> None:
                      angle_deg=float(rng.uniform(0, 180)))
              for a in rng.uniform(10, 60, 20)]
     for depth in (0.0, 3.5):
-        assert [_deep_edges_near(f, points, depth) for f in faces] == deep_edge_counts(
-            faces, points, depth)
+        assert deep_edge_counts(faces, points, depth) == [
+            int(np.count_nonzero(f.inside(points, depth))) for f in faces]

@@ -316,8 +316,18 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
 def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                      depth_px: float) -> list[int]:
     """Per ellipse: how many edge pixels (M, 2) (u, v) lie inside it by more than
-    ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures)."""
-    return [int(np.count_nonzero(e.inside(edge_points, depth_px))) for e in ellipses]
+    ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures).
+
+    ``edge_points`` in row-major order (sorted by v: np.nonzero's, as
+    :func:`~stackpick_sim.vision.refine.edge_points` gives them): only the rows an ellipse
+    spans are tested."""
+    rows = edge_points[:, 1]
+    counts = []
+    for e in ellipses:
+        reach = max(e.a, e.b)
+        lo, hi = rows.searchsorted([e.cy - reach, e.cy + reach])
+        counts.append(int(np.count_nonzero(e.inside(edge_points[lo:hi], depth_px))))
+    return counts
 
 
 def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
@@ -334,15 +344,6 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
     deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, RIM_BAND_PX)
     return [i for i, d in zip(failed, deep, strict=True)
             if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
-
-
-def _deep_edges_near(ellipse: Ellipse, edge_points: NDArray[np.float64], depth_px: float
-                     ) -> int:
-    """:func:`deep_edge_counts` of one ellipse, for edge pixels (M, 2) (u, v) in
-    ``np.nonzero`` order (sorted by v): only the rows the ellipse spans are tested."""
-    rows = edge_points[:, 1]
-    lo, hi = rows.searchsorted([ellipse.cy - ellipse.a, ellipse.cy + ellipse.a])
-    return int(np.count_nonzero(ellipse.inside(edge_points[lo:hi], depth_px)))
 
 
 def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
@@ -379,13 +380,7 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
-    # rim_only's test (its edge count on the rows the face spans), then the depth gate.
-    failed = [i for i, ev in enumerate(evidence)
-              if not ev.occluded_ends and ev.support >= TOP_MIN_SUPPORT
-              and ev.interior_edge_px > MAX_INTERIOR_SHARE * ev.perimeter_px]
-    rimmed = [i for i in failed
-              if _deep_edges_near(ellipses[i], edge_points, RIM_BAND_PX)
-              <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+    rimmed = rim_only(ellipses, evidence, edge_points)
     if not rimmed:
         return None
     chosen = ellipses[choice.index]
