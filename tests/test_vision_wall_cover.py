@@ -7,12 +7,11 @@ import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses
-from stackpick_sim.vision.wall import band_points, solution_bands
+from stackpick_sim.vision.wall import band_points, solution_band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
     COVER_DEPTH_FRACTIONS,
     COVER_MARGIN_PX,
     MIN_COVERED_SHARE,
-    band_depths,
     covered_share,
     covered_shares,
     under_another,
@@ -64,12 +63,12 @@ def test_covered_shares_are_each_bands_share_inside_each_face() -> None:
     assert shares[0, 1] >= MIN_COVERED_SHARE
 
 
-def test_band_depths_are_the_depths_of_the_projected_band_points() -> None:
-    """band_depths follows solution_bands' point order: the points rebuilt from it project
-    onto solution_bands' pixels."""
+def test_solution_band_point_depths_are_those_of_the_projected_pixels() -> None:
+    """solution_band_points' depths follow solution_bands' point order: the points rebuilt
+    from them project onto solution_bands' pixels."""
     sols = [(s.normal_cam, s.centre_cam) for s in circle_poses(TILTED, K, 1.0)]
     pu, pv, _ = solution_bands(sols, [TILTED, TILTED], K, COVER_DEPTH_FRACTIONS)
-    depth = band_depths(sols)
+    depth = solution_band_points(sols, COVER_DEPTH_FRACTIONS)[2]
     assert depth.shape == pu.shape
     for k, (normal, centre) in enumerate(sols):
         # Back-project each pixel to its depth: it must land on the solution's wall cylinder

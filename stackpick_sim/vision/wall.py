@@ -155,6 +155,18 @@ def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     (parallel), in one array pass: pixels u, v (S, P) of every band point (P = len(depths) x
     WALL_RIM_POINTS, depth by depth; (S * P,) for one face ellipse) and which of them lie
     more than WALL_MARGIN_PX outside the solution's face."""
+    band = solution_band_points(solutions, depths)
+    # One face: flat rows (its terms are scalars; numpy broadcasts them at less cost).
+    return _project_outside(band.reshape(3, -1) if isinstance(faces, Ellipse) else band,
+                            faces, intrinsics)
+
+
+def solution_band_points(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                         depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS
+                         ) -> NDArray[np.float64]:
+    """(3, S, P) camera-frame points of the wall bands of S unit-radius solutions
+    (normal_cam (3,), centre_cam (3,)): P = len(depths) x WALL_RIM_POINTS, depth by depth,
+    the rim at each depth (in face radii) along the normal."""
     bases = [_basis(n) for n, _ in solutions]
     # (3, solutions) each: normal, centre, u, v.
     normal, centre, u, v = np.array(
@@ -167,9 +179,7 @@ def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     # (3, solutions, depths, rim points).
     band = rim[:, :, None, :] + (np.asarray(depths, np.float64).reshape(1, 1, -1, 1)
                                  * normal[:, :, None, None])
-    # One face: flat rows (its terms are scalars; numpy broadcasts them at less cost).
-    shape = (3, -1) if isinstance(faces, Ellipse) else (3, len(solutions), -1)
-    return _project_outside(band.reshape(shape), faces, intrinsics)
+    return band.reshape(3, len(solutions), -1)
 
 
 def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],

@@ -29,9 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import unit_circle
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, unit_circle_poses
-from stackpick_sim.vision.wall import WALL_RIM_POINTS, plane_basis, solution_bands
+from stackpick_sim.vision.wall import solution_band_points, solution_bands
 
 #: A face is under another when at least this share of one solution's predicted wall band
 #: lies inside the other face. Placeholder from the development seeds 0-299.
@@ -90,20 +89,6 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     return share
 
 
-def band_depths(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]
-                ) -> NDArray[np.float64]:
-    """(S, P) depth (camera z, unit radius) of every point of the wall bands of S unit-radius
-    solutions (normal_cam (3,), centre_cam (3,)) at COVER_DEPTH_FRACTIONS, in the order of
-    :func:`~stackpick_sim.vision.wall.solution_bands` (depth by depth, WALL_RIM_POINTS each)."""
-    ct, st = unit_circle(WALL_RIM_POINTS)
-    rows = []
-    for normal, centre in solutions:
-        u, v = plane_basis(normal)
-        rim = float(centre[2]) + ct * float(u[2]) + st * float(v[2])
-        rows.append(np.concatenate([rim + d * float(normal[2]) for d in COVER_DEPTH_FRACTIONS]))
-    return np.array(rows, np.float64)
-
-
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
               pu: NDArray[np.float64], pv: NDArray[np.float64], radii: Sequence[float | None],
               intrinsics: CameraIntrinsics) -> NDArray[np.bool_]:
@@ -113,7 +98,8 @@ def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]
     solutions per face, face by face; ``pu``, ``pv``: (S, P) band pixels."""
     known = np.array([r is not None for r in radii])
     scale = np.array([0.0 if r is None else float(r) for r in radii])
-    wall = band_depths(solutions) * scale.repeat(2)[:, None]  # (S, P) metres
+    # (S, P) depth (camera z) of every band point, metres.
+    wall = solution_band_points(solutions, COVER_DEPTH_FRACTIONS)[2] * scale.repeat(2)[:, None]
     rx = (pu - intrinsics.cx) / intrinsics.fx
     ry = (pv - intrinsics.cy) / intrinsics.fy
     normals = np.array([nc[0] for nc in solutions], np.float64)  # (S, 3)
