@@ -123,6 +123,17 @@ def _on_belt(t: float, start: np.ndarray = FACE, speed: float = BELT_SPEED) -> n
     return start + np.array([0.0, speed * t, 0.0])
 
 
+def _tracking_on_belt(frames: int) -> TargetEstimator:
+    """An estimator started on the face riding the belt at t = 0 that fused its exact
+    detections of the next ``frames`` - 1 frames (each one asserted fused)."""
+    est = TargetEstimator(CFG, K, oracle=True)
+    first = _observation(0.0, [_on_belt(0.0)])
+    est.start(first, first.candidates[0])
+    for i in range(1, frames):
+        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    return est
+
+
 def test_far_neighbour_is_not_a_rejection_and_a_changed_motion_is_reacquired() -> None:
     est = TargetEstimator(CFG, K, oracle=True)
     est.start(_observation(0.0, [_on_belt(0.0)]), _observation(0.0, [_on_belt(0.0)])
@@ -197,11 +208,7 @@ def _face(t: float, centre: np.ndarray, radius: float) -> Candidate:
 
 
 def test_a_face_of_another_size_at_the_prediction_is_not_the_track() -> None:
-    est = TargetEstimator(CFG, K, oracle=True)
-    first = _observation(0.0, [_on_belt(0.0)])
-    est.start(first, first.candidates[0])
-    for i in range(1, 4):
-        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    est = _tracking_on_belt(4)
     # A small face 2 mm from the prediction (a lower face showing through, a fragment of an
     # outline): the tracked face is not in this frame, so nothing is fused.
     t = 4 * FRAME_DT
@@ -463,11 +470,7 @@ def test_the_lowest_face_height_outlasts_later_views_that_read_the_face_too_high
     # views' outlines take in the side wall and read it 10-18 mm too high, and the median
     # of the latest heights follows them. The lowest height stays the face's, and the
     # descent's floor reaches the true face.
-    est = TargetEstimator(CFG, K, oracle=True)
-    first = _observation(0.0, [_on_belt(0.0)])
-    est.start(first, first.candidates[0])
-    for i in range(1, 3):
-        assert est.offer(_observation(i * FRAME_DT, [_on_belt(i * FRAME_DT)]))
+    est = _tracking_on_belt(3)
     for i in range(3, 15):
         t = i * FRAME_DT
         assert est.offer(_enlarged(_observation(t, [_on_belt(t)]), 1.07))
@@ -489,9 +492,7 @@ def test_a_second_detection_off_the_face_does_not_start_the_track() -> None:
     # The first two frames give two different ellipses of one face (a full-face fit, then a
     # partial one 3 mm across the belt: paper seed 45). Their velocity is off the belt's
     # beyond the gate: the track starts from the next consistent pair, not a few mm off.
-    est = TargetEstimator(CFG, K, oracle=True)
-    first = _observation(0.0, [_on_belt(0.0)])
-    est.start(first, first.candidates[0])
+    est = _tracking_on_belt(1)
     across = np.array([0.003, 0.0, 0.0])
     assert est.offer(_observation(FRAME_DT, [_on_belt(FRAME_DT) + across]))
     assert not est.initialised
