@@ -9,9 +9,10 @@ time-out; any failure ends the episode with a reason from
 :data:`~stackpick_sim.episodes.record.FAILURES`. Physics trouble (a MuJoCo warning or a
 non-finite state) ends it as ``unstable_sim``, never as an exception.
 
-Random streams (``np.random.default_rng([seed, k])``): the pile uses ``seed`` alone and the
-look snapshot ``k = 1``; here the camera noise is ``k = CAMERA_STREAM`` and the belt speed
-noise ``k = BELT_STREAM``.
+Random streams (``np.random.default_rng([seed, k])``): the pile uses ``seed`` alone, its
+running-belt check ``k = 4`` (``stacks.RUNNING_CHECK_STREAM``) and the look snapshot
+``k = 1``; here the camera noise is ``k = CAMERA_STREAM`` and the belt speed noise
+``k = BELT_STREAM``.
 """
 
 from __future__ import annotations

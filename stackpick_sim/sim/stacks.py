@@ -8,8 +8,9 @@ cylinder off the belt or tilted too far is undone and redrawn. A pile is accepte
 damping and sleeping removed, it stays put, every cylinder rests on the belt or on others, no
 axis is tilted past ``objects.max_tilt_deg``, no face lies higher than
 ``objects.max_face_height`` above the belt, every top face lies inside the look-pose image and
-overlaps at least one other object's silhouette there, and it rides the running belt for a
-second without collapsing (checked from a saved state, then restored).
+overlaps at least one other object's silhouette there, and it rides the running belt, speed
+noise included, for as long as a pick takes without collapsing (checked from a saved state,
+then restored).
 Same config and seed give the same settled state, bit for bit.
 """
 
@@ -29,6 +30,7 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.geometry import plane_basis, project_circle
 from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell, build_cell
+from stackpick_sim.sim.conveyor import Conveyor
 from stackpick_sim.sim.ground_truth import top_face
 
 #: While being placed, an object counts as resting when its speed is below this, m/s ...
@@ -78,8 +80,13 @@ STABILITY_MAX_DRIFT = 0.001
 #: used here: soft contacts keep a resting pile jittering at a few cm/s of angular speed
 #: without it going anywhere.)
 STABILITY_MAX_TURN_DEG = 1.0
-#: A valid pile must also ride the running belt this long, s, ...
-RUNNING_CHECK_TIME = 1.0
+#: A valid pile must also ride the running belt this long, s (an episode's pick comes about
+#: 1.5 s after its first image), with the configured speed noise (``conveyor.speed_jitter``;
+#: its steps jolt the pile: marginal piles that ride a steady belt collapse under them) ...
+RUNNING_CHECK_TIME = 1.6
+#: ... drawn from the seed-sequence stream ``[seed, RUNNING_CHECK_STREAM]`` (the episode's
+#: belt uses another stream: a pile must ride a noisy belt, not one particular noise), ...
+RUNNING_CHECK_STREAM = 4
 #: ... moving no object by more than this relative to the belt, m, ...
 RUNNING_MAX_DRIFT = 0.003
 #: ... nor turning it by more than this, degrees. Stacked cylinders creep ~1.2 mm/s over
@@ -297,32 +304,35 @@ def _teleported(cell: Cell) -> None:
         mujoco.mj_forward(cell.model, cell.data)
 
 
-def _stays_put(cell: Cell, belt_speed: float = 0.0, duration: float = STABILITY_CHECK_TIME,
-               max_drift: float = STABILITY_MAX_DRIFT,
+def _stays_put(cell: Cell, belt: Conveyor | None = None,
+               duration: float = STABILITY_CHECK_TIME, max_drift: float = STABILITY_MAX_DRIFT,
                max_turn_deg: float = STABILITY_MAX_TURN_DEG) -> bool:
-    """Simulate undamped for ``duration`` (s) with the belt at ``belt_speed`` (m/s) and the
-    objects riding it; True if no object drifted (relative to the belt, m) or turned (deg)
-    past the bounds."""
+    """Simulate undamped for ``duration`` (s), the belt at rest or driven by ``belt`` (its
+    speed noise redrawn as in an episode) with the objects riding it; True if no object
+    drifted (relative to the belt, m) or turned (deg) past the bounds."""
     ids = [o.body_id for o in cell.objects]
     pos0, axis0 = cell.data.xpos[ids].copy(), cell.data.xmat[ids][:, 6:9].copy()
-    t0 = cell.data.time
-    if belt_speed:
-        cell.set_belt_speed(belt_speed)
-        for obj in cell.objects:
-            cell.data.qvel[obj.dof_adr + 1] = belt_speed  # world-frame y velocity (free joint)
-    for _ in range(math.ceil(duration / cell.model.opt.timestep)):
+    carried = 0.0  # belt travel, m along world +y
+    if belt is not None:
+        belt.start()
+    dt = cell.model.opt.timestep
+    for _ in range(math.ceil(duration / dt)):
         mujoco.mj_step(cell.model, cell.data)
-    cell.set_belt_speed(0.0)
-    carried = np.array([0.0, belt_speed * (cell.data.time - t0), 0.0])
-    drift = np.linalg.norm(cell.data.xpos[ids] - pos0 - carried, axis=1)
+        if belt is not None:
+            carried += belt.speed * dt
+            belt.update()
+    if belt is not None:
+        belt.stop()
+    drift = np.linalg.norm(cell.data.xpos[ids] - pos0 - [0.0, carried, 0.0], axis=1)
     cos_turn = np.clip(np.sum(cell.data.xmat[ids][:, 6:9] * axis0, axis=1), -1.0, 1.0)
     return bool(np.all(drift <= max_drift)
                 and np.all(np.degrees(np.arccos(cos_turn)) <= max_turn_deg))
 
 
-def _stable_on_running_belt(cell: Cell) -> bool:
-    """Whether the pile also stays put once the belt runs at its nominal speed; the cell's
-    state is restored afterwards (the pile is delivered at rest, under the camera)."""
+def _stable_on_running_belt(cell: Cell, rng: np.random.Generator) -> bool:
+    """Whether the pile also stays put on the running belt, its speed noise drawn from
+    ``rng``; the cell's state is restored afterwards (the pile is delivered at rest, under the
+    camera)."""
     data = cell.data
     saved = [data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.qacc_warmstart.copy()]
     time_saved = data.time
@@ -331,7 +341,8 @@ def _stable_on_running_belt(cell: Cell) -> bool:
     lead = max(data.xpos[o.body_id][1] + o.radius + o.height for o in cell.objects)
     duration = min(RUNNING_CHECK_TIME, (belt.length / 2 - lead) / belt.speed)
     try:
-        return _stays_put(cell, belt.speed, duration, RUNNING_MAX_DRIFT, RUNNING_MAX_TURN_DEG)
+        return _stays_put(cell, Conveyor(cell, rng), duration, RUNNING_MAX_DRIFT,
+                          RUNNING_MAX_TURN_DEG)
     finally:
         data.time = time_saved
         for dst, src in zip((data.qpos, data.qvel, data.act, data.qacc_warmstart), saved,
@@ -392,9 +403,11 @@ def generate_scene(cfg: SceneConfig, seed: int) -> Scene:
     cell = build_cell(cfg, kinds)
     problems: Counter[str] = Counter()
     retries: Counter[str] = Counter()
+    belt_rng = np.random.default_rng([seed, RUNNING_CHECK_STREAM])
     for attempt in range(1, cfg.sim.max_attempts + 1):
         problem = settle_pile(cell, rng, retries) or pile_problem(cell)
-        if problem is None and cfg.conveyor.speed > 0 and not _stable_on_running_belt(cell):
+        if (problem is None and cfg.conveyor.speed > 0
+                and not _stable_on_running_belt(cell, belt_rng)):
             problem = "collapses on the running belt"
         if problem is None:
             return Scene(cell=cell, seed=seed, attempts=attempt, rejections=dict(problems),
