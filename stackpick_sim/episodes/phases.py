@@ -220,14 +220,15 @@ class PhaseLogic(ArmPhases):
     def _first_candidate(self, obs: Observation, truth: FrameTruth) -> Candidate | None:
         ep = self.ep
         if ep.sensor.detector == "oracle":
-            tops = [o for o in truth.objects if o.is_top]
+            # Oracle policy: the flattest top face (the easiest pick) of those wholly in view
+            # (a face the look view cuts would have the arm wait for it, belt running).
+            in_view = self._oracle_first.get(obs.capture_time, {})
+            tops = [o for o in truth.objects if o.is_top and in_view.get(o.name) is not None]
             if not tops:
                 return None
-            # Oracle policy: the flattest top face (the easiest pick).
             best = min(tops, key=lambda o: (o.tilt_deg, o.name))
-            obj = next(o for o in ep.scene.cell.objects if o.name == best.name)
-            ep.sensor.target = obj
-            return self._oracle_first.get(obs.capture_time, {}).get(obj.name)
+            ep.sensor.target = next(o for o in ep.scene.cell.objects if o.name == best.name)
+            return in_view[best.name]
         top = posed_top(obs)
         if top is None or self._wanted is None:
             return top

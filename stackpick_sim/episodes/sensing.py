@@ -8,8 +8,9 @@ vision latency, a constant: the wall clock never enters an episode). Two detecto
   :func:`stackpick_sim.vision.detect`; every detected ellipse is a candidate, the detector's
   top one carries its pose.
 * ``oracle``: ground truth, no image needed: the face of the object being tracked, exact,
-  whenever its whole face ellipse lies inside the image (a camera cannot see beyond its
-  border). It isolates control and estimation from vision.
+  whenever its face centre lies inside the image (a camera cannot see beyond its border; our
+  detector, too, fits a face the border cuts); its first choice must lie wholly inside. It
+  isolates control and estimation from vision.
 """
 
 from __future__ import annotations
@@ -78,8 +79,10 @@ class Observation:
     reason: str = ""
 
 
-def oracle_candidate(cell: Cell, obj: ObjectInfo, world_T_cam: FloatArray) -> Candidate | None:
-    """The true face of ``obj`` seen from ``world_T_cam``, or None if not wholly in the image."""
+def oracle_candidate(cell: Cell, obj: ObjectInfo, world_T_cam: FloatArray,
+                     whole: bool = True) -> Candidate | None:
+    """The true face of ``obj`` seen from ``world_T_cam``, or None if its ellipse is not wholly
+    in the image (``whole``) or, else, if its face centre is not."""
     k: CameraIntrinsics = cell.intrinsics
     r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
     centre_w, normal_w = top_face(cell, obj, p_wc)
@@ -89,7 +92,7 @@ def oracle_candidate(cell: Cell, obj: ObjectInfo, world_T_cam: FloatArray) -> Ca
         ellipse = project_circle(centre_c, inward_c, obj.radius, k)
     except ValueError:
         return None
-    u0, v0, u1, v1 = ellipse.bounds()
+    u0, v0, u1, v1 = ellipse.bounds() if whole else (*k.project(centre_c)[0],) * 2
     if u0 < 0 or v0 < 0 or u1 > k.width - 1 or v1 > k.height - 1:
         return None
     return Candidate(pixel=k.project(centre_c)[0], normal_cam=inward_c, centre_cam=centre_c,
@@ -199,9 +202,9 @@ class Sensor:
         if self.detector == "oracle":
             cands: tuple[Candidate, ...] = ()
             if self.target is not None:
-                c = oracle_candidate(self._cell, self.target, world_T_cam)
+                c = oracle_candidate(self._cell, self.target, world_T_cam, whole=False)
                 cands = (c,) if c is not None else ()
-                reason = "" if cands else "the tracked face is not wholly in the image"
+                reason = "" if cands else "the tracked face's centre is not in the image"
         else:
             assert image is not None
             detection = detect(image, self._config())
