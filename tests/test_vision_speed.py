@@ -10,6 +10,7 @@ from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outlines
 from stackpick_sim.vision.edges import RING, STAIR_LUTS, colour_gradients, remove_stairs
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
+from stackpick_sim.vision.merging import _repeats
 from stackpick_sim.vision.wall import _floats
 
 RNG = np.random.default_rng(7)
@@ -83,3 +84,13 @@ def test_remove_stairs_is_two_table_passes() -> None:
             b = b & (lut[_codes(b)] == 0)
         np.testing.assert_array_equal(remove_stairs(canny), b)
         np.testing.assert_array_equal(remove_stairs(canny > 0), b)
+
+
+def test_repeats_tells_copies_from_chains_with_new_pixels() -> None:
+    arc = np.array([[1, 2], [2, 2], [3, 3], [4, 3]], np.int32)
+    chains = (arc, arc[:2], arc.copy(), np.concatenate([arc, [[5, 4]]]), arc[::-1].copy())
+    assert _repeats(chains, [2], [0])  # the chain a whole piece was cut from
+    assert _repeats(chains, [2, 0], [1, 0])
+    assert not _repeats(chains, [2], [1])  # a half piece: the other half is new
+    assert not _repeats(chains, [3], [0])  # one more pixel
+    assert not _repeats(chains, [4], [0])  # the same pixels in another order
