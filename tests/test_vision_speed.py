@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outlines
+from stackpick_sim.vision.edges import RING, STAIR_LUTS, colour_gradients, remove_stairs
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
+from stackpick_sim.vision.merging import _repeats
 from stackpick_sim.vision.wall import _floats
 
 RNG = np.random.default_rng(7)
@@ -48,3 +51,46 @@ def test_floats_of_arrays_and_sequences() -> None:
     assert _floats(np.array([1.0, -2.5, 3.25])) == [1.0, -2.5, 3.25]
     assert _floats(np.array([1.0, 2.0, 3.0], np.float32)) == [1.0, 2.0, 3.0]
     assert _floats((1, 2, 3)) == [1.0, 2.0, 3.0]
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_colour_gradients_take_each_pixels_strongest_channel(channels: int) -> None:
+    rng = np.random.default_rng(channels)
+    image = rng.integers(0, 256, (23, 31, channels), np.uint8)
+    dx = np.stack([cv2.Sobel(image[:, :, c], cv2.CV_16S, 1, 0)
+                   for c in range(channels)])
+    dy = np.stack([cv2.Sobel(image[:, :, c], cv2.CV_16S, 0, 1)
+                   for c in range(channels)])
+    best = np.argmax(np.abs(dx.astype(int)) + np.abs(dy.astype(int)), axis=0)  # first of equals
+    got_x, got_y = colour_gradients(image[:, :, 0] if channels == 1 else image)
+    np.testing.assert_array_equal(got_x, np.take_along_axis(dx, best[None], 0)[0])
+    np.testing.assert_array_equal(got_y, np.take_along_axis(dy, best[None], 0)[0])
+
+
+def _codes(binary: np.ndarray) -> np.ndarray:
+    """Each pixel's RING neighbour code, pixel by pixel (0 outside the image)."""
+    framed = np.pad(binary, 1)
+    h, w = binary.shape
+    return sum(framed[1 + r:1 + r + h, 1 + c:1 + c + w].astype(int) << bit
+               for bit, (r, c) in enumerate(RING))
+
+
+def test_remove_stairs_is_two_table_passes() -> None:
+    rng = np.random.default_rng(3)
+    for density in (0.1, 0.3, 0.6):
+        canny = np.where(rng.random((29, 37)) < density, 255, 0).astype(np.uint8)
+        b = (canny > 0).astype(np.uint8)
+        for lut in STAIR_LUTS:  # each pass reads every code before it removes any pixel
+            b = b & (lut[_codes(b)] == 0)
+        np.testing.assert_array_equal(remove_stairs(canny), b)
+        np.testing.assert_array_equal(remove_stairs(canny > 0), b)
+
+
+def test_repeats_tells_copies_from_chains_with_new_pixels() -> None:
+    arc = np.array([[1, 2], [2, 2], [3, 3], [4, 3]], np.int32)
+    chains = (arc, arc[:2], arc.copy(), np.concatenate([arc, [[5, 4]]]), arc[::-1].copy())
+    assert _repeats(chains, [2], [0])  # the chain a whole piece was cut from
+    assert _repeats(chains, [2, 0], [1, 0])
+    assert not _repeats(chains, [2], [1])  # a half piece: the other half is new
+    assert not _repeats(chains, [3], [0])  # one more pixel
+    assert not _repeats(chains, [4], [0])  # the same pixels in another order

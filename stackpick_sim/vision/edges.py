@@ -82,53 +82,49 @@ def as_rgb_or_gray(image: NDArray) -> NDArray[np.uint8]:
                      "float32 or float64")
 
 
-def _l1(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> NDArray[np.int16]:
-    """|dx| + |dy| of 3x3 Sobel gradients of a uint8 image (a cheap gradient magnitude for
-    ranking channels); each is at most 4 x 255, so int16 holds the sum without overflow."""
-    # numpy's abs costs a fifth of OpenCV's absdiff with a scalar on these sizes.
-    return np.abs(dx) + np.abs(dy)
-
-
-def colour_gradients(blurred: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
+def colour_gradients(image: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
     """Sobel (dx, dy) of an (H, W) or (H, W, C) uint8 image; (H, W) int16 each.
 
-    Per pixel, the channel with the largest L1 gradient wins (the first of equals): an edge
-    between two colours of equal brightness is as strong as in the channel that separates
-    them.
+    Per pixel, the channel with the largest L1 gradient |dx| + |dy| wins (the first of
+    equals): an edge between two colours of equal brightness is as strong as in the channel
+    that separates them.
     """
-    return _plane_gradients(_planes(blurred))
-
-
-def _planes(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], ...]:
-    """The channels of an (H, W) or (H, W, C) uint8 image, each (H, W) contiguous."""
     if image.ndim == 2:
-        return (image,)
-    return tuple(cast("NDArray[np.uint8]", cv2.extractChannel(image, c))
-                 for c in range(image.shape[2]))
-
-
-def _sobel_pair(plane: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
-    """3x3 Sobel (dx, dy), (H, W) int16 each, of an (H, W) uint8 plane (one OpenCV call)."""
+        dx, dy = cv2.spatialGradient(image)
+        return cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
+    # One channel at a time, each into the same few buffers: extractChannel and
+    # spatialGradient (the 3x3 Sobel pair, same border) cost a third of split and two Sobel
+    # calls, and reused buffers spare the page faults of fresh ones (a large share of this
+    # stage's time on these sizes).
+    channels = image.shape[2]
+    plane = cast("NDArray[np.uint8]", cv2.extractChannel(image, 0))
     dx, dy = cv2.spatialGradient(plane)
-    return cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
-
-
-def _plane_gradients(planes: tuple[NDArray[np.uint8], ...]
-                     ) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
-    """:func:`colour_gradients` of an image given as its (H, W) uint8 channels."""
-    # One channel at a time: extractChannel and spatialGradient (the 3x3 Sobel pair, same
-    # border) cost a third of split and two Sobel calls.
-    best_x, best_y = _sobel_pair(planes[0])
-    best_m = _l1(best_x, best_y)
-    for k, plane in enumerate(planes[1:], start=2):
-        gx, gy = _sobel_pair(plane)
-        m = _l1(gx, gy)
-        better = cv2.compare(m, best_m, cv2.CMP_GT)
+    best_x, best_y = cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
+    gx, gy, best_m, m, spare = (np.empty_like(best_x) for _ in range(5))
+    _l1(best_x, best_y, best_m, spare)
+    better = np.empty_like(plane)
+    for c in range(1, channels):
+        cv2.extractChannel(image, c, plane)
+        cv2.spatialGradient(plane, gx, gy)
+        _l1(gx, gy, m, spare)
+        cv2.compare(m, best_m, cv2.CMP_GT, better)
         cv2.copyTo(gx, better, best_x)
         cv2.copyTo(gy, better, best_y)
-        if k < len(planes):  # the last channel's maximum is not needed
-            best_m = np.maximum(m, best_m)
+        if c + 1 < channels:  # the last channel's maximum is not needed
+            np.maximum(m, best_m, out=best_m)
     return best_x, best_y
+
+
+def _l1(dx: NDArray[np.int16], dy: NDArray[np.int16], out: NDArray[np.int16],
+        spare: NDArray[np.int16] | None = None) -> NDArray[np.int16]:
+    """|dx| + |dy| of 3x3 Sobel gradients of a uint8 image (a cheap gradient magnitude for
+    ranking channels), written into ``out`` (``spare``, of the same shape, is overwritten;
+    None: a fresh one); each term is at most 4 x 255, so int16 holds the sum without
+    overflow."""
+    # numpy's abs costs a fifth of OpenCV's absdiff with a scalar on these sizes.
+    np.abs(dx, out=out)
+    out += np.abs(dy, out=spare)
+    return out
 
 
 def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16]
@@ -212,9 +208,11 @@ for _bit, (_r, _c) in enumerate(RING):
 STAIR_LUTS = _stair_luts()
 
 
-def neighbour_codes(binary: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """(H, W) uint8 8-bit code of each pixel's set neighbours in a 0/1 image (see RING)."""
-    return cast("NDArray[np.uint8]", cv2.filter2D(binary, cv2.CV_8U, RING_KERNEL,
+def neighbour_codes(binary: NDArray[np.uint8], out: NDArray[np.uint8] | None = None
+                    ) -> NDArray[np.uint8]:
+    """(H, W) uint8 8-bit code of each pixel's set neighbours in a 0/1 image (see RING),
+    written into ``out`` when given (uint8, of the image's shape)."""
+    return cast("NDArray[np.uint8]", cv2.filter2D(binary, cv2.CV_8U, RING_KERNEL, out,
                                                 borderType=cv2.BORDER_CONSTANT))
 
 
@@ -229,9 +227,12 @@ def remove_stairs(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     # 0/1: on uint8, a binary threshold at 0 is (x > 0) in one call.
     b = (cast("NDArray[np.uint8]", cv2.threshold(edges, 0, 1, cv2.THRESH_BINARY)[1])
          if edges.dtype == np.uint8 else (edges > 0).astype(np.uint8))
+    # Both passes in the same buffers (fresh ones cost page faults on these sizes).
+    codes, removable = np.empty_like(b), np.empty_like(b)
     for lut in STAIR_LUTS:
-        removable = cv2.LUT(neighbour_codes(b), lut)
-        b = cast("NDArray[np.uint8]", cv2.subtract(b, cv2.bitwise_and(removable, b)))
+        cv2.LUT(neighbour_codes(b, codes), lut, removable)
+        # A saturating subtraction: a removable code off the edge pixels leaves 0 at 0.
+        cv2.subtract(b, removable, b)
     return b
 
 
@@ -256,7 +257,7 @@ def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
     # half the cost), then split into the planes the gradients need.
     blurred = cast("NDArray[np.uint8]",
                    cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE), GAUSSIAN_SIGMA_PX))
-    gx, gy = _plane_gradients(_planes(blurred))
+    gx, gy = colour_gradients(blurred)
     low, high, noise = adaptive_thresholds(gx, gy)
     canny = cv2.Canny(gx, gy, low, high, L2gradient=True)
     edges = remove_stairs(cast("NDArray[np.uint8]", canny))

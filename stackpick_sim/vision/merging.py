@@ -271,6 +271,14 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
                                 rest, everything)
 
 
+def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
+    """Whether every chain of ``extra`` equals one of ``segs`` pixel for pixel (a fitted
+    piece repeats the chain it was cut from when it is that whole chain)."""
+    return all(any(chains[s].shape == chains[k].shape
+                   and chains[s].tobytes() == chains[k].tobytes() for k in segs)
+               for s in extra)
+
+
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
                    ) -> bool:
     """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse
@@ -288,7 +296,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                          rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
                          everything: NDArray[np.float64] | None = None
                          ) -> list[MergedEllipse]:
-    """Add leftover segments lying on each final ellipse, refit, keep supported ones.
+    """Add leftover segments lying on each final ellipse, refit (unless they only repeat
+    its pixels), keep supported ones.
 
     ``known``: (group, pixel) index pairs (K,) each of the first P pixels of ``chains`` that
     lie on each final ellipse, and P, when already computed; ``rest``: the pairs of the other
@@ -350,16 +359,18 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     refits: dict[int, Ellipse | None] = {}
     for g, (segs, _) in enumerate(groups):
-        if extras[g]:
+        # Extras that only repeat the group's pixels (the chains its pieces were cut from
+        # whole) would refit the same points, each twice: the fit in hand, up to rounding.
+        if extras[g] and not _repeats(chains, extras[g], segs):
             # The chains themselves (int32, in this order): the fit's input as it stands.
             refit = fit_ellipse(np.concatenate([chains[s] for s in segs + extras[g]]))
             refits[g] = refit if refit is not None and plausible(refit, shape) else None
-    # One residual pass for the refits and for the groups that absorbed nothing (kept as
-    # fitted); only a failed or refused refit needs a second.
+    # One residual pass for the refits and for the groups not refitted (kept as fitted, with
+    # any repeating extras); only a failed or refused refit needs a second.
     tried = [g for g, r in refits.items() if r is not None]
     plain = [g for g in range(len(groups)) if g not in refits]
     first = rms([(e, groups[g][0] + extras[g]) for g in tried if (e := refits[g]) is not None]
-                + [(groups[g][1], groups[g][0]) for g in plain])
+                + [(groups[g][1], groups[g][0] + extras[g]) for g in plain])
     refit_rms = dict(zip(tried, first[:len(tried)], strict=True))
     residuals: dict[int, float] = dict(zip(plain, first[len(tried):], strict=True))
     finals: list[tuple[list[int], Ellipse]] = []
@@ -368,10 +379,11 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
         if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
             finals.append((segs + extras[g], refit))
             residuals[g] = refit_rms[g]
-        elif g in refits and refit is None:
-            finals.append((segs + extras[g], ellipse))  # the fit failed: keep all, as fitted
+        elif g in refits and refit is not None:
+            finals.append((segs, ellipse))  # the refit strays: the extras are not on it
         else:
-            finals.append((segs, ellipse))
+            # Not refitted, or the fit failed: keep all, as fitted.
+            finals.append((segs + extras[g], ellipse))
     todo = [g for g in range(len(finals)) if g not in residuals]
     residuals.update(zip(todo, rms([(finals[g][1], finals[g][0]) for g in todo]),
                          strict=True))
