@@ -47,22 +47,22 @@ def test_pairs_of_short_arcs_give_their_face_and_mixed_arcs_give_nothing() -> No
     # Sixth-of-outline arcs of the face far apart on it, and one arc of another face.
     arcs = [_arc(face, 0.0, 0.15), _arc(face, 0.35, 0.5), _arc(face, 0.7, 0.85),
             _arc(other, 0.3, 0.5)]
-    found = arc_pair_ellipses(arcs, arcs, SHAPE)
+    found = arc_pair_ellipses(arcs, range(len(arcs)), SHAPE)
     assert found, "no pair of the face's arcs gave an ellipse"
     # Each pair's fit is near the face (the edge refit pulls it on), the best on it, and the
     # pairs with the arc of the other face fit nothing: one ellipse per set of the face's arcs.
     ious = [mask_iou(e, face, SHAPE) for e in found]
     assert min(ious) > 0.9 and max(ious) > 0.97 and len(found) <= 3, ious
     # Arcs of two faces alone fit no ellipse both stay on.
-    assert arc_pair_ellipses([arcs[0], arcs[3]], arcs, SHAPE) == []
+    assert arc_pair_ellipses(arcs, [0, 3], SHAPE) == []
 
 
 def test_size_range_drops_pairs_too_large_or_small_for_a_face() -> None:
     face = Ellipse(cx=150, cy=120, a=45, b=40, angle_deg=30)
     arcs = [_arc(face, 0.0, 0.15), _arc(face, 0.35, 0.5)]
-    assert arc_pair_ellipses(arcs, arcs, SHAPE, (10.0, 30.0)) == []
-    assert len(arc_pair_ellipses(arcs, arcs, SHAPE, (30.0, 60.0))) == 1
-    assert arc_pair_ellipses(arcs, arcs, SHAPE, (50.0, 90.0)) == []
+    assert arc_pair_ellipses(arcs, range(2), SHAPE, (10.0, 30.0)) == []
+    assert len(arc_pair_ellipses(arcs, range(2), SHAPE, (30.0, 60.0))) == 1
+    assert arc_pair_ellipses(arcs, range(2), SHAPE, (50.0, 90.0)) == []
 
 
 def _frame_377(seed: int) -> tuple[np.ndarray, Ellipse]:
@@ -116,4 +116,6 @@ def test_unobstructed_contrast_refit_is_the_very_last_resort(
     retry = detector_module._retry_on_contrast
     monkeypatch.setattr(detector_module, "_retry_on_contrast",
                         lambda *a, **k: (*retry(*a, **k)[:2], None))
+    # (The pairs with the unfitted chains, after it, are left out too.)
+    monkeypatch.setattr(detector_module, "unfitted_chains", lambda *a, **k: [])
     assert detect(image, CONFIG).top_ellipse is None
