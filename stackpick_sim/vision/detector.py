@@ -10,7 +10,8 @@ faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision
 select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
 (:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
 T-junction and no edge inside, most of its outline showing; the very last are the pairs that
-take in the edge chains no fit was kept for too. One face fitted twice is
+take in the edge chains no fit was kept for too, through the rule and else its last resort
+(no T-junction, no edge inside, most of the outline showing). One face fitted twice is
 reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
 (RIM_OFFSET_RANGE).
 
@@ -304,10 +305,12 @@ class TopObjectDetector:
                                                   *choice.evidence[i + 1:]))
         if choice.index is None:
             # After all: pairs that take in the chains no fit was kept for too (see regroup;
-            # development frames 3504, 3886 of ds_paper_h3k). Last, as the least constrained.
+            # development frames 3504, 3886 of ds_paper_h3k), else the one with nothing
+            # crossing it (3032: its boundary with a lower face of its colour shows no
+            # contrast). Last, as the least constrained.
             arcs = [*range(len(pieces)), *unfitted_chains(segs.chains, fitted, len(pieces))]
             merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
-                                           crop, gate)
+                                           crop, gate, unobstructed=True)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -461,14 +464,14 @@ def unfitted_chains(chains: Sequence[NDArray[np.int32]], fitted: set[int], offse
 def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   arcs: Sequence[int], chains: tuple[NDArray[np.int32], ...],
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
-                  shape: tuple[int, int], gate: tuple[float, float] | None
-                  ) -> tuple[list[MergedEllipse], TopChoice]:
+                  shape: tuple[int, int], gate: tuple[float, float] | None,
+                  unobstructed: bool = False) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs`` (indices
     into ``chains``; :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the
     edge map like the merged ones, through the top rule alone (no rival that already failed
-    it can win).
-    Only one that passes is added (with its evidence) to ``merged`` and chosen; otherwise
-    both come back unchanged."""
+    it can win), and with ``unobstructed``, when none passes, through its last resort
+    (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`). Only one chosen so is
+    added (with its evidence) to ``merged``; otherwise both come back unchanged."""
     found = arc_pair_ellipses(chains, arcs, shape, gate)
     if not found:
         return merged, choice
@@ -479,6 +482,8 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
         return merged, choice
     # The depth, wall and rest tests need no rivals here: every merged face failed already.
     extra = select_top(found, grad, edge_points=points)
+    if extra.index is None and unobstructed:
+        extra = replace(extra, index=select_unobstructed(extra.evidence))
     if extra.index is None:
         return merged, choice
     ellipse = found[extra.index]
