@@ -10,7 +10,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou, project_
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.merging import boundary_samples
-from stackpick_sim.vision.regroup import arc_pair_ellipses
+from stackpick_sim.vision.regroup import SPLIT_REACH_PX, arc_pair_ellipses, split_at_junctions
 from stackpick_sim.vision.synthetic import render_cylinders
 
 SHAPE = (240, 320)
@@ -55,6 +55,18 @@ def test_pairs_of_short_arcs_give_their_face_and_mixed_arcs_give_nothing() -> No
     assert min(ious) > 0.9 and max(ious) > 0.97 and len(found) <= 3, ious
     # Arcs of two faces alone fit no ellipse both stay on.
     assert arc_pair_ellipses(arcs, [0, 3], SHAPE) == []
+
+
+def test_chains_are_cut_where_another_chain_ends_near_them() -> None:
+    through = np.stack([np.arange(100), np.full(100, 50)], axis=1).astype(np.int32)
+    # One chain ending 4 px off the through-going chain's pixel 40, one ending beyond the
+    # reach off its pixel 80, and one ending next to its own first pixel.
+    near = np.array([[40, 90], [40, 54]], np.int32)
+    far = np.array([[80, 90], [80, 50 + int(SPLIT_REACH_PX) + 2]], np.int32)
+    at_end = np.array([[-1, 51], [-1, 90]], np.int32)
+    parts = split_at_junctions([through, near, far, at_end])[0]
+    assert [p.shape[0] for p in parts] == [40, 60]
+    assert np.array_equal(np.concatenate(parts), through)
 
 
 def test_size_range_drops_pairs_too_large_or_small_for_a_face() -> None:
@@ -117,5 +129,6 @@ def test_unobstructed_contrast_refit_is_the_very_last_resort(
     monkeypatch.setattr(detector_module, "_retry_on_contrast",
                         lambda *a, **k: (*retry(*a, **k)[:2], None))
     # (The pairs with the unfitted chains, after it, are left out too.)
-    monkeypatch.setattr(detector_module, "unfitted_chains", lambda *a, **k: [])
+    monkeypatch.setattr(detector_module, "last_resort_arcs",
+                        lambda pieces, *_: (tuple(pieces), list(range(len(pieces)))))
     assert detect(image, CONFIG).top_ellipse is None

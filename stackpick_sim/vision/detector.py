@@ -10,10 +10,11 @@ faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision
 select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
 (:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
 T-junction and no edge inside, most of its outline showing; the very last are the pairs that
-take in the edge chains no fit was kept for too, through the rule and else its last resort
-(no T-junction, no edge inside, most of the outline showing). One face fitted twice is
-reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
-(RIM_OFFSET_RANGE).
+also take in the edge chains no fit was kept for and the parts of the chains cut at their
+junctions (:func:`last_resort_arcs`), through the rule and else its own last resorts
+(select_unobstructed, then select_rimmed). One face fitted twice is reported once
+(DUPLICATE_SHARE), nor are the top face's refits on other outlines too (MISFIT_SHARE), and a
+cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
 
 When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
 (:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
@@ -76,7 +77,12 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
-from stackpick_sim.vision.regroup import arc_pair_ellipses, chain_table, chains_on
+from stackpick_sim.vision.regroup import (
+    arc_pair_ellipses,
+    chain_table,
+    chains_on,
+    split_at_junctions,
+)
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -304,13 +310,14 @@ class TopObjectDetector:
             choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
                                                   *choice.evidence[i + 1:]))
         if choice.index is None:
-            # After all: pairs that take in the chains no fit was kept for too (see regroup;
-            # development frames 3504, 3886 of ds_paper_h3k), else the one with nothing
-            # crossing it (3032: its boundary with a lower face of its colour shows no
-            # contrast). Last, as the least constrained.
-            arcs = [*range(len(pieces)), *unfitted_chains(segs.chains, fitted, len(pieces))]
+            # After all: pairs that take in the chains no fit was kept for and the parts of
+            # chains cut at junctions too (see regroup; development frames 3504, 3886 of
+            # ds_paper_h3k, 1374, 1438 of ds_paper_h1k), else the one with nothing crossing
+            # it (3032: its boundary with a lower face of its colour shows no contrast), else
+            # one with its own rim inside. Last, as the least constrained.
+            arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
             merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
-                                           crop, gate, unobstructed=True)
+                                           crop, gate, unobstructed=True, arc_chains=arc_chains)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -453,26 +460,39 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
             for i, m in enumerate(merged)], True, None
 
 
-def unfitted_chains(chains: Sequence[NDArray[np.int32]], fitted: set[int], offset: int
-                    ) -> list[int]:
-    """Indices (plus ``offset``) of the ``chains`` ((N_i, 2) pixels) at least MIN_FIT_PX
-    long that are not in ``fitted`` (the chains some piece of which was fitted)."""
-    return [offset + k for k, c in enumerate(chains)
-            if k not in fitted and c.shape[0] >= MIN_FIT_PX]
+def last_resort_arcs(pieces: list[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
+                     fitted: set[int]) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
+    """The chains the last arc pairs are drawn from, and which of them are arcs (indices):
+    the fitted ``pieces``, then the edge ``chains`` ((N_i, 2) pixels) cut at their junctions
+    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`). Arcs are the pieces and the
+    parts at least MIN_FIT_PX long of the chains that were cut or that are not in ``fitted``
+    (the chains some piece of which was fitted)."""
+    out = list(pieces)
+    arcs = list(range(len(pieces)))
+    for k, parts in enumerate(split_at_junctions(chains)):
+        for part in parts:
+            if part.shape[0] >= MIN_FIT_PX and (len(parts) > 1 or k not in fitted):
+                arcs.append(len(out))
+            out.append(part)
+    return tuple(out), arcs
 
 
 def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   arcs: Sequence[int], chains: tuple[NDArray[np.int32], ...],
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                   shape: tuple[int, int], gate: tuple[float, float] | None,
-                  unobstructed: bool = False) -> tuple[list[MergedEllipse], TopChoice]:
+                  unobstructed: bool = False,
+                  arc_chains: tuple[NDArray[np.int32], ...] | None = None
+                  ) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs`` (indices
-    into ``chains``; :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the
+    into ``arc_chains``, by default the ``chains`` the detection reports;
+    :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the
     edge map like the merged ones, through the top rule alone (no rival that already failed
-    it can win), and with ``unobstructed``, when none passes, through its last resort
-    (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`). Only one chosen so is
-    added (with its evidence) to ``merged``; otherwise both come back unchanged."""
-    found = arc_pair_ellipses(chains, arcs, shape, gate)
+    it can win), and with ``unobstructed``, when none passes, through its last resorts
+    (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
+    vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
+    ``merged``; otherwise both come back unchanged."""
+    found = arc_pair_ellipses(chains if arc_chains is None else arc_chains, arcs, shape, gate)
     if not found:
         return merged, choice
     points, grads = edge_pixels
@@ -484,6 +504,8 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
     extra = select_top(found, grad, edge_points=points)
     if extra.index is None and unobstructed:
         extra = replace(extra, index=select_unobstructed(extra.evidence))
+    if extra.index is None and unobstructed:
+        extra = replace(extra, index=select_rimmed(found, extra.evidence, points))
     if extra.index is None:
         return merged, choice
     ellipse = found[extra.index]

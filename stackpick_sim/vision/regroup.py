@@ -20,12 +20,15 @@ T-junctions.
 
 The arcs are given as indices into the edge chains: the detector first pairs the fitted arcs,
 and only when nothing else passes (after its last contrast refit) the chains the fitting stage
-dropped too (:func:`~stackpick_sim.vision.detector.unfitted_chains`): between close junctions
-a face's outline breaks into arcs of 10-30 px whose own five-parameter fits are ill-posed
-(the pixel staircase of an arc of a sixth of the outline or less fits a flat ellipse a few px
-across, below MIN_AXIS_PX), so no piece of it is fitted, yet a pair of such arcs across the
-face fixes its ellipse (development frames 3504 and 3886 of ds_paper_h3k: a top face lying
-across faces of its colour, its whole outline in the edge map in such pieces).
+dropped and the parts of chains cut at their junctions too (:func:`~stackpick_sim.vision.
+detector.last_resort_arcs`). Between close junctions a face's outline breaks into arcs of
+10-30 px whose own five-parameter fits are ill-posed (the pixel staircase of an arc of a sixth
+of the outline or less fits a flat ellipse a few px across, below MIN_AXIS_PX), so no piece
+of it is fitted, yet a pair of such arcs across the face fixes its ellipse (development frames
+3504 and 3886 of ds_paper_h3k: a top face lying across faces of its colour, its whole outline
+in the edge map in such pieces). And where Canny runs a face's outline on into a lower
+face's silhouette, the face's arc is a part of a chain of two curves
+(:func:`split_at_junctions`).
 """
 
 from __future__ import annotations
@@ -50,6 +53,10 @@ from stackpick_sim.vision.merging import (
     MERGE_TOLERANCE_PX,
 )
 
+#: Another chain's end within this distance (px) of a chain's pixel marks a junction there
+#: (:func:`split_at_junctions`): Canny leaves an edge that ends at another 4-7 px short of it
+#: (see occlusion.MIN_GAP_PX), a faint boundary between faces of one colour the most.
+SPLIT_REACH_PX = 6.0
 #: Rounds of growing a pair's ellipse by the chains lying on it and refitting: the pair's
 #: own fit extrapolates up to a few px off the face's far arcs, the first refit on the arcs
 #: near it pulls it within the merge's tolerance of the rest.
@@ -134,4 +141,29 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                 fit = refit
             grown_sets.append({ci, cj, *lying})
             out.append(fit)
+    return out
+
+
+def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray[np.int32]]]:
+    """Each chain ((N_i, 2) int32 pixels) cut at its pixels nearest to the ends of the other
+    chains within SPLIT_REACH_PX (its own two end pixels excepted): the pieces of each, in
+    order, views of it (a chain with no junction is its one piece).
+
+    Canny runs a face's outline on into the silhouette of a lower face of its colour beyond
+    it, the faint boundary between them ending near the point where the two outlines meet;
+    cut there, the face's arc is a piece of its own (development frames 1374 and 1438 of
+    ds_paper_h1k: the top face's outline and the sliver of the face under it in one chain)."""
+    ends = np.array([p for c in chains for p in (c[0], c[-1])], np.float64).reshape(-1, 2)
+    end_owner = np.repeat(np.arange(len(chains)), 2)
+    out = []
+    for k, c in enumerate(chains):
+        others = ends[end_owner != k]
+        if c.shape[0] < 3 or others.shape[0] == 0:
+            out.append([c])
+            continue
+        d2 = ((c[:, None, :] - others[None, :, :]) ** 2).sum(axis=2)
+        nearest = d2.argmin(axis=0)
+        near = d2[nearest, np.arange(others.shape[0])] <= SPLIT_REACH_PX ** 2
+        cuts = sorted({int(i) for i in nearest[near] if 0 < i < c.shape[0] - 1})
+        out.append([c[a:b] for a, b in zip([0, *cuts], [*cuts, c.shape[0]], strict=True)])
     return out
