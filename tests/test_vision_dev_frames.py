@@ -19,8 +19,8 @@ from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
 
 #: Frames copied from the development data sets ds_paper_dev4 (857), ds_paper_h1k (1374,
-#: 1438, 1769), ds_paper_h2k (2241, 2333) and ds_paper_h3k (3032, 3070, 3355, 3504, 3886), PNG
-#: and ground-truth JSON as `stackpick dataset` wrote them.
+#: 1438, 1769), ds_paper_h2k (2241, 2333) and ds_paper_h3k (3032, 3070, 3355, 3504, 3791,
+#: 3886), PNG and ground-truth JSON as `stackpick dataset` wrote them.
 FRAMES = Path(__file__).parent / "data" / "paper_dev_frames"
 
 
@@ -119,6 +119,19 @@ def test_last_pair_with_its_own_rim_inside_is_taken(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr(detector_module, "select_rimmed", lambda *a, **k: None)
     missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
     assert missed.top_ellipse is None, missed.reason
+
+
+def test_a_face_from_arc_pairs_clearly_nearer_than_a_contrast_refit_wins(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Frame 3791: no fit passes the rule; the contrast refit of a lower, nearly whole face
+    # passes, and the top face, which the merge never fitted, is ~4 cm nearer the camera.
+    frame = _frame(3791)
+    top, _ = _top_iou(frame)
+    assert top > MATCH_IOU
+    monkeypatch.setattr(detector_module, "_nearer_arc_face",
+                        lambda merged, choice, *a, **k: (merged, choice))
+    _, other = _top_iou(frame)
+    assert other > MATCH_IOU
 
 
 def test_a_refit_of_the_top_face_on_a_lower_outline_is_not_reported(

@@ -4,10 +4,12 @@ Given a depth range, refined ellipses too small or too large for any face radius
 dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
 no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
 select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run; failing
-that, a whole face whose interior edges all lie in a band along its outline is taken (its own
-faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.
-select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
+refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run (a face
+from the last stage's arc pairs, below, that passes the rule and lies clearly nearer than the
+refit it chose takes the choice: :func:`_nearer_arc_face`); failing that, a whole face whose
+interior edges all lie in a band along its outline is taken (its own faint rim inside a
+same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.select_rimmed`);
+failing that, ellipses fitted to pairs of arcs the merge never joined
 (:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
 T-junction and no edge inside, most of its outline showing; the very last are the pairs that
 also take in the edge chains no fit was kept for and the parts of the chains cut at their
@@ -64,6 +66,8 @@ from stackpick_sim.vision.merging import (
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
+    clearly_nearest,
+    holds_centre,
     select_resting_rimmed,
     select_rimmed,
     select_top,
@@ -291,6 +295,13 @@ class TopObjectDetector:
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of)
+            if retried and choice.index is not None and radius_of is not None:
+                # A face clearly nearer than such a refit is above it (development frame 3791
+                # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
+                # whole face of its colour).
+                arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+                merged, choice = _nearer_arc_face(merged, choice, arcs, chains, arc_chains, grad,
+                                                  (points, grads), crop, gate, k_crop, radius_of)
         if choice.index is None:
             # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
             rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
@@ -484,38 +495,83 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   unobstructed: bool = False,
                   arc_chains: tuple[NDArray[np.int32], ...] | None = None
                   ) -> tuple[list[MergedEllipse], TopChoice]:
-    """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs`` (indices
-    into ``arc_chains``, by default the ``chains`` the detection reports;
-    :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the
-    edge map like the merged ones, through the top rule alone (no rival that already failed
-    it can win), and with ``unobstructed``, when none passes, through its last resorts
+    """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs``
+    (:func:`_arc_pair_faces`) through the top rule alone (no rival that already failed it can
+    win), and with ``unobstructed``, when none passes, through its last resorts
     (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
     vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
     ``merged``; otherwise both come back unchanged."""
-    found = arc_pair_ellipses(chains if arc_chains is None else arc_chains, arcs, shape, gate)
+    found, extra = _arc_pair_faces(arcs, chains if arc_chains is None else arc_chains, grad,
+                                   edge_pixels[0], edge_pixels[1], shape, gate)
     if not found:
         return merged, choice
-    points, grads = edge_pixels
-    found = [e for e in refine_all(found, points, grads, shape)
-             if gate is None or gate[0] <= e.a <= gate[1]]
-    if not found:
-        return merged, choice
-    # The depth, wall and rest tests need no rivals here: every merged face failed already.
-    extra = select_top(found, grad, edge_points=points)
     if extra.index is None and unobstructed:
         extra = replace(extra, index=select_unobstructed(extra.evidence))
     if extra.index is None and unobstructed:
-        extra = replace(extra, index=select_rimmed(found, extra.evidence, points))
+        extra = replace(extra, index=select_rimmed(found, extra.evidence, edge_pixels[0]))
     if extra.index is None:
         return merged, choice
-    ellipse = found[extra.index]
+    return _with_face(merged, choice, found[extra.index], extra.evidence[extra.index], chains,
+                      grad)
+
+
+def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
+                    grad: EdgeImage, points: NDArray[np.float64], grads: NDArray[np.float64],
+                    shape: tuple[int, int], gate: tuple[float, float] | None
+                    ) -> tuple[list[Ellipse], TopChoice]:
+    """The ellipses of pairs of the ``arcs`` (indices into ``arc_chains``;
+    :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map (its
+    pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
+    ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
+    rest tests need rivals)."""
+    found = arc_pair_ellipses(arc_chains, arcs, shape, gate)
+    if found:
+        found = [e for e in refine_all(found, points, grads, shape)
+                 if gate is None or gate[0] <= e.a <= gate[1]]
+    if not found:
+        return [], TopChoice(index=None, evidence=())
+    return found, select_top(found, grad, edge_points=points)
+
+
+def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
+               evidence: OcclusionEvidence, chains: tuple[NDArray[np.int32], ...],
+               grad: EdgeImage) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it and their
+    residual), and the choice of it, ``evidence`` added to ``choice``'s."""
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
     on = chains_on(ellipse, *chain_table(chains))
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]
-    return merged, TopChoice(index=len(merged) - 1,
-                             evidence=(*choice.evidence, extra.evidence[extra.index]))
+    return merged, TopChoice(index=len(merged) - 1, evidence=(*choice.evidence, evidence))
+
+
+def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Sequence[int],
+                     chains: tuple[NDArray[np.int32], ...],
+                     arc_chains: tuple[NDArray[np.int32], ...], grad: EdgeImage,
+                     edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
+                     shape: tuple[int, int], gate: tuple[float, float] | None,
+                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None]
+                     ) -> tuple[list[MergedEllipse], TopChoice]:
+    """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
+    the top rule (:func:`_arc_pair_faces`) and is another face than the chosen one (neither
+    holds the other's centre) is clearly nearer the camera than it and every other such
+    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
+    and chosen."""
+    assert choice.index is not None
+    chosen = merged[choice.index].ellipse
+    found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
+                                   shape, gate)
+    passed = [i for i, ev in enumerate(extra.evidence) if not ev.occluded
+              and not (holds_centre(chosen, found[i]) or holds_centre(found[i], chosen))]
+    if not passed:
+        return merged, choice
+    faces = [chosen, *(found[i] for i in passed)]
+    nearest = clearly_nearest(faces, intrinsics, radius_of)
+    if not nearest:
+        return merged, choice
+    i = passed[nearest - 1]
+    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
 
 
 def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
