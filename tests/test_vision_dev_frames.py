@@ -19,8 +19,8 @@ from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
 
 #: Frames copied from the development data sets ds_paper_dev4 (857), ds_paper_h1k (1374,
-#: 1438, 1769), ds_paper_h2k (2241, 2333) and ds_paper_h3k (3032, 3070, 3355, 3504, 3791,
-#: 3886), PNG and ground-truth JSON as `stackpick dataset` wrote them.
+#: 1438, 1769), ds_paper_h2k (2241, 2333) and ds_paper_h3k (3032, 3070, 3120, 3355, 3504,
+#: 3791, 3886), PNG and ground-truth JSON as `stackpick dataset` wrote them.
 FRAMES = Path(__file__).parent / "data" / "paper_dev_frames"
 
 
@@ -130,6 +130,19 @@ def test_a_face_from_arc_pairs_clearly_nearer_than_a_contrast_refit_wins(
     assert top > MATCH_IOU
     monkeypatch.setattr(detector_module, "_nearer_arc_face",
                         lambda merged, choice, *a, **k: (merged, choice))
+    _, other = _top_iou(frame)
+    assert other > MATCH_IOU
+
+
+def test_an_unobstructed_face_from_arc_pairs_clearly_nearer_than_a_refit_wins(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Frame 3120: the contrast refit of a lower, nearly whole face passes; the top face lies
+    # on a face of its colour, its fit from pairs of its arcs shows support ~0.87 (its faint
+    # boundary with that face) with nothing crossing it, and is clearly nearer.
+    frame = _frame(3120)
+    top, _ = _top_iou(frame)
+    assert top > MATCH_IOU
+    monkeypatch.setattr(detector_module, "unobstructed", lambda ev: False)
     _, other = _top_iou(frame)
     assert other > MATCH_IOU
 

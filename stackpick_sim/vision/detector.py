@@ -72,6 +72,7 @@ from stackpick_sim.vision.occlusion import (
     select_rimmed,
     select_top,
     select_unobstructed,
+    unobstructed,
 )
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
@@ -554,15 +555,16 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
                      intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None]
                      ) -> tuple[list[MergedEllipse], TopChoice]:
     """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
-    the top rule (:func:`_arc_pair_faces`) and is another face than the chosen one (neither
-    holds the other's centre) is clearly nearer the camera than it and every other such
-    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
-    and chosen."""
+    the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
+    it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
+    those too), and is another face than the chosen one (neither holds the other's centre) is
+    clearly nearer the camera than it and every other such (:func:`~stackpick_sim.vision.
+    occlusion.clearly_nearest`): then it is added to ``merged`` and chosen."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
                                    shape, gate)
-    passed = [i for i, ev in enumerate(extra.evidence) if not ev.occluded
+    passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
               and not (holds_centre(chosen, found[i]) or holds_centre(found[i], chosen))]
     if not passed:
         return merged, choice

@@ -309,7 +309,7 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     """Index of the best-supported ellipse with no T-junction end, no interior edge pixel and
     support >= FALLBACK_MIN_SUPPORT, or None: the top rule's last resort when no ellipse
     passes it (see FALLBACK_MIN_SUPPORT)."""
-    ok = [i for i, ev in enumerate(evidence) if _unobstructed(ev)]
+    ok = [i for i, ev in enumerate(evidence) if unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
 
 
@@ -409,7 +409,7 @@ def _best_supported(indices: Sequence[int], ellipses: Sequence[Ellipse],
                key=lambda i: ellipses[i].area)
 
 
-def _unobstructed(ev: OcclusionEvidence) -> bool:
+def unobstructed(ev: OcclusionEvidence) -> bool:
     """No T-junction end, no interior edge pixel, support >= FALLBACK_MIN_SUPPORT."""
     return (not ev.occluded_ends and not ev.interior_edge_px
             and ev.support >= FALLBACK_MIN_SUPPORT)
@@ -460,7 +460,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # The depth test also hears faces that failed on support alone with nothing crossing
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
-                         if ev.occluded and _unobstructed(ev)]
+                         if ev.occluded and unobstructed(ev)]
     if intrinsics is not None and len(pool) > 1:
         under = under_another([ellipses[i] for i in pool], intrinsics, radius_of)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
