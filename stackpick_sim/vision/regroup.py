@@ -1,4 +1,4 @@
-"""Last resort for a face the merge never fitted: ellipses of pairs of fitted arcs.
+"""Last resort for a face the merge never fitted: ellipses of pairs of its arcs.
 
 The merge (:mod:`~stackpick_sim.vision.merging`, paper Eq. 3) joins two arcs only when each
 lies on the other's own ellipse. A face lying on faces of its own colour keeps only short
@@ -19,16 +19,16 @@ contrast along the rest of its outline, and a lower face has edges inside it or
 T-junctions.
 
 The arcs are given as indices into the edge chains: the detector first pairs the fitted arcs,
-and only when nothing else passes (after its last contrast refit) the chains the fitting stage
-dropped and the parts of chains cut at their junctions too (:func:`~stackpick_sim.vision.
-detector.last_resort_arcs`). Between close junctions a face's outline breaks into arcs of
-10-30 px whose own five-parameter fits are ill-posed (the pixel staircase of an arc of a sixth
-of the outline or less fits a flat ellipse a few px across, below MIN_AXIS_PX), so no piece
-of it is fitted, yet a pair of such arcs across the face fixes its ellipse (development frames
-3504 and 3886 of ds_paper_h3k: a top face lying across faces of its colour, its whole outline
-in the edge map in such pieces). And where Canny runs a face's outline on into a lower
-face's silhouette, the face's arc is a part of a chain of two curves
-(:func:`split_at_junctions`).
+and only when nothing else passes (after its last contrast refit), or to rival a contrast refit
+its retry chose, the chains the fitting stage dropped and the parts of chains cut at their
+junctions too (:func:`~stackpick_sim.vision.detector.last_resort_arcs`). Between close
+junctions a face's outline breaks into arcs of 10-30 px whose own five-parameter fits are
+ill-posed (the pixel staircase of an arc of a sixth of the outline or less fits a flat ellipse
+a few px across, below MIN_AXIS_PX), so no piece of it is fitted, yet a pair of such arcs
+across the face fixes its ellipse (development frames 3504 and 3886 of ds_paper_h3k: a top face
+lying across faces of its colour, its whole outline in the edge map in such pieces). And where
+Canny runs a face's outline on into a lower face's silhouette, the face's arc is a part of a
+chain of two curves (:func:`split_at_junctions`).
 """
 
 from __future__ import annotations
