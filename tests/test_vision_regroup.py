@@ -10,7 +10,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou, project_
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.merging import boundary_samples
-from stackpick_sim.vision.regroup import arc_pair_ellipses
+from stackpick_sim.vision.regroup import SPLIT_REACH_PX, arc_pair_ellipses, split_at_junctions
 from stackpick_sim.vision.synthetic import render_cylinders
 
 SHAPE = (240, 320)
@@ -47,22 +47,34 @@ def test_pairs_of_short_arcs_give_their_face_and_mixed_arcs_give_nothing() -> No
     # Sixth-of-outline arcs of the face far apart on it, and one arc of another face.
     arcs = [_arc(face, 0.0, 0.15), _arc(face, 0.35, 0.5), _arc(face, 0.7, 0.85),
             _arc(other, 0.3, 0.5)]
-    found = arc_pair_ellipses(arcs, arcs, SHAPE)
+    found = arc_pair_ellipses(arcs, range(len(arcs)), SHAPE)
     assert found, "no pair of the face's arcs gave an ellipse"
     # Each pair's fit is near the face (the edge refit pulls it on), the best on it, and the
     # pairs with the arc of the other face fit nothing: one ellipse per set of the face's arcs.
     ious = [mask_iou(e, face, SHAPE) for e in found]
     assert min(ious) > 0.9 and max(ious) > 0.97 and len(found) <= 3, ious
     # Arcs of two faces alone fit no ellipse both stay on.
-    assert arc_pair_ellipses([arcs[0], arcs[3]], arcs, SHAPE) == []
+    assert arc_pair_ellipses(arcs, [0, 3], SHAPE) == []
+
+
+def test_chains_are_cut_where_another_chain_ends_near_them() -> None:
+    through = np.stack([np.arange(100), np.full(100, 50)], axis=1).astype(np.int32)
+    # One chain ending 4 px off the through-going chain's pixel 40, one ending beyond the
+    # reach off its pixel 80, and one ending next to its own first pixel.
+    near = np.array([[40, 90], [40, 54]], np.int32)
+    far = np.array([[80, 90], [80, 50 + int(SPLIT_REACH_PX) + 2]], np.int32)
+    at_end = np.array([[-1, 51], [-1, 90]], np.int32)
+    parts = split_at_junctions([through, near, far, at_end])[0]
+    assert [p.shape[0] for p in parts] == [40, 60]
+    assert np.array_equal(np.concatenate(parts), through)
 
 
 def test_size_range_drops_pairs_too_large_or_small_for_a_face() -> None:
     face = Ellipse(cx=150, cy=120, a=45, b=40, angle_deg=30)
     arcs = [_arc(face, 0.0, 0.15), _arc(face, 0.35, 0.5)]
-    assert arc_pair_ellipses(arcs, arcs, SHAPE, (10.0, 30.0)) == []
-    assert len(arc_pair_ellipses(arcs, arcs, SHAPE, (30.0, 60.0))) == 1
-    assert arc_pair_ellipses(arcs, arcs, SHAPE, (50.0, 90.0)) == []
+    assert arc_pair_ellipses(arcs, range(2), SHAPE, (10.0, 30.0)) == []
+    assert len(arc_pair_ellipses(arcs, range(2), SHAPE, (30.0, 60.0))) == 1
+    assert arc_pair_ellipses(arcs, range(2), SHAPE, (50.0, 90.0)) == []
 
 
 def _frame_377(seed: int) -> tuple[np.ndarray, Ellipse]:
@@ -116,4 +128,7 @@ def test_unobstructed_contrast_refit_is_the_very_last_resort(
     retry = detector_module._retry_on_contrast
     monkeypatch.setattr(detector_module, "_retry_on_contrast",
                         lambda *a, **k: (*retry(*a, **k)[:2], None))
+    # (The pairs with the unfitted chains, after it, are left out too.)
+    monkeypatch.setattr(detector_module, "last_resort_arcs",
+                        lambda pieces, *_: (tuple(pieces), list(range(len(pieces)))))
     assert detect(image, CONFIG).top_ellipse is None

@@ -4,14 +4,19 @@ Given a depth range, refined ellipses too small or too large for any face radius
 dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
 no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
 select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run; failing
-that, a whole face whose interior edges all lie in a band along its outline is taken (its own
-faint rim inside a same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.
-select_rimmed`); failing that, ellipses fitted to pairs of arcs the merge never joined
-(:mod:`~stackpick_sim.vision.regroup`) go through the rule; the very last is a contrast refit
-with no T-junction and no edge inside, most of its outline showing. One face fitted twice is
-reported once (DUPLICATE_SHARE), and a cylinder's far rim is not reported as a face
-(RIM_OFFSET_RANGE).
+refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run (a face
+from the last stage's arc pairs, below, that passes the rule and lies clearly nearer than the
+refit it chose takes the choice: :func:`_nearer_arc_face`); failing that, a whole face whose
+interior edges all lie in a band along its outline is taken (its own faint rim inside a
+same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.select_rimmed`);
+failing that, ellipses fitted to pairs of arcs the merge never joined
+(:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
+T-junction and no edge inside, most of its outline showing; the very last are the pairs that
+also take in the edge chains no fit was kept for and the parts of the chains cut at their
+junctions (:func:`last_resort_arcs`), through the rule and else its own last resorts
+(select_unobstructed, then select_rimmed). One face fitted twice is reported once
+(DUPLICATE_SHARE), nor are the top face's refits on other outlines too (MISFIT_SHARE), and a
+cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
 
 When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
 (:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
@@ -46,6 +51,7 @@ from stackpick_sim.vision.edges import (
     unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import (
+    MIN_FIT_PX,
     fit_all,
     plausible,
     rms_residual,
@@ -60,10 +66,13 @@ from stackpick_sim.vision.merging import (
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
+    clearly_nearest,
+    holds_centre,
     select_resting_rimmed,
     select_rimmed,
     select_top,
     select_unobstructed,
+    unobstructed,
 )
 from stackpick_sim.vision.pose import estimate_pose
 from stackpick_sim.vision.refine import (
@@ -73,7 +82,12 @@ from stackpick_sim.vision.refine import (
     refine_on_profile,
     refine_subpixel,
 )
-from stackpick_sim.vision.regroup import arc_pair_ellipses, chain_table, chains_on
+from stackpick_sim.vision.regroup import (
+    arc_pair_ellipses,
+    chain_table,
+    chains_on,
+    split_at_junctions,
+)
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
@@ -102,6 +116,14 @@ DUPLICATE_SHARE = 0.9
 #: that much, twice it at most (measured on development seeds 0-399: the duplicates found
 #: differ by <= 1.3 px, and 89% of the compared pairs by more than this).
 DUPLICATE_NEAR_PX = 2.0 * DUPLICATE_TOLERANCE_PX
+#: A reported ellipse whose outline lies within DUPLICATE_TOLERANCE_PX of the top face's along
+#: at least this share of its own is the top face fitted again on arcs of its outline and of
+#: another (a lower face's silhouette beyond it), not a face of its own: where a face shows,
+#: its outline lies outside the whole top face, and two faces' outlines cross at points; they
+#: run together along an arc only where a face of the top's size lies nearly in line under it,
+#: hidden. Development sets 0-3999 and ds_cluttered 0-199: 350 ellipses besides the top
+#: reach this share, 4 of which match a true face (two equal faces stacked in line).
+MISFIT_SHARE = 0.5
 #: A reported ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
 #: behind its face), not a face, when it has a better-supported face's size within this
 #: share...
@@ -221,9 +243,11 @@ class TopObjectDetector:
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
-        for _, points, ellipse, _ in fit_all(segs.chains, crop):
+        fitted: set[int] = set()
+        for c, points, ellipse, _ in fit_all(segs.chains, crop):
             fits.append((len(pieces), ellipse))
             pieces.append(points)
+            fitted.add(c)
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
         merged = merge_segments(chains, fits, edges)
@@ -272,6 +296,13 @@ class TopObjectDetector:
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of)
+            if retried and choice.index is not None and radius_of is not None:
+                # A face clearly nearer than such a refit is above it (development frame 3791
+                # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
+                # whole face of its colour).
+                arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+                merged, choice = _nearer_arc_face(merged, choice, arcs, chains, arc_chains, grad,
+                                                  (points, grads), crop, gate, k_crop, radius_of)
         if choice.index is None:
             # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
             rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
@@ -279,8 +310,8 @@ class TopObjectDetector:
                 choice = replace(choice, index=rimmed, reason="")
         if choice.index is None:
             # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
-            merged, choice = _regroup_arcs(merged, choice, pieces, chains, grad, (points, grads),
-                                           crop, gate)
+            merged, choice = _regroup_arcs(merged, choice, range(len(pieces)), chains, grad,
+                                           (points, grads), crop, gate)
         if choice.index is None and spare is not None:
             # The very last: a contrast refit with no T-junction and no edge inside, most of
             # its outline showing (select_unobstructed's evidence; development frame 820 of
@@ -290,6 +321,15 @@ class TopObjectDetector:
             merged[i] = replace(merged[i], ellipse=refit)
             choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
                                                   *choice.evidence[i + 1:]))
+        if choice.index is None:
+            # After all: pairs that take in the chains no fit was kept for and the parts of
+            # chains cut at junctions too (see regroup; development frames 3504, 3886 of
+            # ds_paper_h3k, 1374, 1438 of ds_paper_h1k), else the one with nothing crossing
+            # it (3032: its boundary with a lower face of its colour shows no contrast), else
+            # one with its own rim inside. Last, as the least constrained.
+            arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+            merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
+                                           crop, gate, unobstructed=True, arc_chains=arc_chains)
         t = lap("top", t)
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
@@ -432,54 +472,146 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
             for i, m in enumerate(merged)], True, None
 
 
+def last_resort_arcs(pieces: list[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
+                     fitted: set[int]) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
+    """The chains the last arc pairs are drawn from, and which of them are arcs (indices):
+    the fitted ``pieces``, then the edge ``chains`` ((N_i, 2) pixels) cut at their junctions
+    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`). Arcs are the pieces and the
+    parts at least MIN_FIT_PX long of the chains that were cut or that are not in ``fitted``
+    (the chains some piece of which was fitted)."""
+    out = list(pieces)
+    arcs = list(range(len(pieces)))
+    for k, parts in enumerate(split_at_junctions(chains)):
+        for part in parts:
+            if part.shape[0] >= MIN_FIT_PX and (len(parts) > 1 or k not in fitted):
+                arcs.append(len(out))
+            out.append(part)
+    return tuple(out), arcs
+
+
 def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
-                  pieces: list[NDArray[np.int32]], chains: tuple[NDArray[np.int32], ...],
+                  arcs: Sequence[int], chains: tuple[NDArray[np.int32], ...],
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
-                  shape: tuple[int, int], gate: tuple[float, float] | None
+                  shape: tuple[int, int], gate: tuple[float, float] | None,
+                  unobstructed: bool = False,
+                  arc_chains: tuple[NDArray[np.int32], ...] | None = None
                   ) -> tuple[list[MergedEllipse], TopChoice]:
-    """When no ellipse passed the top rule: the ellipses of pairs of fitted arcs
-    (:func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map like
-    the merged ones, through the top rule alone (no rival that already failed it can win).
-    Only one that passes is added (with its evidence) to ``merged`` and chosen; otherwise
-    both come back unchanged."""
-    found = arc_pair_ellipses(pieces, chains, shape, gate)
+    """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs``
+    (:func:`_arc_pair_faces`) through the top rule alone (no rival that already failed it can
+    win), and with ``unobstructed``, when none passes, through its last resorts
+    (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
+    vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
+    ``merged``; otherwise both come back unchanged."""
+    found, extra = _arc_pair_faces(arcs, chains if arc_chains is None else arc_chains, grad,
+                                   edge_pixels[0], edge_pixels[1], shape, gate)
     if not found:
         return merged, choice
-    points, grads = edge_pixels
-    found = [e for e in refine_all(found, points, grads, shape)
-             if gate is None or gate[0] <= e.a <= gate[1]]
-    if not found:
-        return merged, choice
-    # The depth, wall and rest tests need no rivals here: every merged face failed already.
-    extra = select_top(found, grad, edge_points=points)
+    if extra.index is None and unobstructed:
+        extra = replace(extra, index=select_unobstructed(extra.evidence))
+    if extra.index is None and unobstructed:
+        extra = replace(extra, index=select_rimmed(found, extra.evidence, edge_pixels[0]))
     if extra.index is None:
         return merged, choice
-    ellipse = found[extra.index]
+    return _with_face(merged, choice, found[extra.index], extra.evidence[extra.index], chains,
+                      grad)
+
+
+def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
+                    grad: EdgeImage, points: NDArray[np.float64], grads: NDArray[np.float64],
+                    shape: tuple[int, int], gate: tuple[float, float] | None
+                    ) -> tuple[list[Ellipse], TopChoice]:
+    """The ellipses of pairs of the ``arcs`` (indices into ``arc_chains``;
+    :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map (its
+    pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
+    ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
+    rest tests need rivals)."""
+    found = arc_pair_ellipses(arc_chains, arcs, shape, gate)
+    if found:
+        found = [e for e in refine_all(found, points, grads, shape)
+                 if gate is None or gate[0] <= e.a <= gate[1]]
+    if not found:
+        return [], TopChoice(index=None, evidence=())
+    return found, select_top(found, grad, edge_points=points)
+
+
+def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
+               evidence: OcclusionEvidence, chains: tuple[NDArray[np.int32], ...],
+               grad: EdgeImage) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it and their
+    residual), and the choice of it, ``evidence`` added to ``choice``'s."""
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
     on = chains_on(ellipse, *chain_table(chains))
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]
-    return merged, TopChoice(index=len(merged) - 1,
-                             evidence=(*choice.evidence, extra.evidence[extra.index]))
+    return merged, TopChoice(index=len(merged) - 1, evidence=(*choice.evidence, evidence))
+
+
+def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Sequence[int],
+                     chains: tuple[NDArray[np.int32], ...],
+                     arc_chains: tuple[NDArray[np.int32], ...], grad: EdgeImage,
+                     edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
+                     shape: tuple[int, int], gate: tuple[float, float] | None,
+                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None]
+                     ) -> tuple[list[MergedEllipse], TopChoice]:
+    """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
+    the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
+    it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
+    those too), and is another face than the chosen one (neither holds the other's centre) is
+    clearly nearer the camera than it and every other such (:func:`~stackpick_sim.vision.
+    occlusion.clearly_nearest`): then it is added to ``merged`` and chosen."""
+    assert choice.index is not None
+    chosen = merged[choice.index].ellipse
+    found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
+                                   shape, gate)
+    passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
+              and not (holds_centre(chosen, found[i]) or holds_centre(found[i], chosen))]
+    if not passed:
+        return merged, choice
+    faces = [chosen, *(found[i] for i in passed)]
+    nearest = clearly_nearest(faces, intrinsics, radius_of)
+    if not nearest:
+        return merged, choice
+    i = passed[nearest - 1]
+    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
 
 
 def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
     """``indices`` without duplicates, in their order: an ellipse whose outline lies within
     DUPLICATE_TOLERANCE_PX of an ellipse already kept, along at least DUPLICATE_SHARE of it
     (and the other way round), is the same face fitted twice (two arcs the merge kept apart
-    refine to one outline). The top face is kept first, then the better supported. Far rims of
-    better-supported faces (:func:`_far_rim`) are dropped too."""
+    refine to one outline). The top face is kept first, then the better supported. Refits of
+    the top face on other outlines too (:func:`_top_misfits`) and far rims of better-supported
+    faces (:func:`_far_rim`) are dropped too."""
     order = sorted(indices, key=lambda i: (i != choice.index, -choice.evidence[i].support))
     same = _same_outlines(ellipses, order)
+    misfits = _top_misfits(ellipses, order, choice.index)
     kept: list[int] = []
     for i in order:
-        if not any((i, j) in same for j in kept):
+        if i not in misfits and not any((i, j) in same for j in kept):
             kept.append(i)
     # Far rims: only of better-supported faces, never the top.
     return sorted(i for i in kept if i == choice.index or not any(
         choice.evidence[j].support > choice.evidence[i].support
         and _far_rim(ellipses[i], ellipses[j]) for j in kept if j != i))
+
+
+def _top_misfits(ellipses: list[Ellipse], indices: list[int], top: int | None) -> set[int]:
+    """Those of ``indices`` (other than ``top``) whose outline lies within
+    DUPLICATE_TOLERANCE_PX of the top ellipse's along at least MISFIT_SHARE of it (see
+    MISFIT_SHARE), all in one array pass; empty without a top. Only ellipses whose centre
+    lies within the top's semi-major axis of its centre are compared (the cost is in the
+    array pass): a refit of the top on half its own outline keeps its centre near the top's."""
+    if top is None:
+        return set()
+    face = ellipses[top]
+    others = [i for i in indices if i != top
+              and math.hypot(ellipses[i].cx - face.cx, ellipses[i].cy - face.cy) < face.a]
+    if not others:
+        return set()
+    shares = boundary_shares([(ellipses[i], ellipses[top]) for i in others],
+                             DUPLICATE_TOLERANCE_PX)
+    return {i for i, share in zip(others, shares, strict=True) if share >= MISFIT_SHARE}
 
 
 def _far_rim(rim: Ellipse, face: Ellipse) -> bool:

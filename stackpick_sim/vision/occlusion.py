@@ -269,7 +269,7 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                  for e in range(n_e))
 
 
-def _holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
+def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
     """Whether ``inner``'s centre lies inside ``outer``."""
     t = math.radians(outer.angle_deg)
     du, dv = inner.cx - outer.cx, inner.cy - outer.cy
@@ -278,7 +278,7 @@ def _holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
     return x * x + y * y < 1.0
 
 
-def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
+def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                      radius_of: Callable[[Ellipse], float | None]) -> int | None:
     """Index of the face nearer the camera than every other by DEPTH_TIE_M (face-centre
     depth from its radius), or None when a radius is unknown or no face is clearly nearest.
@@ -298,8 +298,8 @@ def _clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                              + float(unit[1].centre_cam[2]) * radius))
     nearest = int(np.argmin(depths))
     rivals = [d for face, d in zip(faces, depths, strict=True)
-              if not (_holds_centre(face, faces[nearest])
-                      or _holds_centre(faces[nearest], face))]
+              if not (holds_centre(face, faces[nearest])
+                      or holds_centre(faces[nearest], face))]
     if rivals and min(rivals) - depths[nearest] < DEPTH_TIE_M:
         return None
     return nearest
@@ -309,7 +309,7 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     """Index of the best-supported ellipse with no T-junction end, no interior edge pixel and
     support >= FALLBACK_MIN_SUPPORT, or None: the top rule's last resort when no ellipse
     passes it (see FALLBACK_MIN_SUPPORT)."""
-    ok = [i for i, ev in enumerate(evidence) if _unobstructed(ev)]
+    ok = [i for i, ev in enumerate(evidence) if unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
 
 
@@ -409,7 +409,7 @@ def _best_supported(indices: Sequence[int], ellipses: Sequence[Ellipse],
                key=lambda i: ellipses[i].area)
 
 
-def _unobstructed(ev: OcclusionEvidence) -> bool:
+def unobstructed(ev: OcclusionEvidence) -> bool:
     """No T-junction end, no interior edge pixel, support >= FALLBACK_MIN_SUPPORT."""
     return (not ev.occluded_ends and not ev.interior_edge_px
             and ev.support >= FALLBACK_MIN_SUPPORT)
@@ -460,7 +460,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # The depth test also hears faces that failed on support alone with nothing crossing
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
-                         if ev.occluded and _unobstructed(ev)]
+                         if ev.occluded and unobstructed(ev)]
     if intrinsics is not None and len(pool) > 1:
         under = under_another([ellipses[i] for i in pool], intrinsics, radius_of)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
@@ -478,7 +478,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates
     if intrinsics is not None and radius_of is not None and len(pool) > 1:
-        nearest = _clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
+        nearest = clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
         if nearest is not None:
             return TopChoice(index=pool[nearest], evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)

@@ -1,4 +1,4 @@
-"""Last resort for a face the merge never fitted: ellipses of pairs of fitted arcs.
+"""Last resort for a face the merge never fitted: ellipses of pairs of its arcs.
 
 The merge (:mod:`~stackpick_sim.vision.merging`, paper Eq. 3) joins two arcs only when each
 lies on the other's own ellipse. A face lying on faces of its own colour keeps only short
@@ -17,6 +17,18 @@ stays within MAX_RESIDUAL_PX (GROW_ROUNDS). Whether such an ellipse is a face at
 the top one, is left to the top rule: a fit of arcs of two outlines shows little edge
 contrast along the rest of its outline, and a lower face has edges inside it or
 T-junctions.
+
+The arcs are given as indices into the edge chains: the detector first pairs the fitted arcs,
+and only when nothing else passes (after its last contrast refit), or to rival a contrast refit
+its retry chose, the chains the fitting stage dropped and the parts of chains cut at their
+junctions too (:func:`~stackpick_sim.vision.detector.last_resort_arcs`). Between close
+junctions a face's outline breaks into arcs of 10-30 px whose own five-parameter fits are
+ill-posed (the pixel staircase of an arc of a sixth of the outline or less fits a flat ellipse
+a few px across, below MIN_AXIS_PX), so no piece of it is fitted, yet a pair of such arcs
+across the face fixes its ellipse (development frames 3504 and 3886 of ds_paper_h3k: a top face
+lying across faces of its colour, its whole outline in the edge map in such pieces). And where
+Canny runs a face's outline on into a lower face's silhouette, the face's arc is a part of a
+chain of two curves (:func:`split_at_junctions`).
 """
 
 from __future__ import annotations
@@ -41,6 +53,10 @@ from stackpick_sim.vision.merging import (
     MERGE_TOLERANCE_PX,
 )
 
+#: Another chain's end within this distance (px) of a chain's pixel marks a junction there
+#: (:func:`split_at_junctions`): Canny leaves an edge that ends at another 4-7 px short of it
+#: (see occlusion.MIN_GAP_PX), a faint boundary between faces of one colour the most.
+SPLIT_REACH_PX = 6.0
 #: Rounds of growing a pair's ellipse by the chains lying on it and refitting: the pair's
 #: own fit extrapolates up to a few px off the face's far arcs, the first refit on the arcs
 #: near it pulls it within the merge's tolerance of the rest.
@@ -72,35 +88,39 @@ def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int
     return tuple(np.flatnonzero(hits >= ABSORB_FRACTION * lengths).tolist())
 
 
-def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
+def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                       shape: tuple[int, int],
                       axis_range: tuple[float, float] | None = None) -> list[Ellipse]:
-    """Ellipses fitted to pairs of ``arcs`` (the fitted pieces, (N_i, 2) int32 (u, v)) and
-    grown by the ``chains`` (all edge segments, (N_j, 2) int32, the arcs first: chain k < len
-    (arcs) is arc k) lying on them; see the module docstring. ``shape``: the (H, W) image;
-    ``axis_range``: (min, max) semi-major axis (px) of a face, or None. Each ellipse once: a
-    pair of arcs that both lie on an ellipse already grown is not fitted again."""
+    """Ellipses fitted to pairs of the chains ``arcs`` (indices into ``chains``, all edge
+    segments, (N_j, 2) int32 (u, v)) and grown by the chains lying on them; see the module
+    docstring. ``shape``: the (H, W) image; ``axis_range``: (min, max) semi-major axis (px) of
+    a face, or None. Each ellipse once: a pair of arcs that both lie on an ellipse already
+    grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
-    boxes = [_bounds(a) for a in arcs]
-    pixels, owner, lengths = chain_table(chains)
+    boxes = [_bounds(chains[k]) for k in arcs]
+    # A chain given twice (one array, as a piece fitted whole and as its chain) counts once.
+    first: dict[int, int] = {}
+    distinct = [k for k, c in enumerate(chains) if first.setdefault(id(c), k) == k]
+    pixels, owner, lengths = chain_table([chains[k] for k in distinct])
     out: list[Ellipse] = []
     grown_sets: list[set[int]] = []
-    for i in range(len(arcs)):
+    for i, ci in enumerate(arcs):
         for j in range(i + 1, len(arcs)):
+            cj = arcs[j]
             bi, bj = boxes[i], boxes[j]
             # Both arcs within one face's extent, and not both on an ellipse grown already.
             if (max(bi[2], bj[2]) - min(bi[0], bj[0]) > 2.0 * hi
                     or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi
-                    or any(i in g and j in g for g in grown_sets)):
+                    or any(ci in g and cj in g for g in grown_sets)):
                 continue
-            union = np.concatenate([arcs[i], arcs[j]])
+            union = np.concatenate([chains[ci], chains[cj]])
             fit = fit_ellipse(union)
             if (fit is None or not plausible(fit, shape)
                     or (axis_range is not None
                         and not axis_range[0] <= fit.a <= axis_range[1])):
                 continue
             d = ellipse_distances(fit, union)
-            n = arcs[i].shape[0]
+            n = chains[ci].shape[0]
             if (float(np.sqrt(np.mean(d * d))) > MERGE_MAX_RESIDUAL_PX
                     or np.count_nonzero(d[:n] < MERGE_TOLERANCE_PX) < ABSORB_FRACTION * n
                     or np.count_nonzero(d[n:] < MERGE_TOLERANCE_PX)
@@ -108,16 +128,42 @@ def arc_pair_ellipses(arcs: Sequence[NDArray[np.int32]], chains: Sequence[NDArra
                 continue
             lying: tuple[int, ...] = ()
             for _ in range(GROW_ROUNDS):
-                on = chains_on(fit, pixels, owner, lengths)
+                on = tuple(distinct[k] for k in chains_on(fit, pixels, owner, lengths))
                 if on == lying:
                     break
                 lying = on
-                grown = np.concatenate([union] + [chains[k] for k in lying if k not in (i, j)])
+                grown = np.concatenate([union] + [chains[k] for k in lying
+                                                  if k not in (ci, cj)])
                 refit = fit_ellipse(grown)
                 if (refit is None or not plausible(refit, shape)
                         or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
                     break
                 fit = refit
-            grown_sets.append({i, j, *lying})
+            grown_sets.append({ci, cj, *lying})
             out.append(fit)
+    return out
+
+
+def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray[np.int32]]]:
+    """Each chain ((N_i, 2) int32 pixels) cut at its pixels nearest to the ends of the other
+    chains within SPLIT_REACH_PX (its own two end pixels excepted): the pieces of each, in
+    order, views of it (a chain with no junction is its one piece).
+
+    Canny runs a face's outline on into the silhouette of a lower face of its colour beyond
+    it, the faint boundary between them ending near the point where the two outlines meet;
+    cut there, the face's arc is a piece of its own (development frames 1374 and 1438 of
+    ds_paper_h1k: the top face's outline and the sliver of the face under it in one chain)."""
+    ends = np.array([p for c in chains for p in (c[0], c[-1])], np.float64).reshape(-1, 2)
+    end_owner = np.repeat(np.arange(len(chains)), 2)
+    out = []
+    for k, c in enumerate(chains):
+        others = ends[end_owner != k]
+        if c.shape[0] < 3 or others.shape[0] == 0:
+            out.append([c])
+            continue
+        d2 = ((c[:, None, :] - others[None, :, :]) ** 2).sum(axis=2)
+        nearest = d2.argmin(axis=0)
+        near = d2[nearest, np.arange(others.shape[0])] <= SPLIT_REACH_PX ** 2
+        cuts = sorted({int(i) for i in nearest[near] if 0 < i < c.shape[0] - 1})
+        out.append([c[a:b] for a, b in zip([0, *cuts], [*cuts, c.shape[0]], strict=True)])
     return out
