@@ -42,30 +42,44 @@ def _top_iou(frame: BenchFrame) -> tuple[float, float]:
     return top, other
 
 
+def _chosen_top(seed: int) -> BenchFrame:
+    """Frame ``seed``, asserting that the detector chooses a true top face on it."""
+    frame = _frame(seed)
+    top, _ = _top_iou(frame)
+    assert top > MATCH_IOU
+    return frame
+
+
+def _assert_missed(frame: BenchFrame) -> None:
+    """The detector chooses no face on ``frame``."""
+    missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
+    assert missed.top_ellipse is None, missed.reason
+
+
+def _assert_lower_chosen(frame: BenchFrame) -> None:
+    """The detector chooses a face on ``frame`` that is not a top face."""
+    _, other = _top_iou(frame)
+    assert other > MATCH_IOU
+
+
 @pytest.mark.parametrize("seed", [857, 1769, 2241])
 def test_rimmed_face_resting_on_the_chosen_face_takes_the_choice(
         seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     # The top face's fit takes in a same-colour lower face's sliver (its own rim inside it);
     # the face it rests on passes the rule.
-    frame = _frame(seed)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "select_resting_rimmed", lambda *a, **k: None)
-    _, other = _top_iou(frame)
-    assert other > MATCH_IOU
+    _assert_lower_chosen(frame)
 
 
 def test_a_face_behind_a_wall_does_not_cover_it(monkeypatch: pytest.MonkeyPatch) -> None:
     # Frame 2333: the top face, nearly square on, lies beside a lower face 2.5 cm farther
     # away; its wrong pose solution's wall band falls on that face in the image.
-    frame = _frame(2333)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(2333)
     under = occlusion_module.under_another
     monkeypatch.setattr(occlusion_module, "under_another",
                         lambda faces, k, radius_of=None: under(faces, k))
-    _, other = _top_iou(frame)
-    assert other > MATCH_IOU
+    _assert_lower_chosen(frame)
 
 
 @pytest.mark.parametrize("seed", [3504, 3886])
@@ -73,13 +87,10 @@ def test_top_face_broken_into_unfittable_arcs_is_found_from_pairs_of_them(
         seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     # The top face lies across faces of its colour: its whole outline is in the edge map, in
     # arcs of 10-30 px between the junctions whose own fits are too flat to keep.
-    frame = _frame(seed)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "last_resort_arcs",
                         lambda pieces, *_: (tuple(pieces), list(range(len(pieces)))))
-    missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
-    assert missed.top_ellipse is None, missed.reason
+    _assert_missed(frame)
 
 
 @pytest.mark.parametrize("seed", [1374, 1438])
@@ -88,13 +99,10 @@ def test_top_face_linked_with_a_lower_silhouette_is_found_from_the_cut_chain(
     # The top face lies on a face of its colour that shows a sliver beyond it: Canny runs the
     # top's outline on into that sliver's silhouette in one chain, and the top's own faint
     # boundary ends near the two points where the outlines meet.
-    frame = _frame(seed)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "split_at_junctions",
                         lambda chains: [[c] for c in chains])
-    missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
-    assert missed.top_ellipse is None, missed.reason
+    _assert_missed(frame)
 
 
 def test_unobstructed_pair_of_unfittable_arcs_is_the_last_resort(
@@ -102,36 +110,27 @@ def test_unobstructed_pair_of_unfittable_arcs_is_the_last_resort(
     # Frame 3032: the top face's boundary with a lower face of its colour shows no edge
     # contrast at all (support ~0.8), so even its fit on pairs of its arcs fails the rule;
     # nothing crosses it and nothing ends on it.
-    frame = _frame(3032)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(3032)
     monkeypatch.setattr(detector_module, "select_unobstructed", lambda *a, **k: None)
-    missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
-    assert missed.top_ellipse is None, missed.reason
+    _assert_missed(frame)
 
 
 def test_last_pair_with_its_own_rim_inside_is_taken(monkeypatch: pytest.MonkeyPatch) -> None:
     # Frame 3355: a large top face (semi-axis ~65 px) over faces of its colour; its fit from
     # pairs of its arcs shows its whole outline but keeps its own faint rim inside it.
-    frame = _frame(3355)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(3355)
     monkeypatch.setattr(detector_module, "select_rimmed", lambda *a, **k: None)
-    missed = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
-    assert missed.top_ellipse is None, missed.reason
+    _assert_missed(frame)
 
 
 def test_a_face_from_arc_pairs_clearly_nearer_than_a_contrast_refit_wins(
         monkeypatch: pytest.MonkeyPatch) -> None:
     # Frame 3791: no fit passes the rule; the contrast refit of a lower, nearly whole face
     # passes, and the top face, which the merge never fitted, is ~4 cm nearer the camera.
-    frame = _frame(3791)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(3791)
     monkeypatch.setattr(detector_module, "_nearer_arc_face",
                         lambda merged, choice, *a, **k: (merged, choice))
-    _, other = _top_iou(frame)
-    assert other > MATCH_IOU
+    _assert_lower_chosen(frame)
 
 
 def test_an_unobstructed_face_from_arc_pairs_clearly_nearer_than_a_refit_wins(
@@ -139,12 +138,9 @@ def test_an_unobstructed_face_from_arc_pairs_clearly_nearer_than_a_refit_wins(
     # Frame 3120: the contrast refit of a lower, nearly whole face passes; the top face lies
     # on a face of its colour, its fit from pairs of its arcs shows support ~0.87 (its faint
     # boundary with that face) with nothing crossing it, and is clearly nearer.
-    frame = _frame(3120)
-    top, _ = _top_iou(frame)
-    assert top > MATCH_IOU
+    frame = _chosen_top(3120)
     monkeypatch.setattr(detector_module, "unobstructed", lambda ev: False)
-    _, other = _top_iou(frame)
-    assert other > MATCH_IOU
+    _assert_lower_chosen(frame)
 
 
 def test_a_refit_of_the_top_face_on_a_lower_outline_is_not_reported(
