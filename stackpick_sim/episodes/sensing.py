@@ -92,10 +92,12 @@ def oracle_candidate(cell: Cell, obj: ObjectInfo, world_T_cam: FloatArray,
         ellipse = project_circle(centre_c, inward_c, obj.radius, k)
     except ValueError:
         return None
-    u0, v0, u1, v1 = ellipse.bounds() if whole else (*k.project(centre_c)[0],) * 2
+    pixel = k.project(centre_c)[0]
+    # The extent that must lie in the image: the whole ellipse, or the centre pixel alone.
+    u0, v0, u1, v1 = ellipse.bounds() if whole else (*pixel, *pixel)
     if u0 < 0 or v0 < 0 or u1 > k.width - 1 or v1 > k.height - 1:
         return None
-    return Candidate(pixel=k.project(centre_c)[0], normal_cam=inward_c, centre_cam=centre_c,
+    return Candidate(pixel=pixel, normal_cam=inward_c, centre_cam=centre_c,
                      radius=obj.radius, is_top=True, ellipse=ellipse)
 
 

@@ -570,7 +570,7 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
         return merged, choice
     faces = [chosen, *(found[i] for i in passed)]
     nearest = clearly_nearest(faces, intrinsics, radius_of)
-    if not nearest:
+    if nearest is None or nearest == 0:  # no face clearly nearest, or the chosen one is
         return merged, choice
     i = passed[nearest - 1]
     return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
