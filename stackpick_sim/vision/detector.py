@@ -243,14 +243,16 @@ class TopObjectDetector:
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
+        residuals: list[float] = []
         fitted: set[int] = set()
-        for c, points, ellipse, _ in fit_all(segs.chains, crop):
+        for c, points, ellipse, residual in fit_all(segs.chains, crop):
             fits.append((len(pieces), ellipse))
+            residuals.append(residual)
             pieces.append(points)
             fitted.add(c)
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
-        merged = merge_segments(chains, fits, edges)
+        merged = merge_segments(chains, fits, edges, residuals)
         t = lap("merging", t)
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -178,12 +179,16 @@ def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
-                   edges: NDArray[np.uint8]) -> list[MergedEllipse]:
+                   edges: NDArray[np.uint8], residuals: Sequence[float] | None = None
+                   ) -> list[MergedEllipse]:
     """Merge per-segment fits by Eq. 3, absorb leftovers, validate by support.
 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
     ellipse) for those that fitted on their own (one segment may appear once per piece);
-    ``edges`` the (H, W) 0/1 edge map. Returns ellipses sorted by support, best first.
+    ``edges`` the (H, W) 0/1 edge map; ``residuals`` the RMS residual (px) of each fit on
+    its own segment, parallel to ``fits``, when known (:func:`~stackpick_sim.vision.fitting.
+    fit_all` gives them): a group that stays that one fit keeps it rather than have it
+    computed again. Returns ellipses sorted by support, best first.
 
     Each group's pixels within tolerance are found once, when its ellipse is (re)fitted; a
     refused pair changes nothing, so the next best pair is read off the same counts.
@@ -266,9 +271,12 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     final = -np.ones(len(ellipses), np.int64)
     final[[g for g, e in enumerate(ellipses) if e is not None]] = np.arange(
         sum(e is not None for e in ellipses))
+    # A group still one fit on its own segment has that fit's residual, when given.
+    own = [None if residuals is None or len(m) > 1 else residuals[g]
+           for g, m in enumerate(members)]
     return _absorb_and_validate(chains, members, ellipses, edges,
                                 (final[pair_g], pair_p, points.shape[0]) if leading else None,
-                                rest, everything)
+                                rest, everything, own)
 
 
 def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
@@ -294,18 +302,22 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                          ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
                          known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None,
                          rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
-                         everything: NDArray[np.float64] | None = None
-                         ) -> list[MergedEllipse]:
+                         everything: NDArray[np.float64] | None = None,
+                         own: Sequence[float | None] | None = None) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit (unless they only repeat
     its pixels), keep supported ones.
 
     ``known``: (group, pixel) index pairs (K,) each of the first P pixels of ``chains`` that
     lie on each final ellipse, and P, when already computed; ``rest``: the pairs of the other
     pixels too (pixel indices into all of ``chains``), when also computed; ``everything``:
-    all the chains' pixels concatenated (float64), when at hand."""
-    groups = [(sorted(set(m)), e) for m, e in zip(members, ellipses, strict=True) if e is not None]
+    all the chains' pixels concatenated (float64), when at hand; ``own``: per group, the RMS
+    residual of its ellipse on its own segments when known (None: not known), which stands
+    for the residual on them and on extras that only repeat their pixels."""
+    alive = [g for g, e in enumerate(ellipses) if e is not None]
+    groups = [(sorted(set(members[g])), e) for g in alive if (e := ellipses[g]) is not None]
     if not groups:
         return []
+    known_rms = [None if own is None else own[g] for g in alive]
     sizes = [c.shape[0] for c in chains]
     starts = np.array([0, *itertools.accumulate(sizes)], np.int64)
     all_points = (np.concatenate(chains).astype(np.float64) if everything is None
@@ -368,11 +380,14 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     # One residual pass for the refits and for the groups not refitted (kept as fitted, with
     # any repeating extras); only a failed or refused refit needs a second.
     tried = [g for g, r in refits.items() if r is not None]
-    plain = [g for g in range(len(groups)) if g not in refits]
+    plain = [g for g in range(len(groups)) if g not in refits and known_rms[g] is None]
     first = rms([(e, groups[g][0] + extras[g]) for g in tried if (e := refits[g]) is not None]
                 + [(groups[g][1], groups[g][0] + extras[g]) for g in plain])
     refit_rms = dict(zip(tried, first[:len(tried)], strict=True))
     residuals: dict[int, float] = dict(zip(plain, first[len(tried):], strict=True))
+    for g, r in enumerate(known_rms):
+        if r is not None and g not in refits:
+            residuals[g] = r  # as fitted, with only repeating extras: the same pixels
     finals: list[tuple[list[int], Ellipse]] = []
     for g, (segs, ellipse) in enumerate(groups):
         refit = refits.get(g)
@@ -381,6 +396,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
             residuals[g] = refit_rms[g]
         elif g in refits and refit is not None:
             finals.append((segs, ellipse))  # the refit strays: the extras are not on it
+            if (r := known_rms[g]) is not None:
+                residuals[g] = r
         else:
             # Not refitted, or the fit failed: keep all, as fitted.
             finals.append((segs + extras[g], ellipse))

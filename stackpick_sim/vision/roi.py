@@ -2,8 +2,8 @@
 
 The belt is a uniform dark grey; the pile covers a fraction of the frame. Working on the box
 around the pile (plus a margin) cuts every per-pixel stage in proportion, and the stages past
-the edges never look outside it. The box is found on a DECIMATION-times smaller copy: a
-pixel is foreground when its brightest channel differs from the belt's (the median over the
+the edges never look outside it. The box is found on a DECIMATION-times smaller copy (area
+averages, taken in halving steps): a pixel is foreground when its brightest channel differs from the belt's (the median over the
 small image's border, which the pile rarely covers more than half of) by FOREGROUND_DELTA.
 Anything uncertain (no belt border, foreground everywhere) falls back to the whole frame.
 """
@@ -18,7 +18,8 @@ from numpy.typing import NDArray
 
 from stackpick_sim.vision.wall import column_median
 
-#: Side ratio of the small copy the box is found on (area averaging keeps thin walls).
+#: Side ratio of the small copy the box is found on (area averaging keeps thin walls); a
+#: power of two, reached in halving steps (see :func:`decimate`).
 DECIMATION = 4
 #: Grey levels between a foreground pixel's brightest channel and the belt's. The belt
 #: varies by ~15 levels across the frame under the ring light (measured, 26-41); the
@@ -48,6 +49,24 @@ class Roi:
         return image[self.v0:self.v1, self.u0:self.u1]
 
 
+def decimate(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The DECIMATION-times smaller copy of an (H, W[, C]) uint8 image, each pixel the mean
+    of a block, taken in halving steps of 2x2 area averages.
+
+    Each step rounds, so a pixel can differ by one grey level from the block's mean in one
+    step; OpenCV's 2x area reduction costs a third of its 4x one on colour frames (measured
+    on 320x240, 27 against 84 us), which is most of this stage.
+    """
+    small = image
+    step = 1
+    while step < DECIMATION:
+        h, w = small.shape[:2]
+        small = cv2.resize(small, (max(1, w // 2), max(1, h // 2)),
+                           interpolation=cv2.INTER_AREA)
+        step *= 2
+    return small
+
+
 def find_roi(image: NDArray[np.uint8]) -> Roi:
     """The box around the non-belt pixels of a uint8 (H, W) or (H, W, 3) frame.
 
@@ -55,8 +74,7 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     report the miss) or when the belt level cannot be read.
     """
     h, w = image.shape[:2]
-    small = cv2.resize(image, (max(1, w // DECIMATION), max(1, h // DECIMATION)),
-                       interpolation=cv2.INTER_AREA)
+    small = decimate(image)
     level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
              if small.ndim == 3 else small)
     if min(level.shape) < 3:
