@@ -143,27 +143,32 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
         counts.append(max(16, math.ceil(perimeter_px(e))))
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
-    ct = np.concatenate([unit_circle(n)[0] for n in counts])
-    st = np.concatenate([unit_circle(n)[1] for n in counts])
+    circles = [unit_circle(n) for n in counts]
+    ct = np.concatenate([q[0] for q in circles])
+    st = np.concatenate([q[1] for q in circles])
     # Each parameter repeated per sample as one contiguous row (a row gather of (E, 6) would
     # leave strided columns, slower in every operation below).
     cx, cy, a, b, c, s = np.array(rows).T.repeat(counts, axis=1)
     x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
-    u = np.rint(cx + c * x - s * y).astype(np.int64)
-    v = np.rint(cy + s * x + c * y).astype(np.int64)
+    # The rounded samples (cx + c x - s y, cy + s x + c y, summed in that order), clamped one
+    # pixel outside the map, onto a zero border added around it (off-image samples are
+    # unsupported), as flat indices into that framed map: integers all along, in float64.
     h, w = support.shape
-    # Off-image samples are unsupported: clamped one pixel outside the map, onto a zero
-    # border added around it.
-    np.minimum(np.maximum(u, -1, out=u), w, out=u)
-    np.minimum(np.maximum(v, -1, out=v), h, out=v)
-    framed = cv2.copyMakeBorder(support, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    v += 1
+    u = c * x
+    u += cx
+    u -= s * y
+    np.clip(np.rint(u, out=u), -1, w, out=u)
+    v = s * x
+    v += cy
+    v += c * y
+    np.clip(np.rint(v, out=v), -1, h, out=v)
     v *= w + 2
     v += u
-    v += 1
-    hit = framed.ravel()[v] > 0
-    owner = np.arange(len(counts)).repeat(counts)
-    return cast("NDArray[np.float64]", np.bincount(owner, weights=hit, minlength=len(ellipses))
+    v += w + 3
+    framed = cv2.copyMakeBorder(support, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    hit = framed.ravel()[v.astype(np.int64)] > 0
+    starts = np.array([0, *itertools.accumulate(counts[:-1])])
+    return cast("NDArray[np.float64]", np.add.reduceat(hit, starts, dtype=np.int64)
                 / np.array(counts))
 
 
