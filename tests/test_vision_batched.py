@@ -18,7 +18,7 @@ from stackpick_sim.vision.fitting import (
     within,
     within_pairs,
 )
-from stackpick_sim.vision.merging import MergedEllipse
+from stackpick_sim.vision.merging import MergedEllipse, merge_segments
 from stackpick_sim.vision.occlusion import evidence_all
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
@@ -28,6 +28,7 @@ from stackpick_sim.vision.refine import (
     edge_points,
     refine_all,
 )
+from stackpick_sim.vision.roi import DECIMATION, decimate
 from stackpick_sim.vision.segments import link_segments, neighbour_count
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import column_median
@@ -206,3 +207,31 @@ def test_column_median_is_numpys_median(n: int) -> None:
     values = np.random.default_rng(n).integers(0, 256, (n, 3)).astype(np.uint8)
     np.testing.assert_array_equal(column_median(values), np.median(values, axis=0))
     np.testing.assert_array_equal(column_median(values[:, 0]), np.median(values[:, 0]))
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_decimate_is_the_block_mean_within_a_grey_level(channels: int) -> None:
+    rng = np.random.default_rng(channels)
+    image = rng.integers(0, 256, (60, 84, channels)).astype(np.uint8).squeeze()
+    small = decimate(image)
+    side = DECIMATION
+    blocks = image.reshape(60 // side, side, 84 // side, side, -1).mean(axis=(1, 3)).squeeze()
+    assert small.shape[:2] == (60 // side, 84 // side)
+    assert np.abs(small.astype(float) - blocks).max() <= 1.0
+
+
+def test_merge_with_the_fits_residuals_gives_what_it_computes(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, _ = scene
+    edges = edge_image(image).edges
+    segs = link_segments(edges)
+    found = fit_all(segs.chains, SHAPE)
+    pieces = tuple(pts for _, pts, _, _ in found)
+    fits = [(k, e) for k, (_, _, e, _) in enumerate(found)]
+    chains = pieces + segs.chains
+    given = merge_segments(chains, fits, edges, [r for *_, r in found])
+    computed = merge_segments(chains, fits, edges)
+    assert len(given) == len(computed) >= len(STACK)
+    for m, n in zip(given, computed, strict=True):
+        assert (m.ellipse, m.segments, m.support) == (n.ellipse, n.segments, n.support)
+        assert m.residual_px == pytest.approx(n.residual_px, rel=1e-12)

@@ -173,8 +173,8 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
     box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
                         borderType=cv2.BORDER_CONSTANT)
-    kept_px = (edges != 0) & (box < 4)
-    cut = kept_px.view(np.uint8)
+    cut = cv2.threshold(box, 3, 1, cv2.THRESH_BINARY_INV)[1]  # 3x3 sum <= 3: 1, else 0
+    cv2.bitwise_and(cut, edges, cut)  # edges is 0/1: the kept edge pixels, 0/1
     box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     chains: list[NDArray[np.int32]] = []
