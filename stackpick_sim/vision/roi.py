@@ -3,14 +3,16 @@
 The belt is a uniform dark grey; the pile covers a fraction of the frame. Working on the box
 around the pile (plus a margin) cuts every per-pixel stage in proportion, and the stages past
 the edges never look outside it. The box is found on a DECIMATION-times smaller copy (area
-averages, taken in halving steps): a pixel is foreground when its brightest channel differs from the belt's (the median over the
-small image's border, which the pile rarely covers more than half of) by FOREGROUND_DELTA.
+averages, taken in halving steps): a pixel is foreground when its brightest channel differs
+from the belt's (the median over the small image's border, which the pile rarely covers more
+than half of) by FOREGROUND_DELTA.
 Anything uncertain (no belt border, foreground everywhere) falls back to the whole frame.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -61,8 +63,8 @@ def decimate(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     step = 1
     while step < DECIMATION:
         h, w = small.shape[:2]
-        small = cv2.resize(small, (max(1, w // 2), max(1, h // 2)),
-                           interpolation=cv2.INTER_AREA)
+        small = cast("NDArray[np.uint8]", cv2.resize(small, (max(1, w // 2), max(1, h // 2)),
+                                                     interpolation=cv2.INTER_AREA))
         step *= 2
     return small
 

@@ -173,8 +173,9 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
     # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
     box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
                         borderType=cv2.BORDER_CONSTANT)
-    cut = cv2.threshold(box, 3, 1, cv2.THRESH_BINARY_INV)[1]  # 3x3 sum <= 3: 1, else 0
-    cv2.bitwise_and(cut, edges, cut)  # edges is 0/1: the kept edge pixels, 0/1
+    # 1 where the 3x3 sum is at most 3, ANDed with the 0/1 edges: the kept edge pixels, 0/1.
+    cut = cast("NDArray[np.uint8]", cv2.threshold(box, 3, 1, cv2.THRESH_BINARY_INV)[1])
+    cv2.bitwise_and(cut, edges, cut)
     box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     chains: list[NDArray[np.int32]] = []
@@ -182,7 +183,8 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
         return EdgeSegments(chains=(), edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
     parents = hierarchy[0][:, 3].tolist()
-    kept = [c.reshape(-1, 2) for c, parent in zip(contours, parents, strict=True)
+    kept = [cast("NDArray[np.int32]", c.reshape(-1, 2))
+            for c, parent in zip(contours, parents, strict=True)
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
         return EdgeSegments(chains=(), edges=edges)
