@@ -10,8 +10,9 @@ All pair counts come from the (group, pixel) pairs within tolerance, those of a 
 computed once per (re)fit and only for the pixels near its ellipse, counted per (ellipse,
 group) in one pass per round. Afterwards every edge segment too short to have been fitted on
 its own is absorbed by the ellipse its pixels lie on, and each final ellipse is validated by
-the share of its circumference that edge pixels support; residuals and support of all final
-ellipses are computed together.
+the share of its circumference that edge pixels support, all final ellipses together. A
+final ellipse that is still one segment's fit keeps that fit's residual (when the caller
+passes them), a refit's is computed on its own input; the others' are computed together.
 """
 
 from __future__ import annotations
