@@ -173,20 +173,19 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
     ``counts[1]`` to ellipse 1, ... (the same values; one repeat instead of six gathers)."""
-    rows = np.empty((7, params.shape[0]))
+    rows = np.empty((6, params.shape[0]))
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    np.negative(rows[5], out=rows[6])
-    cx, cy, a, b, c, s, minus_s = rows.repeat(counts, axis=1)
+    cx, cy, a, b, c, s = rows.repeat(counts, axis=1)
     # :func:`distances` term by term, each written into a fresh or spent array (the same
     # values, fewer allocations).
     du, dv = pu - cx, pv - cy
     x = c * du
     x += s * dv
     x /= a
-    y = minus_s * du
-    y += c * dv
+    y = c * dv
+    y -= s * du  # the same value as -s du + c dv, term for term
     y /= b
     grad = x / a
     grad *= grad
@@ -288,8 +287,9 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0],
                                   pts[1])
             which = np.arange(len(fitted)).repeat(counts)
-            rms = np.sqrt(np.bincount(which, weights=d * d) / counts)
-            for (p, e), r in zip(fitted, rms.tolist(), strict=True):
+            sums = np.bincount(which, weights=d * d).tolist()
+            rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
+            for (p, e), r in zip(fitted, rms, strict=True):
                 if r > MAX_RESIDUAL_PX:
                     failed.append(p)
                 else:
@@ -315,10 +315,15 @@ def _bows(pieces: list[NDArray]) -> list[float]:
     mean_u = np.bincount(which, weights=u) / counts
     mean_v = np.bincount(which, weights=v) / counts
     cu, cv = u - mean_u.repeat(counts), v - mean_v.repeat(counts)
-    sxx = np.bincount(which, weights=cu * cu)
-    syy = np.bincount(which, weights=cv * cv)
-    sxy = np.bincount(which, weights=cu * cv)
-    n = np.maximum(1, counts)
-    half_trace, det = 0.5 * (sxx + syy) / n, (sxx * syy - sxy * sxy) / (n * n)
-    smallest = half_trace - np.sqrt(np.maximum(0.0, half_trace * half_trace - det))
-    return np.sqrt(np.maximum(0.0, smallest)).tolist()
+    sxx = np.bincount(which, weights=cu * cu).tolist()
+    syy = np.bincount(which, weights=cv * cv).tolist()
+    sxy = np.bincount(which, weights=cu * cv).tolist()
+    # Per piece, as bow_px (a handful of pieces: scalars cost less than array passes).
+    bows = []
+    sqrt = math.sqrt
+    for xx, yy, xy, k in zip(sxx, syy, sxy, counts.tolist(), strict=True):
+        n = max(1, k)
+        half_trace, det = 0.5 * (xx + yy) / n, (xx * yy - xy * xy) / (n * n)
+        smallest = half_trace - sqrt(max(0.0, half_trace * half_trace - det))
+        bows.append(sqrt(max(0.0, smallest)))
+    return bows
