@@ -236,13 +236,15 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
         alive = [g for g, e in enumerate(ellipses) if e is not None]
         if len(alive) < 2:
             break
-        remap = -np.ones(len(ellipses), np.int64)
-        remap[alive] = np.arange(len(alive))
-        if len(alive) == len(ellipses):  # no merge yet: the identity map
+        if len(alive) == len(ellipses):  # no merge yet: the identity map, nothing refused
             n = _pertain_matrix(pair_g, owner[pair_p], owner, len(alive))
+            remap = list(range(len(ellipses)))
         else:
-            group = remap[owner]
-            n = _pertain_matrix(remap[pair_g], group[pair_p], group, len(alive))
+            index = np.full(len(ellipses), -1, np.int64)
+            index[alive] = np.arange(len(alive))
+            group = index[owner]
+            n = _pertain_matrix(index[pair_g], group[pair_p], group, len(alive))
+            remap = index.tolist()
         c = n * n.T
         c.flat[:: len(alive) + 1] = 0.0  # the diagonal (np.fill_diagonal's own step)
         for i, j in refused:
@@ -275,14 +277,18 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
             changed = True
             break
     # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
-    final = -np.ones(len(ellipses), np.int64)
-    final[[g for g, e in enumerate(ellipses) if e is not None]] = np.arange(
-        sum(e is not None for e in ellipses))
+    kept = [g for g, e in enumerate(ellipses) if e is not None]
+    if len(kept) == len(ellipses):  # no merge: the groups keep their indices
+        final_g = pair_g
+    else:
+        final = np.full(len(ellipses), -1, np.int64)
+        final[kept] = np.arange(len(kept))
+        final_g = final[pair_g]
     # A group still one fit on its own segment has that fit's residual, when given.
     own = [None if residuals is None or len(m) > 1 else residuals[g]
            for g, m in enumerate(members)]
     return _absorb_and_validate(chains, members, ellipses, edges,
-                                (final[pair_g], pair_p, points.shape[0]) if leading else None,
+                                (final_g, pair_p, points.shape[0]) if leading else None,
                                 rest, everything, own)
 
 
