@@ -294,9 +294,11 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
 
 def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
     """Whether every chain of ``extra`` equals one of ``segs`` pixel for pixel (a fitted
-    piece repeats the chain it was cut from when it is that whole chain)."""
-    return all(any(chains[s].shape == chains[k].shape
-                   and chains[s].tobytes() == chains[k].tobytes() for k in segs)
+    piece repeats the chain it was cut from when it is that whole chain, most often as the
+    same array: that is told first, without reading the pixels)."""
+    return all(any(chains[s] is chains[k] for k in segs)
+               or any(chains[s].shape == chains[k].shape
+                      and chains[s].tobytes() == chains[k].tobytes() for k in segs)
                for s in extra)
 
 
