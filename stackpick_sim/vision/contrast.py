@@ -100,6 +100,17 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     return np.abs(smooth) / SOBEL_GAIN
 
 
+@functools.lru_cache(maxsize=1024)
+def _window_table(n: int) -> NDArray[np.int64]:
+    """(WINDOW_SAMPLES, n) index along an outline of n samples of each sample's window, rows
+    as :attr:`Outlines.window`'s (read-only; cached like :func:`unit_circle`)."""
+    half = WINDOW_SAMPLES // 2
+    shifts = np.array([0, *range(-half, 0), *range(1, half + 1)], np.int64)
+    table = (np.arange(n, dtype=np.int64) + shifts[:, None]) % n
+    table.setflags(write=False)
+    return table
+
+
 @dataclass(frozen=True, kw_only=True)
 class Outlines:
     """The :func:`outline` samples of several ellipses, concatenated.
@@ -124,6 +135,17 @@ class Outlines:
     def _starts_and_counts(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """(N,) first sample and sample count of each sample's own outline."""
         return self.offsets[self.owner], self.counts[self.owner]
+
+    @functools.cached_property
+    def window(self) -> NDArray[np.int64]:
+        """(WINDOW_SAMPLES, N) index of the samples of each sample's window along its own
+        outline: row 0 the sample itself, then the shifts -W//2 .. -1, 1 .. W//2 (for W =
+        WINDOW_SAMPLES) in that order (the order of a running sum)."""
+        counts = self.counts
+        tables = [_window_table(n) for n in counts.tolist()]
+        if not tables:
+            return np.zeros((WINDOW_SAMPLES, 0), np.int64)
+        return np.concatenate(tables, axis=1) + self.offsets[:-1].repeat(counts)
 
     def cyclic(self, shift: int) -> NDArray[np.int64]:
         """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
@@ -179,20 +201,34 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
-    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass."""
-    pu, pv = lines.points[:, 0], lines.points[:, 1]
-    nu, nv = lines.normals[:, 0], lines.normals[:, 1]
+    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass (the same
+    values: every offset of every sample read in one gather, the window summed from
+    :attr:`Outlines.window`)."""
     h, w = image.gx.shape
-    offsets = np.array(NORMAL_OFFSETS_PX)[:, None]
-    qu = np.rint(pu + offsets * nu).astype(np.int64)  # (k, n)
-    qv = np.rint(pv + offsets * nv).astype(np.int64)
-    u = np.minimum(np.maximum(qu, 0), w - 1)
-    v = np.minimum(np.maximum(qv, 0), h - 1)
-    inside = (u == qu) & (v == qv)
-    flat = v * w + u
-    g = image.gx.ravel()[flat] * nu + image.gy.ravel()[flat] * nv
-    g = np.where(inside, g, 0.0)
-    # The strongest offset per sample (the first of equals, as argmax over the offsets).
+    pts, normals = lines.points.T, lines.normals.T  # (2, N) each: u, v rows
+    n = pts.shape[1]
+    # (2, k, N): u and v of every sample at every offset across its outline (p + o n, as
+    # contrast_profile's, written as sums and differences for the offsets -1, 0, 1).
+    q = np.empty((2, len(NORMAL_OFFSETS_PX), n))
+    for k, offset in enumerate(NORMAL_OFFSETS_PX):
+        if offset == 0.0:
+            q[:, k] = pts
+        elif abs(offset) == 1.0:
+            (np.add if offset > 0 else np.subtract)(pts, normals, out=q[:, k])
+        else:
+            np.add(pts, offset * normals, out=q[:, k])
+    at = np.rint(q, out=q).astype(np.int64)
+    if (min(at[0].min(), at[1].min()) >= 0 and at[0].max() < w and at[1].max() < h):
+        # Every sample inside the image (the usual case): no clamping.
+        flat = at[1] * w + at[0]
+        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
+    else:
+        u = np.minimum(np.maximum(at[0], 0), w - 1)
+        v = np.minimum(np.maximum(at[1], 0), h - 1)
+        flat = v * w + u
+        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
+        g = np.where((u == at[0]) & (v == at[1]), g, 0.0)
+    # The strongest offset per sample (the first of equals, as a running strict maximum).
     mag = np.abs(g)
     best, top = g[0], mag[0]
     for k in range(1, g.shape[0]):
@@ -200,12 +236,9 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
         best = np.where(better, g[k], best)
         if k + 1 < g.shape[0]:
             top = np.maximum(top, mag[k])
-    k = WINDOW_SAMPLES
-    total = best.copy()
-    for shift in range(-(k // 2), k // 2 + 1):
-        if shift:
-            total += best[lines.cyclic(shift)]
-    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
+    # The window's sum in the order of a running sum from the sample itself (row by row).
+    total = best[lines.window].sum(axis=0)
+    return np.asarray(np.abs(total / WINDOW_SAMPLES) / SOBEL_GAIN, np.float64)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

@@ -189,44 +189,31 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     n_e = len(ellipses)
-    # Per ellipse: centre, reach, then per pair: cos, sin, axes and the axes less the inner
-    # and interior margins (as the pairs' arithmetic had them).
+    # Per ellipse: centre, cos, sin, axes, the axes less the inner margin (an occluder's
+    # pixels run into the face) and less the interior margin.
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a + JUNCTION_RADIUS_PX + 1, math.cos(t), math.sin(t), e.a,
-                     e.b, max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6),
+        rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
+                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6),
                      max(e.a - INTERIOR_MARGIN_PX, 1e-6), max(e.b - INTERIOR_MARGIN_PX, 1e-6)))
     geo = np.array(rows, np.float64)
-    cx, cy, reach = geo[:, 0:1], geo[:, 1:2], geo[:, 2:3]
-    du = edge_points[:, 0] - cx
-    dv = edge_points[:, 1] - cy
-    pe, pm = ((np.abs(du) <= reach) & (np.abs(dv) <= reach)).nonzero()  # local pairs
-    at = pe * edge_points.shape[0] + pm
-    pdu, pdv = du.ravel()[at], dv.ravel()[at]
-    # The pairs run ellipse by ellipse: each ellipse's parameters repeated per pair.
-    per = np.bincount(pe, minlength=n_e)
-    pc, ps, pa, pb, a_in, b_in, a_int, b_int = geo.T[3:].repeat(per, axis=1)
-    xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
-    x, y = xr / pa, yr / pb
-    # Sampson distance, as fitting.distances.
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / pa) ** 2 + (y / pb) ** 2) + 1e-12)
-    off_curve = dist > MERGE_TOLERANCE_PX
-    xs, ys = xr / a_in, yr / b_in
-    inner = off_curve & (xs * xs + ys * ys < 1.0)
-    xs, ys = xr / a_int, yr / b_int
-    interior = np.bincount(pe[xs * xs + ys * ys < 1.0], minlength=n_e).tolist()
+    rows_v = edge_points[:, 1]
+    if rows_v.size > 1 and not bool(np.all(rows_v[1:] >= rows_v[:-1])):
+        # Any order of the pixels gives the same counts: row-major order for the row ranges.
+        edge_points = edge_points[np.argsort(rows_v, kind="stable")]
+    interior = _inside_counts(geo, edge_points)
     counts = lines.counts
     support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples.
-    before, after = lines.cyclic(-1), lines.cyclic(1)
+    before, after = lines.window[2], lines.window[3]  # shifts -1 and +1
     firsts = (~ok & ok[before]).nonzero()[0]
     lasts = (~ok & ok[after]).nonzero()[0]
     sizes = counts.tolist()
     offsets = lines.offsets
-    longest = [0 if ok[base] else n for base, n in zip(offsets[:-1].tolist(), sizes,
-                                                       strict=True)]
-    ends = np.zeros(0, np.int64)  # global index of a supported sample at each gap's end
+    longest = [0 if supported else n
+               for supported, n in zip(ok[offsets[:-1]].tolist(), sizes, strict=True)]
+    occluded_ends = [0] * n_e
     if firsts.size:
         # Each run's last sample: the first last at or after its first in its outline, else
         # (the run wraps round the outline's start) the outline's first last.
@@ -244,29 +231,75 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         for k, length in runs.items():
             longest[k] = length
         gap = (lengths >= MIN_GAP_PX).nonzero()[0]
-        ends = np.concatenate([before[firsts[gap]], after[stop[gap]]])
-    occluded_ends = [0] * n_e
-    off = off_curve.nonzero()[0]
-    if ends.size and off.size:
-        end_e = lines.owner[ends]
-        # Each end against the off-curve pairs of its own ellipse (a contiguous range: the
-        # pairs run ellipse by ellipse).
-        bounds = pe[off].searchsorted(np.arange(n_e + 1))
-        first, size = bounds[end_e], bounds[end_e + 1] - bounds[end_e]
-        which = np.arange(ends.size).repeat(size)
-        pick = off[np.arange(which.size) - (size.cumsum() - size - first).repeat(size)]
-        end_u, end_v = samples[ends, 0][which], samples[ends, 1][which]
-        at_m = pm[pick]
-        d2 = (edge_points[at_m, 0] - end_u) ** 2 + (edge_points[at_m, 1] - end_v) ** 2
-        junction = np.bincount(which[d2 <= JUNCTION_RADIUS_PX ** 2], minlength=ends.size)
-        crossing = np.bincount(which[inner[pick] & (d2 <= CROSSING_REACH_PX ** 2)],
-                               minlength=ends.size)
-        for e in end_e[(junction > 0) & (crossing > 0)].tolist():
-            occluded_ends[e] += 1
+        if gap.size:
+            # A supported sample at each gap's end.
+            ends = np.concatenate([before[firsts[gap]], after[stop[gap]]])
+            for e in _junction_owners(geo, lines.owner[ends], samples[ends], edge_points):
+                occluded_ends[e] += 1
     return tuple(OcclusionEvidence(support=support_share[e], longest_gap_px=longest[e],
                                    occluded_ends=occluded_ends[e],
                                    interior_edge_px=interior[e], perimeter_px=sizes[e])
                  for e in range(n_e))
+
+
+def _inside_counts(geo: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
+    """Per ellipse (rows of :func:`evidence_all`'s ``geo``): how many edge pixels (M, 2), in
+    row-major order, lie inside its axes less INTERIOR_MARGIN_PX; only the pixels of the rows
+    it spans are tested, every (ellipse, pixel) pair in one array pass."""
+    # Half the height of each shrunk ellipse's bounding box, and a pixel to spare.
+    span = np.hypot(geo[:, 8] * geo[:, 3], geo[:, 9] * geo[:, 2]) + 1.0
+    which, at = _row_pairs(edge_points[:, 1], geo[:, 1] - span, geo[:, 1] + span)
+    cx, cy, c, s = geo[which, :4].T
+    du = edge_points[at, 0] - cx
+    dv = edge_points[at, 1] - cy
+    xs = (c * du + s * dv) / geo[which, 8]
+    ys = (-s * du + c * dv) / geo[which, 9]
+    return np.bincount(which[xs * xs + ys * ys < 1.0], minlength=geo.shape[0]).tolist()
+
+
+def _junction_owners(geo: NDArray[np.float64], owner: NDArray[np.int64],
+                     ends: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
+    """The ellipse (``owner``, rows of :func:`evidence_all`'s ``geo``) of each gap end
+    (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
+    ``edge_points``, in row-major order) off the ellipse (Sampson distance above
+    MERGE_TOLERANCE_PX) lies within JUNCTION_RADIUS_PX of it, and one inside the outline by
+    more than MERGE_TOLERANCE_PX within CROSSING_REACH_PX of it. Only the pixels of the rows
+    within reach of an end are tested, all (end, pixel) pairs in one pass."""
+    reach = max(JUNCTION_RADIUS_PX, CROSSING_REACH_PX)
+    end_k, at = _row_pairs(edge_points[:, 1], ends[:, 1] - reach, ends[:, 1] + reach)
+    du_end = edge_points[at, 0] - ends[end_k, 0]
+    dv_end = edge_points[at, 1] - ends[end_k, 1]
+    d2 = du_end * du_end + dv_end * dv_end
+    near = (d2 <= reach ** 2).nonzero()[0]
+    if not near.size:
+        return []
+    end_k, at, d2 = end_k[near], at[near], d2[near]
+    cx, cy, c, s, a, b, a_in, b_in = geo[owner[end_k], :8].T
+    du = edge_points[at, 0] - cx
+    dv = edge_points[at, 1] - cy
+    xr, yr = c * du + s * dv, -s * du + c * dv
+    x, y = xr / a, yr / b
+    # Sampson distance, as fitting.distances.
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
+    off_curve = dist > MERGE_TOLERANCE_PX
+    xs, ys = xr / a_in, yr / b_in
+    inner = off_curve & (xs * xs + ys * ys < 1.0)
+    junction = np.bincount(end_k[off_curve & (d2 <= JUNCTION_RADIUS_PX ** 2)],
+                           minlength=owner.size)
+    crossing = np.bincount(end_k[inner & (d2 <= CROSSING_REACH_PX ** 2)], minlength=owner.size)
+    return owner[(junction > 0) & (crossing > 0)].tolist()
+
+
+def _row_pairs(rows: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(query, point) index pairs of every point whose row (``rows``, (M,) ascending) lies in
+    [``low[k]``, ``high[k]``] of query k, query by query, in one array pass."""
+    start = rows.searchsorted(low)
+    size = np.maximum(rows.searchsorted(high, side="right") - start, 0)
+    query = np.arange(size.size).repeat(size)
+    # Each query's points: its start onwards (the running index less the sizes before it).
+    point = np.arange(query.size) + (start - (size.cumsum() - size)).repeat(size)
+    return query, point
 
 
 def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
