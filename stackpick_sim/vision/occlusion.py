@@ -40,6 +40,7 @@ ellipses.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -205,41 +206,54 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     interior = _inside_counts(geo, edge_points)
     counts = lines.counts
     support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
-    # Gaps: cyclic runs of unsupported samples, from their first and last samples.
-    before, after = lines.window[2], lines.window[3]  # shifts -1 and +1
-    firsts = (~ok & ok[before]).nonzero()[0]
-    lasts = (~ok & ok[after]).nonzero()[0]
+    # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
+    # frame: paired on Python ints).
+    unsupported = ~ok
+    firsts = (unsupported & ok[lines.window[2]]).nonzero()[0].tolist()  # sample before: ok
     sizes = counts.tolist()
-    offsets = lines.offsets
     longest = [0 if supported else n
-               for supported, n in zip(ok[offsets[:-1]].tolist(), sizes, strict=True)]
+               for supported, n in zip(ok[lines.offsets[:-1]].tolist(), sizes, strict=True)]
     occluded_ends = [0] * n_e
-    if firsts.size:
-        # Each run's last sample: the first last at or after its first in its outline, else
-        # (the run wraps round the outline's start) the outline's first last.
-        owner = lines.owner[firsts]
-        j = lasts.searchsorted(firsts)
-        lo = lasts.searchsorted(offsets[:-1])
-        wrapped = lasts[np.minimum(j, lasts.size - 1)] >= offsets[1:][owner]
-        wrapped |= j >= lasts.size
-        stop = lasts[np.where(wrapped, lo[owner], j)]
-        lengths = (stop - firsts) % counts[owner] + 1
-        runs: dict[int, int] = {}
-        for k, length in zip(owner.tolist(), lengths.tolist(), strict=True):
-            if length > runs.get(k, 0):
-                runs[k] = length
-        for k, length in runs.items():
-            longest[k] = length
-        gap = (lengths >= MIN_GAP_PX).nonzero()[0]
-        if gap.size:
-            # A supported sample at each gap's end.
-            ends = np.concatenate([before[firsts[gap]], after[stop[gap]]])
-            for e in _junction_owners(geo, lines.owner[ends], samples[ends], edge_points):
+    if firsts:
+        lasts = (unsupported & ok[lines.window[3]]).nonzero()[0].tolist()  # sample after: ok
+        ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest)
+        if ends:
+            for e in _junction_owners(geo, np.array(owners), samples[ends], edge_points):
                 occluded_ends[e] += 1
     return tuple(OcclusionEvidence(support=support_share[e], longest_gap_px=longest[e],
                                    occluded_ends=occluded_ends[e],
                                    interior_edge_px=interior[e], perimeter_px=sizes[e])
                  for e in range(n_e))
+
+
+def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int]
+              ) -> tuple[list[int], list[int]]:
+    """The supported samples at the ends of the gaps (runs of unsupported samples of at
+    least MIN_GAP_PX along their outline, cyclic) and each one's outline, given every run's
+    first and last samples (``firsts``, ``lasts``: ascending global sample indices) and the
+    outlines' sample ``offsets`` (E + 1); ``longest`` (per outline) is raised to the longest
+    run of each outline with runs."""
+    ends: list[int] = []
+    owners: list[int] = []
+    runs: dict[int, int] = {}
+    for first in firsts:
+        e = bisect.bisect_right(offsets, first) - 1
+        start, stop = offsets[e], offsets[e + 1]
+        # The run's last sample: the first last at or after its first in its outline, else
+        # (the run wraps round the outline's start) the outline's first last.
+        j = bisect.bisect_left(lasts, first)
+        last = (lasts[j] if j < len(lasts) and lasts[j] < stop
+                else lasts[bisect.bisect_left(lasts, start)])
+        length = (last - first) % (stop - start) + 1
+        if length > runs.get(e, 0):
+            runs[e] = length
+        if length >= MIN_GAP_PX:
+            ends += [first - 1 if first > start else stop - 1,
+                     last + 1 if last + 1 < stop else start]
+            owners += [e, e]
+    for e, length in runs.items():
+        longest[e] = length
+    return ends, owners
 
 
 def _inside_counts(geo: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
