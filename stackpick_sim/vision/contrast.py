@@ -116,20 +116,27 @@ class Outlines:
     """The :func:`outline` samples of several ellipses, concatenated.
 
     ``points``, ``normals``: (N, 2) px and unit outward normals; ``offsets``: (E + 1,) int,
-    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``owner``: (N,) ellipse index of
-    each sample; ``local``: (N,) its index along its own outline.
+    ellipse e owns samples ``offsets[e]:offsets[e + 1]``.
     """
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
     offsets: NDArray[np.int64]
-    owner: NDArray[np.int64]
-    local: NDArray[np.int64]
 
     @functools.cached_property
     def counts(self) -> NDArray[np.int64]:
         """(E,) samples per ellipse."""
-        return np.diff(self.offsets)
+        return np.asarray(self.offsets[1:] - self.offsets[:-1], np.int64)
+
+    @functools.cached_property
+    def owner(self) -> NDArray[np.int64]:
+        """(N,) ellipse index of each sample."""
+        return np.arange(self.counts.size, dtype=np.int64).repeat(self.counts)
+
+    @functools.cached_property
+    def local(self) -> NDArray[np.int64]:
+        """(N,) each sample's index along its own outline."""
+        return np.arange(int(self.offsets[-1]), dtype=np.int64) - self.offsets[self.owner]
 
     @functools.cached_property
     def _starts_and_counts(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -154,7 +161,7 @@ class Outlines:
             starts, each = self._starts_and_counts
             return np.asarray(starts + (self.local + shift) % each, np.int64)
         # Every sample but the |shift| at an outline's end (start) moves by shift; those wrap.
-        index = np.arange(self.local.shape[0], dtype=np.int64) + shift
+        index = np.arange(int(self.offsets[-1]), dtype=np.int64) + shift
         for j in range(abs(shift)):
             if shift > 0:
                 index[self.offsets[1:] - 1 - j] -= counts
@@ -168,36 +175,38 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     rows, sizes = [], []
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
+        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, math.cos(t), math.sin(t)))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
-    counts = np.array(sizes, np.int64)
     offsets = np.zeros(len(sizes) + 1, np.int64)
-    offsets[1:] = counts.cumsum()
-    owner = np.arange(len(sizes)).repeat(counts)
-    local = np.arange(int(offsets[-1])) - offsets[:-1].repeat(counts)
+    np.cumsum(sizes, out=offsets[1:])
+    n = int(offsets[-1])
     # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
-    cx, cy, a, b, c, s = np.array(rows, np.float64).reshape(-1, 6).T.repeat(counts, axis=1)
-    tables = [unit_circle(n) for n in sizes]
-    ct = np.concatenate([t[0] for t in tables])
-    st = np.concatenate([t[1] for t in tables])
-    x, y = a * ct, b * st
+    params = np.array(rows, np.float64).reshape(-1, 8).T.repeat(sizes, axis=1)
+    cx, cy, c, s = params[0], params[1], params[6], params[7]
+    trig = np.empty((2, n))  # cos t, sin t of every sample
+    tables = [unit_circle(k) for k in sizes]
+    np.concatenate([t[0] for t in tables], out=trig[0])
+    np.concatenate([t[1] for t in tables], out=trig[1])
+    # Rows x = a cos t and its normal's nx = b cos t; y = b sin t and ny = a sin t (the
+    # gradient of the implicit form, scaled by a b), the normal then made unit.
+    along = params[2:4] * trig[0]
+    across = params[4:6] * trig[1]
+    norm = np.hypot(along[1], across[1])
+    along[1] /= norm
+    across[1] /= norm
     # Points and normals as (N, 2) views of (2, N) arrays: contiguous columns, the same
     # values as outline's cx + c x - s y etc.
-    pts = np.empty((2, x.shape[0]))
-    np.add(cx, c * x, out=pts[0])
-    pts[0] -= s * y
-    np.add(cy, s * x, out=pts[1])
-    pts[1] += c * y
-    nx, ny = b * ct, a * st
-    norm = np.hypot(nx, ny)
-    nx /= norm
-    ny /= norm
-    normals = np.empty((2, x.shape[0]))
-    np.multiply(c, nx, out=normals[0])
-    normals[0] -= s * ny
-    np.multiply(s, nx, out=normals[1])
-    normals[1] += c * ny
-    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, owner=owner, local=local)
+    c_along, s_across = c * along, s * across
+    s_along, c_across = s * along, c * across
+    pts = np.empty((2, n))
+    normals = np.empty((2, n))
+    np.add(cx, c_along[0], out=pts[0])
+    pts[0] -= s_across[0]
+    np.add(cy, s_along[0], out=pts[1])
+    pts[1] += c_across[0]
+    np.subtract(c_along[1], s_across[1], out=normals[0])
+    np.add(s_along[1], c_across[1], out=normals[1])
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets)
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:

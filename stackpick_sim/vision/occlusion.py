@@ -193,11 +193,12 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     # Per ellipse: centre, cos, sin, axes, the axes less the inner margin (an occluder's
     # pixels run into the face) and less the interior margin.
     rows = []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
-                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6),
-                     max(e.a - INTERIOR_MARGIN_PX, 1e-6), max(e.b - INTERIOR_MARGIN_PX, 1e-6)))
+    for ellipse in ellipses:
+        t = math.radians(ellipse.angle_deg)
+        a, b = ellipse.a, ellipse.b
+        rows.append((ellipse.cx, ellipse.cy, math.cos(t), math.sin(t), a, b,
+                     max(a - MERGE_TOLERANCE_PX, 1e-6), max(b - MERGE_TOLERANCE_PX, 1e-6),
+                     max(a - INTERIOR_MARGIN_PX, 1e-6), max(b - INTERIOR_MARGIN_PX, 1e-6)))
     geo = np.array(rows, np.float64)
     rows_v = edge_points[:, 1]
     if rows_v.size > 1 and not bool(np.all(rows_v[1:] >= rows_v[:-1])):
@@ -205,7 +206,7 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         edge_points = edge_points[np.argsort(rows_v, kind="stable")]
     interior = _inside_counts(geo, edge_points)
     counts = lines.counts
-    support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
+    support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
     # frame: paired on Python ints).
     unsupported = ~ok
@@ -467,7 +468,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
                edge_points: NDArray[np.float64] | None = None,
                image: NDArray[np.uint8] | None = None,
-               height_of: Callable[[float], float | None] | None = None) -> TopChoice:
+               height_of: Callable[[float], float | None] | None = None,
+               colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -485,7 +487,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
     test. Returns the chosen index (else the
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
-    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
+    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already;
+    ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
+    face_colour`), when the caller keeps them.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
@@ -520,7 +524,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         # support alone) are above them (paper seed 404: the top's arc over a lower face of
         # its colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
-                         image)
+                         image, colour_of=colour_of)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates

@@ -32,7 +32,20 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
-from stackpick_sim.vision.wall import face_colour, wall_evidences
+from stackpick_sim.vision.wall import (
+    CHROMA_TOLERANCE,
+    MIN_RELATIVE_BRIGHTNESS,
+    WALL_BRIGHTNESS_MARGIN,
+    WALL_DEPTH_FRACTIONS,
+    WALL_RIM_POINTS,
+    WallEvidence,
+    _tan_tilt,
+    face_colour,
+)
+from stackpick_sim.vision.wall_cover import COVER_DEPTH_FRACTIONS, face_bands
+
+# The rest test reads the cover test's bands: the wall test's depths must be their first.
+assert COVER_DEPTH_FRACTIONS[:len(WALL_DEPTH_FRACTIONS)] == WALL_DEPTH_FRACTIONS
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
@@ -80,34 +93,74 @@ def contact(centres: NDArray[np.float64], normals: NDArray[np.float64],
     ``pairs[:, 1]`` to body ``pairs[:, 0]`` of cylinders given by face centre (N, 3) m, inward
     unit axis (N, 3), radius (N,) m and height (N,) m, camera frame; see the module
     docstring."""
-    dirs = _directions()
-    a, b = pairs[:, 0], pairs[:, 1]
-    sep = (-_support(centres[a], normals[a], radii[a], heights[a], -dirs)
-           - _support(centres[b], normals[b], radii[b], heights[b], dirs))
+    dirs, opposite = _directions(), _opposite(AXIS_DIRECTIONS)
+    sep = _separations(centres, normals, radii, heights, pairs, dirs, opposite)
     best = np.argmax(sep, axis=1)
     return sep[np.arange(len(pairs)), best], dirs[best]
 
 
+def _separations(centres: NDArray[np.float64], normals: NDArray[np.float64],
+                 radii: NDArray[np.float64], heights: NDArray[np.float64],
+                 pairs: NDArray[np.int64], dirs: NDArray[np.float64],
+                 opposite: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(P, D) separation of each pair's bodies (as :func:`contact`'s) along each of the
+    directions ``dirs`` (D, 3) (``opposite``: ``-dirs``)."""
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.asarray(-_support(centres[a], normals[a], radii[a], heights[a], opposite)
+                      - _support(centres[b], normals[b], radii[b], heights[b], dirs))
+
+
+@functools.lru_cache(maxsize=2)
+def _opposite(n: int) -> NDArray[np.float64]:
+    """``-_directions()`` (n = AXIS_DIRECTIONS) or ``-_coarse_directions()`` (n =
+    len(_coarse_directions())), read-only."""
+    dirs = _directions() if n == AXIS_DIRECTIONS else _coarse_directions()
+    out = -dirs
+    out.setflags(write=False)
+    return out
+
+
+#: Every this many of the separating-axis directions form the coarse set of the cost gate in
+#: :func:`rests_on`: a pair apart along one of them by more than CONTACT_GAP_M does not touch
+#: (the separation is a maximum over the directions, so a subset's is a lower bound).
+#: About half of the development frames' candidate pairs are ruled out so.
+COARSE_EVERY = 16
+
+
+@functools.lru_cache(maxsize=1)
+def _coarse_directions() -> NDArray[np.float64]:
+    """Every COARSE_EVERY-th of :func:`_directions` (contiguous, read-only)."""
+    d = np.ascontiguousarray(_directions()[::COARSE_EVERY])
+    d.setflags(write=False)
+    return d
+
+
 def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              radius_of: Callable[[Ellipse], float | None],
-             height_of: Callable[[float], float | None], image: NDArray[np.uint8]
-             ) -> list[bool]:
+             height_of: Callable[[float], float | None], image: NDArray[np.uint8], *,
+             colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
     either gives None takes no part. The true height matters: one 5 mm too tall flips the
-    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3)."""
+    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3).
+    ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
+    face_colour`), when the caller keeps them."""
     n = len(faces)
     under = [False] * n
-    bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []
+    kinds: list[tuple[int, float, float]] = []  # (face, radius, height) of the known kinds
     for i, face in enumerate(faces):
         radius = radius_of(face)
         height = None if radius is None else height_of(radius)
-        if radius is None or height is None:
-            continue
+        if radius is not None and height is not None:
+            kinds.append((i, radius, height))
+    if len(kinds) < 2:
+        return under
+    known = [faces[i] for i, _, _ in kinds]
+    bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []
+    evidence = wall_evidences_of(known, intrinsics, image, colour_of)
+    for (i, radius, height), face, bands in zip(kinds, known, evidence, strict=True):
         unit = unit_circle_poses(face, intrinsics)
-        bands = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], face, intrinsics,
-                               image, face_colour(face, image))
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
@@ -120,9 +173,16 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         return under
     pairs = np.array([(p, q) for p in range(len(bodies)) for q in range(p + 1, len(bodies))],
                      np.int64)
-    sep, normal = contact(np.array([b[1] for b in bodies]), np.array([b[2] for b in bodies]),
-                          np.array([b[3] for b in bodies]), np.array([b[4] for b in bodies]),
-                          pairs)
+    centres, normals = np.array([b[1] for b in bodies]), np.array([b[2] for b in bodies])
+    radii, heights = np.array([b[3] for b in bodies]), np.array([b[4] for b in bodies])
+    # Cost gate: pairs apart along one of the coarse directions do not touch.
+    coarse = _coarse_directions()
+    near = _separations(centres, normals, radii, heights, pairs, coarse,
+                        _opposite(len(coarse))).max(axis=1) <= CONTACT_GAP_M
+    pairs = pairs[near]
+    if not pairs.size:
+        return under
+    sep, normal = contact(centres, normals, radii, heights, pairs)
     up = normal @ UP_CAM
     touching = (sep <= CONTACT_GAP_M) & (sep >= -CONTACT_PENETRATION_M)
     for (p, q), t, u in zip(pairs.tolist(), touching.tolist(), up.tolist(), strict=True):
@@ -131,3 +191,41 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         elif t and u <= -MIN_REST_UP:
             under[bodies[p][0]] = True
     return under
+
+
+def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                      image: NDArray[np.uint8],
+                      colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None
+                      ) -> list[list[WallEvidence]]:
+    """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
+    pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
+    face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
+    pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
+    face_bands`: WALL_DEPTH_FRACTIONS are their first depths, depth by depth). ``colour_of``:
+    a face's colour, when the caller keeps them."""
+    pu, pv, keep = face_bands(faces, intrinsics)
+    per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
+    h, w = image.shape[:2]
+    qu, qv = np.rint(pu[:, :per]).astype(np.int64), np.rint(pv[:, :per]).astype(np.int64)
+    owner, at = (keep[:, :per] & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()
+    n_sol = keep.shape[0]
+    counts = np.bincount(owner, minlength=n_sol)
+    colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
+    colours = np.array([np.asarray(colour(f), np.float64).reshape(-1) for f in faces])
+    face_sums = [max(float(c.sum()), 1.0) for c in colours]
+    face_of = owner // 2
+    cols = image[qv[owner, at], qu[owner, at]].astype(np.float64)
+    cols = cols[:, None] if cols.ndim == 1 else cols
+    sums = cols.sum(axis=1)
+    hue = np.array([c / total for c, total in zip(colours, face_sums, strict=True)])
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[face_of]).sum(axis=1)
+    unit = [s for f in faces for s in unit_circle_poses(f, intrinsics)]
+    brightest = np.array([(_tan_tilt(s.normal_cam, s.centre_cam) + WALL_BRIGHTNESS_MARGIN)
+                          * face_sums[k // 2] for k, s in enumerate(unit)])
+    darkest = np.array([MIN_RELATIVE_BRIGHTNESS * total for total in face_sums])
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= darkest[face_of])
+          & (sums <= brightest[owner]))
+    hits = np.bincount(owner, weights=ok, minlength=n_sol)
+    evidence = [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
+                for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
+    return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]

@@ -50,6 +50,39 @@ COVER_MARGIN_PX = 1.0
 COVER_DEPTH_TOLERANCE_M = 0.003
 
 
+#: Faces whose bands :func:`face_bands` keeps (a frame's candidates are a few; the cache is
+#: emptied when full).
+BAND_CACHE_FACES = 64
+_BANDS: dict[tuple[Ellipse, CameraIntrinsics],
+             tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]] = {}
+
+
+def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`~stackpick_sim.vision.wall.solution_bands` of both unit-radius pose solutions
+    of each face at COVER_DEPTH_FRACTIONS: pixels u, v (2n, P) and which lie outside the
+    face, rows 2i and 2i + 1 face i's (its :func:`~stackpick_sim.vision.pose.
+    unit_circle_poses` order), ellipses in the pixel frame of ``intrinsics``.
+
+    Each face's bands are computed once (the faces not yet seen in one array pass) and kept:
+    the cover test runs a second time with the radii, and the rest test
+    (:mod:`~stackpick_sim.vision.resting`) reads the same bands' first depths."""
+    missing = [f for f in dict.fromkeys(faces) if (f, intrinsics) not in _BANDS]
+    if missing:
+        sols = [(s.normal_cam, s.centre_cam) for f in missing
+                for s in unit_circle_poses(f, intrinsics)]
+        pu, pv, keep = solution_bands(sols, [f for f in missing for _ in range(2)], intrinsics,
+                                      COVER_DEPTH_FRACTIONS)
+        if len(_BANDS) + len(missing) > BAND_CACHE_FACES:
+            _BANDS.clear()
+        for i, f in enumerate(missing):
+            rows = slice(2 * i, 2 * i + 2)
+            _BANDS[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
+    got = [_BANDS[(f, intrinsics)] for f in faces]
+    return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
+            np.concatenate([g[2] for g in got]))
+
+
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                    radii: Sequence[float | None] | None = None) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
@@ -62,9 +95,7 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     both radii are known.
     """
     n = len(faces)
-    sols = [(s.normal_cam, s.centre_cam) for f in faces for s in unit_circle_poses(f, intrinsics)]
-    pu, pv, keep = solution_bands(sols, [f for f in faces for _ in range(2)], intrinsics,
-                                  COVER_DEPTH_FRACTIONS)
+    pu, pv, keep = face_bands(faces, intrinsics)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
     rows = []
@@ -78,6 +109,8 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     y = (-s * du + c * dv) / b
     covered = (x * x + y * y < 1.0) & keep[:, None, :]
     if radii is not None:
+        sols = [(s.normal_cam, s.centre_cam) for f in faces
+                for s in unit_circle_poses(f, intrinsics)]
         covered &= _in_front(sols, pu, pv, radii, intrinsics)
     inside = np.count_nonzero(covered, axis=2)
     share = np.zeros((n, n))
