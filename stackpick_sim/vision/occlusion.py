@@ -168,13 +168,15 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
 def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                  support: NDArray[np.uint8] | None, gradients: EdgeImage | None = None
                  ) -> tuple[OcclusionEvidence, ...]:
-    """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) and the
+    """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) (integer
+    pixel coordinates, any order; row-major order, np.nonzero's, spares a sort) and the
     (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX; unused with ``gradients``).
 
     With ``gradients`` the circumference's support is read from the consistent edge contrast
     (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
-    All ellipses are handled together: their outlines are one array, and the edge pixels
-    near each (its bounding square) are (ellipse, pixel) pairs of one array.
+    All ellipses are handled together: their outlines are one array, the interior edges are
+    counted row by row (:func:`_interior_counts`), and the pixels near the gap ends are
+    (end, pixel) pairs of one array.
     """
     if not ellipses:
         return ()
@@ -200,11 +202,14 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                      max(a - MERGE_TOLERANCE_PX, 1e-6), max(b - MERGE_TOLERANCE_PX, 1e-6),
                      max(a - INTERIOR_MARGIN_PX, 1e-6), max(b - INTERIOR_MARGIN_PX, 1e-6)))
     geo = np.array(rows, np.float64)
-    rows_v = edge_points[:, 1]
-    if rows_v.size > 1 and not bool(np.all(rows_v[1:] >= rows_v[:-1])):
-        # Any order of the pixels gives the same counts: row-major order for the row ranges.
-        edge_points = edge_points[np.argsort(rows_v, kind="stable")]
-    interior = _inside_counts(geo, edge_points)
+    # The pixels' row-major keys v W + u (W past the largest u): any order of the pixels
+    # gives the same evidence, so they are sorted when they are not in row-major order.
+    width = int(edge_points[:, 0].max(initial=0.0)) + 2
+    keys = edge_points[:, 1] * width + edge_points[:, 0]
+    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
+        order = np.argsort(keys, kind="stable")
+        edge_points, keys = edge_points[order], keys[order]
+    interior = _interior_counts(ellipses, keys, width)
     counts = lines.counts
     support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
@@ -257,19 +262,46 @@ def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: 
     return ends, owners
 
 
-def _inside_counts(geo: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
-    """Per ellipse (rows of :func:`evidence_all`'s ``geo``): how many edge pixels (M, 2), in
-    row-major order, lie inside its axes less INTERIOR_MARGIN_PX; only the pixels of the rows
-    it spans are tested, every (ellipse, pixel) pair in one array pass."""
-    # Half the height of each shrunk ellipse's bounding box, and a pixel to spare.
-    span = np.hypot(geo[:, 8] * geo[:, 3], geo[:, 9] * geo[:, 2]) + 1.0
-    which, at = _row_pairs(edge_points[:, 1], geo[:, 1] - span, geo[:, 1] + span)
-    cx, cy, c, s = geo[which, :4].T
-    du = edge_points[at, 0] - cx
-    dv = edge_points[at, 1] - cy
-    xs = (c * du + s * dv) / geo[which, 8]
-    ys = (-s * du + c * dv) / geo[which, 9]
-    return np.bincount(which[xs * xs + ys * ys < 1.0], minlength=geo.shape[0]).tolist()
+def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], width: int
+                     ) -> list[int]:
+    """Per ellipse: how many edge pixels lie inside its axes less INTERIOR_MARGIN_PX (x^2 +
+    y^2 < 1 in its shrunk axes, as Ellipse.inside), the pixels (integer u, v >= 0) given by
+    their ascending row-major keys v ``width`` + u (``width`` past the largest u).
+
+    Row by row: on row v the inside is the open interval of u between the roots of the
+    quadratic x^2 + y^2 = 1, and the pixels in it are a range of the keys (two binary
+    searches); every (ellipse, row) pair in one array pass."""
+    params, sizes = [], []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        c, s = math.cos(t), math.sin(t)
+        ia = 1.0 / max(e.a - INTERIOR_MARGIN_PX, 1e-6) ** 2
+        ib = 1.0 / max(e.b - INTERIOR_MARGIN_PX, 1e-6) ** 2
+        # x^2 + y^2 = p du^2 + q du dv + r dv^2 about the centre.
+        p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
+        half = math.sqrt(p / (p * r - 0.25 * q * q))  # the rows it spans: |dv| <= half
+        first = math.ceil(e.cy - half)
+        params.append((e.cx, e.cy, p, q, r, float(first)))
+        sizes.append(max(0, math.floor(e.cy + half) - first + 1))
+    starts = np.zeros(len(sizes), np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    cx, cy, p, q, r, first = np.array(params, np.float64).T.repeat(sizes, axis=1)
+    row = first + (np.arange(int(sum(sizes))) - starts.repeat(sizes))
+    dv = row - cy
+    qdv = q * dv
+    disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+    root = np.sqrt(np.maximum(disc, 0.0))
+    # Open intervals of u, clipped to the keys' columns (an empty one where disc <= 0).
+    lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
+    hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+    hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
+    base = row * width
+    inside = keys.searchsorted(base + hi) - keys.searchsorted(base + lo, side="right")
+    if not inside.size:
+        return [0] * len(sizes)
+    # Per ellipse: the sum over its rows (none for an ellipse spanning no row).
+    counts = np.add.reduceat(np.maximum(np.append(inside, 0), 0), starts).tolist()
+    return [k if n else 0 for k, n in zip(counts, sizes, strict=True)]
 
 
 def _junction_owners(geo: NDArray[np.float64], owner: NDArray[np.int64],
