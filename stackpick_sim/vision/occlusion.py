@@ -128,10 +128,25 @@ class OcclusionEvidence:
     interior_edge_px: int
     perimeter_px: int
 
+    @classmethod
+    def of(cls, support: float, longest_gap_px: int, occluded_ends: int,
+           interior_edge_px: int, perimeter_px: int) -> OcclusionEvidence:
+        """``OcclusionEvidence(support=support, ...)`` (an equal object) at a fraction of the
+        frozen dataclass constructor's cost, as :meth:`~stackpick_sim.geometry.Ellipse.of`:
+        :func:`evidence_all` builds one per ellipse."""
+        ev = object.__new__(cls)
+        d = ev.__dict__
+        d["support"], d["longest_gap_px"], d["occluded_ends"] = (support, longest_gap_px,
+                                                                 occluded_ends)
+        d["interior_edge_px"], d["perimeter_px"] = interior_edge_px, perimeter_px
+        return ev
+
     @property
     def occluded(self) -> bool:
-        """True when any evidence says something lies on this ellipse."""
-        return bool(self.reason)
+        """True when any evidence says something lies on this ellipse (a :attr:`reason`;
+        the same tests, without writing it)."""
+        return bool(self.occluded_ends or self.support < TOP_MIN_SUPPORT
+                    or self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px)
 
     @property
     def reason(self) -> str:
@@ -226,10 +241,8 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         if ends:
             for e in _junction_owners(geo, np.array(owners), samples[ends], edge_points):
                 occluded_ends[e] += 1
-    return tuple(OcclusionEvidence(support=support_share[e], longest_gap_px=longest[e],
-                                   occluded_ends=occluded_ends[e],
-                                   interior_edge_px=interior[e], perimeter_px=sizes[e])
-                 for e in range(n_e))
+    return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
+                     sizes))
 
 
 def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int]

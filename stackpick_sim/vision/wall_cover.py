@@ -113,13 +113,12 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                 for s in unit_circle_poses(f, intrinsics)]
         covered &= _in_front(sols, pu, pv, radii, intrinsics)
     inside = np.count_nonzero(covered, axis=2)
-    share = np.zeros((n, n))
-    for k, (count, hits) in enumerate(zip(samples.tolist(), inside.tolist(), strict=True)):
-        if count >= MIN_BAND_SAMPLES:
-            i = k // 2
-            share[i] = np.maximum(share[i], [h / count for h in hits])
+    # Each solution's shares (0 for too few band points), the larger of each face's two.
+    each = np.where((samples >= MIN_BAND_SAMPLES)[:, None],
+                    inside / np.maximum(samples, 1)[:, None], 0.0)
+    share = each.reshape(n, 2, n).max(axis=1)
     np.fill_diagonal(share, 0.0)
-    return share
+    return np.asarray(share, np.float64)
 
 
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
@@ -168,5 +167,5 @@ def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
     share = covered_shares(faces, intrinsics)
     if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
         share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces])
-    return [bool(np.any((share[i] >= MIN_COVERED_SHARE) & (share[i] > share[:, i])))
-            for i in range(len(faces))]
+    under = np.any((share >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
+    return [bool(u) for u in under]
