@@ -93,7 +93,7 @@ def contact(centres: NDArray[np.float64], normals: NDArray[np.float64],
     ``pairs[:, 1]`` to body ``pairs[:, 0]`` of cylinders given by face centre (N, 3) m, inward
     unit axis (N, 3), radius (N,) m and height (N,) m, camera frame; see the module
     docstring."""
-    dirs, opposite = _directions(), _opposite(AXIS_DIRECTIONS)
+    dirs, opposite = _direction_set(coarse=False)
     sep = _separations(centres, normals, radii, heights, pairs, dirs, opposite)
     best = np.argmax(sep, axis=1)
     return sep[np.arange(len(pairs)), best], dirs[best]
@@ -110,16 +110,6 @@ def _separations(centres: NDArray[np.float64], normals: NDArray[np.float64],
                       - _support(centres[b], normals[b], radii[b], heights[b], dirs))
 
 
-@functools.lru_cache(maxsize=2)
-def _opposite(n: int) -> NDArray[np.float64]:
-    """``-_directions()`` (n = AXIS_DIRECTIONS) or ``-_coarse_directions()`` (n =
-    len(_coarse_directions())), read-only."""
-    dirs = _directions() if n == AXIS_DIRECTIONS else _coarse_directions()
-    out = -dirs
-    out.setflags(write=False)
-    return out
-
-
 #: Every this many of the separating-axis directions form the coarse set of the cost gate in
 #: :func:`rests_on`: a pair apart along one of them by more than CONTACT_GAP_M does not touch
 #: (the separation is a maximum over the directions, so a subset's is a lower bound). On the
@@ -128,12 +118,15 @@ def _opposite(n: int) -> NDArray[np.float64]:
 COARSE_EVERY = 16
 
 
-@functools.lru_cache(maxsize=1)
-def _coarse_directions() -> NDArray[np.float64]:
-    """Every COARSE_EVERY-th of :func:`_directions` (contiguous, read-only)."""
-    d = np.ascontiguousarray(_directions()[::COARSE_EVERY])
-    d.setflags(write=False)
-    return d
+@functools.lru_cache(maxsize=2)
+def _direction_set(coarse: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_directions`, or every COARSE_EVERY-th of them (contiguous), and their
+    opposites (read-only)."""
+    dirs = np.ascontiguousarray(_directions()[::COARSE_EVERY] if coarse else _directions())
+    opposite = -dirs
+    dirs.setflags(write=False)
+    opposite.setflags(write=False)
+    return dirs, opposite
 
 
 def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
@@ -171,9 +164,9 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     face_pairs = [(p, q) for p in range(len(kinds)) for q in range(p + 1, len(kinds))]
     combos = np.array([(2 * p + j, 2 * q + k) for p, q in face_pairs for j in (0, 1)
                        for k in (0, 1)], np.int64)
-    coarse = _coarse_directions()
-    apart = (_separations(centres, normals, radii, heights, combos, coarse,
-                          _opposite(len(coarse))).max(axis=1) > CONTACT_GAP_M).reshape(-1, 2, 2)
+    apart = (_separations(centres, normals, radii, heights, combos,
+                          *_direction_set(coarse=True)).max(axis=1)
+             > CONTACT_GAP_M).reshape(-1, 2, 2)
     near = [pq for pq, gap in zip(face_pairs, apart.tolist(), strict=True)
             if not all(gap[0] + gap[1])]
     if not near:

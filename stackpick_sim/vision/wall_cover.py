@@ -67,7 +67,8 @@ def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics
     Each face's bands are computed once (the faces not yet seen in one array pass) and kept:
     the cover test runs a second time with the radii, and the rest test
     (:mod:`~stackpick_sim.vision.resting`) reads the same bands' first depths."""
-    missing = [f for f in dict.fromkeys(faces) if (f, intrinsics) not in _BANDS]
+    found = {f: _BANDS.get((f, intrinsics)) for f in faces}
+    missing = [f for f, bands in found.items() if bands is None]
     if missing:
         sols = [(s.normal_cam, s.centre_cam) for f in missing
                 for s in unit_circle_poses(f, intrinsics)]
@@ -77,8 +78,8 @@ def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics
             _BANDS.clear()
         for i, f in enumerate(missing):
             rows = slice(2 * i, 2 * i + 2)
-            _BANDS[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
-    got = [_BANDS[(f, intrinsics)] for f in faces]
+            found[f] = _BANDS[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
+    got = [bands for f in faces if (bands := found[f]) is not None]
     return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
             np.concatenate([g[2] for g in got]))
 
