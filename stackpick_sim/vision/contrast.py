@@ -100,6 +100,10 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     return np.abs(smooth) / SOBEL_GAIN
 
 
+#: Margin (px) for the rounding of outline samples against their ellipses' bounding box.
+_BOX_MARGIN_PX = 1e-6
+
+
 @functools.lru_cache(maxsize=1024)
 def _window_table(n: int) -> NDArray[np.int64]:
     """(WINDOW_SAMPLES, n) index along an outline of n samples of each sample's window, rows
@@ -116,12 +120,14 @@ class Outlines:
     """The :func:`outline` samples of several ellipses, concatenated.
 
     ``points``, ``normals``: (N, 2) px and unit outward normals; ``offsets``: (E + 1,) int,
-    ellipse e owns samples ``offsets[e]:offsets[e + 1]``.
+    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``box``: (u_min, v_min, u_max,
+    v_max) px, the ellipses' bounding box (every sample lies in it, up to rounding).
     """
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
     offsets: NDArray[np.int64]
+    box: tuple[float, float, float, float]
 
     @functools.cached_property
     def counts(self) -> NDArray[np.int64]:
@@ -173,10 +179,16 @@ class Outlines:
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
     rows, sizes = [], []
+    u0 = v0 = math.inf
+    u1 = v1 = -math.inf
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, math.cos(t), math.sin(t)))
+        c, s = math.cos(t), math.sin(t)
+        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, c, s))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
+        hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
+        u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
+        u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
     offsets = np.zeros(len(sizes) + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
     n = int(offsets[-1])
@@ -206,7 +218,7 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     pts[1] += c_across[0]
     np.subtract(c_along[1], s_across[1], out=normals[0])
     np.add(s_along[1], c_across[1], out=normals[1])
-    return Outlines(points=pts.T, normals=normals.T, offsets=offsets)
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
@@ -227,8 +239,11 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
         else:
             np.add(pts, offset * normals, out=q[:, k])
     at = np.rint(q, out=q).astype(np.int64)
-    if (min(at[0].min(), at[1].min()) >= 0 and at[0].max() < w and at[1].max() < h):
-        # Every sample inside the image (the usual case): no clamping.
+    # Every sample inside the image (the usual case) when the outlines' box, widened by the
+    # offsets and the rounding (and a margin for the samples' own rounding), is: no clamping.
+    reach = max(abs(o) for o in NORMAL_OFFSETS_PX) + 0.5 + _BOX_MARGIN_PX
+    u0, v0, u1, v1 = lines.box
+    if u0 - reach >= 0.0 and v0 - reach >= 0.0 and u1 + reach < w - 1 and v1 + reach < h - 1:
         flat = at[1] * w + at[0]
         g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
     else:
