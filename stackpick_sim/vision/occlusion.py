@@ -207,16 +207,6 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     n_e = len(ellipses)
-    # Per ellipse: centre, cos, sin, axes, the axes less the inner margin (an occluder's
-    # pixels run into the face) and less the interior margin.
-    rows = []
-    for ellipse in ellipses:
-        t = math.radians(ellipse.angle_deg)
-        a, b = ellipse.a, ellipse.b
-        rows.append((ellipse.cx, ellipse.cy, math.cos(t), math.sin(t), a, b,
-                     max(a - MERGE_TOLERANCE_PX, 1e-6), max(b - MERGE_TOLERANCE_PX, 1e-6),
-                     max(a - INTERIOR_MARGIN_PX, 1e-6), max(b - INTERIOR_MARGIN_PX, 1e-6)))
-    geo = np.array(rows, np.float64)
     # The pixels' row-major keys v W + u (W past the largest u): any order of the pixels
     # gives the same evidence, so they are sorted when they are not in row-major order.
     width = int(edge_points[:, 0].max(initial=0.0)) + 2
@@ -239,7 +229,8 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         lasts = (unsupported & ok[lines.window[3]]).nonzero()[0].tolist()  # sample after: ok
         ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest)
         if ends:
-            for e in _junction_owners(geo, np.array(owners), samples[ends], edge_points):
+            for e in _junction_owners(ellipses, np.array(owners), samples[ends],
+                                      edge_points):
                 occluded_ends[e] += 1
     return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
                      sizes))
@@ -317,9 +308,9 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
     return [k if n else 0 for k, n in zip(counts, sizes, strict=True)]
 
 
-def _junction_owners(geo: NDArray[np.float64], owner: NDArray[np.int64],
+def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
                      ends: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
-    """The ellipse (``owner``, rows of :func:`evidence_all`'s ``geo``) of each gap end
+    """The ellipse (``owner``, indices into ``ellipses``) of each gap end
     (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
     ``edge_points``, in row-major order) off the ellipse (Sampson distance above
     MERGE_TOLERANCE_PX) lies within JUNCTION_RADIUS_PX of it, and one inside the outline by
@@ -334,7 +325,14 @@ def _junction_owners(geo: NDArray[np.float64], owner: NDArray[np.int64],
     if not near.size:
         return []
     end_k, at, d2 = end_k[near], at[near], d2[near]
-    cx, cy, c, s, a, b, a_in, b_in = geo[owner[end_k], :8].T
+    # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
+    # pixels run into the face); per pair, its end's ellipse's.
+    rows = []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
+                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
+    cx, cy, c, s, a, b, a_in, b_in = np.array(rows, np.float64)[owner[end_k]].T
     du = edge_points[at, 0] - cx
     dv = edge_points[at, 1] - cy
     xr, yr = c * du + s * dv, -s * du + c * dv
