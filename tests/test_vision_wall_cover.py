@@ -102,10 +102,13 @@ def test_face_bands_are_each_faces_solution_bands_in_any_order() -> None:
     other = project_circle(np.array([0.05, 0.02, 0.3]), normal_from_tilt(20.0, 40.0), 0.025, K)
     square = Ellipse(cx=60.0, cy=70.0, a=22.0, b=22.0, angle_deg=0.0)
     faces = [TILTED, other, square]
-    for order in (faces, faces[::-1], [other, other, TILTED]):
-        pu, pv, keep = face_bands(order, K)
+    cache: dict = {}
+    for order, kept in ((faces, None), (faces[::-1], cache), ([other, other, TILTED], cache),
+                        ([square, other], cache)):
+        pu, pv, keep = face_bands(order, K, kept)
         for i, face in enumerate(order):
             sols = [(s.normal_cam, s.centre_cam) for s in unit_circle_poses(face, K)]
             want = solution_bands(sols, [face, face], K, COVER_DEPTH_FRACTIONS)
             for got, expected in zip((pu, pv, keep), want, strict=True):
                 np.testing.assert_array_equal(got[2 * i:2 * i + 2], expected)
+    assert len(cache) == 3  # each face's bands computed once

@@ -60,7 +60,7 @@ from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
-from stackpick_sim.vision.wall_cover import under_another
+from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
 #: top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions and at low
@@ -555,8 +555,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev)]
+    # The candidates' wall bands, computed once for the cover and the rest tests.
+    bands: BandCache = {}
     if intrinsics is not None and len(pool) > 1:
-        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of)
+        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of, cache=bands)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or candidates
@@ -567,7 +569,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         # support alone) are above them (paper seed 404: the top's arc over a lower face of
         # its colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
-                         image, colour_of=colour_of)
+                         image, colour_of=colour_of, cache=bands)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates

@@ -42,7 +42,7 @@ from stackpick_sim.vision.wall import (
     _tan_tilt,
     face_colour,
 )
-from stackpick_sim.vision.wall_cover import COVER_DEPTH_FRACTIONS, face_bands
+from stackpick_sim.vision.wall_cover import COVER_DEPTH_FRACTIONS, BandCache, face_bands
 
 # The rest test reads the cover test's bands: the wall test's depths must be their first.
 assert COVER_DEPTH_FRACTIONS[:len(WALL_DEPTH_FRACTIONS)] == WALL_DEPTH_FRACTIONS
@@ -132,14 +132,16 @@ def _direction_set(coarse: bool) -> tuple[NDArray[np.float64], NDArray[np.float6
 def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              radius_of: Callable[[Ellipse], float | None],
              height_of: Callable[[float], float | None], image: NDArray[np.uint8], *,
-             colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None) -> list[bool]:
+             colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+             cache: BandCache | None = None) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
     either gives None takes no part. The true height matters: one 5 mm too tall flips the
     contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3).
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
-    face_colour`), when the caller keeps them."""
+    face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
+    computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`)."""
     n = len(faces)
     under = [False] * n
     kinds: list[tuple[int, float, float]] = []  # (face, radius, height) of the known kinds
@@ -174,7 +176,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     involved = sorted({p for pq in near for p in pq})
     picks: dict[int, int] = {}
     evidence = wall_evidences_of([faces[kinds[p][0]] for p in involved], intrinsics, image,
-                                 colour_of)
+                                 colour_of, cache)
     for p, bands in zip(involved, evidence, strict=True):
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
@@ -203,15 +205,15 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
 
 def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                       image: NDArray[np.uint8],
-                      colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None
-                      ) -> list[list[WallEvidence]]:
+                      colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+                      cache: BandCache | None = None) -> list[list[WallEvidence]]:
     """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
     pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
     face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
     pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
-    face_bands`: WALL_DEPTH_FRACTIONS are their first depths, depth by depth). ``colour_of``:
-    a face's colour, when the caller keeps them."""
-    pu, pv, keep = face_bands(faces, intrinsics)
+    face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
+    depth). ``colour_of``: a face's colour, when the caller keeps them."""
+    pu, pv, keep = face_bands(faces, intrinsics, cache)
     per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
     h, w = image.shape[:2]
     qu, qv = np.rint(pu[:, :per]).astype(np.int64), np.rint(pv[:, :per]).astype(np.int64)

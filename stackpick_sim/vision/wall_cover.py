@@ -50,42 +50,43 @@ COVER_MARGIN_PX = 1.0
 COVER_DEPTH_TOLERANCE_M = 0.003
 
 
-#: Faces whose bands :func:`face_bands` keeps (a frame's candidates are a few; the cache is
-#: emptied when full).
-BAND_CACHE_FACES = 64
-_BANDS: dict[tuple[Ellipse, CameraIntrinsics],
-             tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]] = {}
+#: Bands kept by :func:`face_bands` for one run of the top rule: per (face, intrinsics), its
+#: two solutions' (u, v, outside) rows.
+BandCache = dict[tuple[Ellipse, CameraIntrinsics],
+                 tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]]
 
 
-def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics
+def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+               cache: BandCache | None = None
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """:func:`~stackpick_sim.vision.wall.solution_bands` of both unit-radius pose solutions
     of each face at COVER_DEPTH_FRACTIONS: pixels u, v (2n, P) and which lie outside the
     face, rows 2i and 2i + 1 face i's (its :func:`~stackpick_sim.vision.pose.
-    unit_circle_poses` order), ellipses in the pixel frame of ``intrinsics``.
+    unit_circle_poses` order), ellipses in the pixel frame of ``intrinsics``; the faces not
+    in ``cache`` in one array pass.
 
-    Each face's bands are computed once (the faces not yet seen in one array pass) and kept:
-    the cover test runs a second time with the radii, and the rest test
-    (:mod:`~stackpick_sim.vision.resting`) reads the same bands' first depths."""
-    found = {f: _BANDS.get((f, intrinsics)) for f in faces}
+    With a ``cache`` (the caller's, for one run of the top rule) each face's bands are
+    computed once and kept there: the cover test runs a second time with the radii, and the
+    rest test (:mod:`~stackpick_sim.vision.resting`) reads the same bands' first depths."""
+    kept: BandCache = {} if cache is None else cache
+    found = {f: kept.get((f, intrinsics)) for f in faces}
     missing = [f for f, bands in found.items() if bands is None]
     if missing:
         sols = [(s.normal_cam, s.centre_cam) for f in missing
                 for s in unit_circle_poses(f, intrinsics)]
         pu, pv, keep = solution_bands(sols, [f for f in missing for _ in range(2)], intrinsics,
                                       COVER_DEPTH_FRACTIONS)
-        if len(_BANDS) + len(missing) > BAND_CACHE_FACES:
-            _BANDS.clear()
         for i, f in enumerate(missing):
             rows = slice(2 * i, 2 * i + 2)
-            found[f] = _BANDS[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
+            found[f] = kept[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
     got = [bands for f in faces if (bands := found[f]) is not None]
     return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
             np.concatenate([g[2] for g in got]))
 
 
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
-                   radii: Sequence[float | None] | None = None) -> NDArray[np.float64]:
+                   radii: Sequence[float | None] | None = None, *,
+                   cache: BandCache | None = None) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
     its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
     pixel frame of ``intrinsics``; every band and pair in one array pass.
@@ -93,10 +94,10 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0. With ``radii``
     (each face's radius, m, or None if unknown; parallel to ``faces``), a band point inside
     face j counts only where face j lies in front of it (see COVER_DEPTH_TOLERANCE_M) when
-    both radii are known.
+    both radii are known. ``cache``: :func:`face_bands`'.
     """
     n = len(faces)
-    pu, pv, keep = face_bands(faces, intrinsics)
+    pu, pv, keep = face_bands(faces, intrinsics, cache)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
     rows = []
@@ -157,16 +158,19 @@ def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -
 
 
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
-                  radius_of: Callable[[Ellipse], float | None] | None = None) -> list[bool]:
+                  radius_of: Callable[[Ellipse], float | None] | None = None, *,
+                  cache: BandCache | None = None) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
     solution), the face with the larger covered share is the one under. With ``radius_of``
     (a face's radius, m, or None if unknown), a cover must also be possible in depth (see
     COVER_DEPTH_TOLERANCE_M); that is checked only when the shares alone find one.
+    ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
     """
-    share = covered_shares(faces, intrinsics)
+    cache = {} if cache is None else cache
+    share = covered_shares(faces, intrinsics, cache=cache)
     if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
-        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces])
+        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache)
     under = np.any((share >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
     return [bool(u) for u in under]
