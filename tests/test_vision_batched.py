@@ -19,7 +19,7 @@ from stackpick_sim.vision.fitting import (
     within_pairs,
 )
 from stackpick_sim.vision.merging import MergedEllipse, merge_segments
-from stackpick_sim.vision.occlusion import evidence_all
+from stackpick_sim.vision.occlusion import INTERIOR_MARGIN_PX, OcclusionEvidence, evidence_all
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
     _along,
@@ -192,6 +192,37 @@ def test_evidence_all_matches_one_at_a_time(scene: tuple[np.ndarray, list[Ellips
     # The top face of the stack passes; the faces under it do not.
     assert not together[2].occluded and not together[3].occluded
     assert together[0].occluded and together[1].occluded
+
+
+def test_evidence_all_is_the_same_in_any_pixel_order(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    grad = edge_image(image)
+    points, _ = edge_points(grad)
+    shuffled = points[np.random.default_rng(5).permutation(points.shape[0])]
+    assert evidence_all(probes, shuffled, None, grad) == evidence_all(probes, points, None, grad)
+
+
+def test_interior_edges_are_the_pixels_inside_the_shrunk_axes(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, probes = scene
+    grad = edge_image(image)
+    points, _ = edge_points(grad)
+    # Also: an ellipse too small for its shrunk axes to span a row, and one off the image.
+    tiny = Ellipse(cx=100.3, cy=50.4, a=2.6, b=2.55, angle_deg=10.0)
+    off = Ellipse(cx=-30.0, cy=250.0, a=40.0, b=25.0, angle_deg=70.0)
+    ellipses = [*probes, tiny, off]
+    for e, ev in zip(ellipses, evidence_all(ellipses, points, None, grad), strict=True):
+        assert ev.interior_edge_px == np.count_nonzero(e.inside(points, INTERIOR_MARGIN_PX))
+
+
+def test_occlusion_evidence_of_equals_the_constructor() -> None:
+    for support, ends, inside in ((0.95, 0, 2), (0.95, 1, 0), (0.5, 0, 0), (0.95, 0, 40)):
+        made = OcclusionEvidence.of(support, 12, ends, inside, 200)
+        plain = OcclusionEvidence(support=support, longest_gap_px=12, occluded_ends=ends,
+                                  interior_edge_px=inside, perimeter_px=200)
+        assert made == plain and hash(made) == hash(plain) and repr(made) == repr(plain)
+        assert made.occluded == bool(made.reason)
 
 
 def test_neighbour_count_is_the_8_neighbour_sum() -> None:

@@ -78,7 +78,7 @@ def test_a_face_behind_a_wall_does_not_cover_it(monkeypatch: pytest.MonkeyPatch)
     frame = _chosen_top(2333)
     under = occlusion_module.under_another
     monkeypatch.setattr(occlusion_module, "under_another",
-                        lambda faces, k, radius_of=None: under(faces, k))
+                        lambda faces, k, radius_of=None, **kw: under(faces, k, **kw))
     _assert_lower_chosen(frame)
 
 

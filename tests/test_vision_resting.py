@@ -7,14 +7,17 @@ import numpy as np
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.occlusion import select_top
+from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import (
     CONTACT_GAP_M,
     MIN_REST_UP,
     UP_CAM,
     contact,
     rests_on,
+    wall_evidences_of,
 )
 from stackpick_sim.vision.synthetic import render_cylinders
+from stackpick_sim.vision.wall import face_colour, wall_evidences
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 ORANGE, BLUE = (217, 153, 64), (77, 153, 217)  # the paper scene's large and small kinds
@@ -113,3 +116,36 @@ def test_face_seen_square_on_takes_the_smaller_tilt_and_can_be_leaned_on() -> No
     choice = select_top(faces, edge_image(image), K, lambda e: 0.025, image=image,
                         height_of=_height_of)
     assert choice.index == 1, choice.evidence
+
+
+def test_wall_evidences_of_all_faces_are_each_faces_wall_evidences() -> None:
+    image, large, small = _lean_frame()
+    apart = Ellipse(cx=60.0, cy=200.0, a=20.0, b=14.0, angle_deg=30.0)  # on the belt
+    faces = [large, small, apart]
+    together = wall_evidences_of(faces, K, image)
+    for face, got in zip(faces, together, strict=True):
+        unit = unit_circle_poses(face, K)
+        assert got == wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], face, K,
+                                     image, face_colour(face, image))
+    # The colours the caller keeps give the same evidence.
+    assert wall_evidences_of(faces, K, image, lambda e: face_colour(e, image)) == together
+
+
+def test_faces_apart_whichever_their_solutions_are_not_tested_further() -> None:
+    image, large, small = _lean_frame()
+    far = Ellipse(cx=290.0, cy=210.0, a=18.0, b=15.0, angle_deg=0.0)  # a corner of the frame
+    asked: list[Ellipse] = []
+
+    def colour_of(e: Ellipse) -> np.ndarray:
+        asked.append(e)
+        return face_colour(e, image)
+
+    # The lean is still found with a third face far from both; only the touching pair's
+    # faces have their wall bands read.
+    assert rests_on([large, small, far], K, _radius_of, _height_of, image,
+                    colour_of=colour_of) == [True, False, False]
+    assert far not in asked
+    asked.clear()
+    assert rests_on([large, far], K, _radius_of, _height_of, image,
+                    colour_of=colour_of) == [False, False]
+    assert not asked

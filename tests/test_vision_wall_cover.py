@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
-from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses
+from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses, unit_circle_poses
 from stackpick_sim.vision.wall import band_points, solution_band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
     COVER_DEPTH_FRACTIONS,
@@ -14,6 +14,7 @@ from stackpick_sim.vision.wall_cover import (
     MIN_COVERED_SHARE,
     covered_share,
     covered_shares,
+    face_bands,
     under_another,
 )
 
@@ -95,3 +96,19 @@ def test_a_face_covers_a_wall_only_from_in_front(over_radius_m: float, under: bo
     assert (shares[0, 1] >= MIN_COVERED_SHARE) == under
     # An unknown radius leaves the image test as it was.
     assert under_another([TILTED, over], K, {TILTED: 0.035}.get) == [True, False]
+
+
+def test_face_bands_are_each_faces_solution_bands_in_any_order() -> None:
+    other = project_circle(np.array([0.05, 0.02, 0.3]), normal_from_tilt(20.0, 40.0), 0.025, K)
+    square = Ellipse(cx=60.0, cy=70.0, a=22.0, b=22.0, angle_deg=0.0)
+    faces = [TILTED, other, square]
+    cache: dict = {}
+    for order, kept in ((faces, None), (faces[::-1], cache), ([other, other, TILTED], cache),
+                        ([square, other], cache)):
+        pu, pv, keep = face_bands(order, K, kept)
+        for i, face in enumerate(order):
+            sols = [(s.normal_cam, s.centre_cam) for s in unit_circle_poses(face, K)]
+            want = solution_bands(sols, [face, face], K, COVER_DEPTH_FRACTIONS)
+            for got, expected in zip((pu, pv, keep), want, strict=True):
+                np.testing.assert_array_equal(got[2 * i:2 * i + 2], expected)
+    assert len(cache) == 3  # each face's bands computed once

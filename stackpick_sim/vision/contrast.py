@@ -100,30 +100,65 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     return np.abs(smooth) / SOBEL_GAIN
 
 
+#: Margin (px) for the rounding of outline samples against their ellipses' bounding box.
+_BOX_MARGIN_PX = 1e-6
+
+
+@functools.lru_cache(maxsize=1024)
+def _window_table(n: int) -> NDArray[np.int64]:
+    """(WINDOW_SAMPLES, n) index along an outline of n samples of each sample's window, rows
+    as :attr:`Outlines.window`'s (read-only; cached like :func:`unit_circle`)."""
+    half = WINDOW_SAMPLES // 2
+    shifts = np.array([0, *range(-half, 0), *range(1, half + 1)], np.int64)
+    table = (np.arange(n, dtype=np.int64) + shifts[:, None]) % n
+    table.setflags(write=False)
+    return table
+
+
 @dataclass(frozen=True, kw_only=True)
 class Outlines:
     """The :func:`outline` samples of several ellipses, concatenated.
 
     ``points``, ``normals``: (N, 2) px and unit outward normals; ``offsets``: (E + 1,) int,
-    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``owner``: (N,) ellipse index of
-    each sample; ``local``: (N,) its index along its own outline.
+    ellipse e owns samples ``offsets[e]:offsets[e + 1]``; ``box``: (u_min, v_min, u_max,
+    v_max) px, the ellipses' bounding box (every sample lies in it, up to rounding).
     """
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
     offsets: NDArray[np.int64]
-    owner: NDArray[np.int64]
-    local: NDArray[np.int64]
+    box: tuple[float, float, float, float]
 
     @functools.cached_property
     def counts(self) -> NDArray[np.int64]:
         """(E,) samples per ellipse."""
-        return np.diff(self.offsets)
+        return np.asarray(self.offsets[1:] - self.offsets[:-1], np.int64)
+
+    @functools.cached_property
+    def owner(self) -> NDArray[np.int64]:
+        """(N,) ellipse index of each sample."""
+        return np.arange(self.counts.size, dtype=np.int64).repeat(self.counts)
+
+    @functools.cached_property
+    def local(self) -> NDArray[np.int64]:
+        """(N,) each sample's index along its own outline."""
+        return np.arange(int(self.offsets[-1]), dtype=np.int64) - self.offsets[self.owner]
 
     @functools.cached_property
     def _starts_and_counts(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """(N,) first sample and sample count of each sample's own outline."""
         return self.offsets[self.owner], self.counts[self.owner]
+
+    @functools.cached_property
+    def window(self) -> NDArray[np.int64]:
+        """(WINDOW_SAMPLES, N) index of the samples of each sample's window along its own
+        outline: row 0 the sample itself, then the shifts -W//2 .. -1, 1 .. W//2 (for W =
+        WINDOW_SAMPLES) in that order (the order of a running sum)."""
+        counts = self.counts
+        tables = [_window_table(n) for n in counts.tolist()]
+        if not tables:
+            return np.zeros((WINDOW_SAMPLES, 0), np.int64)
+        return np.concatenate(tables, axis=1) + self.offsets[:-1].repeat(counts)
 
     def cyclic(self, shift: int) -> NDArray[np.int64]:
         """(N,) index of the sample ``shift`` steps further along each sample's own outline."""
@@ -132,7 +167,7 @@ class Outlines:
             starts, each = self._starts_and_counts
             return np.asarray(starts + (self.local + shift) % each, np.int64)
         # Every sample but the |shift| at an outline's end (start) moves by shift; those wrap.
-        index = np.arange(self.local.shape[0], dtype=np.int64) + shift
+        index = np.arange(int(self.offsets[-1]), dtype=np.int64) + shift
         for j in range(abs(shift)):
             if shift > 0:
                 index[self.offsets[1:] - 1 - j] -= counts
@@ -144,55 +179,80 @@ class Outlines:
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
     rows, sizes = [], []
+    u0 = v0 = math.inf
+    u1 = v1 = -math.inf
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
+        c, s = math.cos(t), math.sin(t)
+        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, c, s))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
-    counts = np.array(sizes, np.int64)
+        hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
+        u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
+        u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
     offsets = np.zeros(len(sizes) + 1, np.int64)
-    offsets[1:] = counts.cumsum()
-    owner = np.arange(len(sizes)).repeat(counts)
-    local = np.arange(int(offsets[-1])) - offsets[:-1].repeat(counts)
+    np.cumsum(sizes, out=offsets[1:])
+    n = int(offsets[-1])
     # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
-    cx, cy, a, b, c, s = np.array(rows, np.float64).reshape(-1, 6).T.repeat(counts, axis=1)
-    tables = [unit_circle(n) for n in sizes]
-    ct = np.concatenate([t[0] for t in tables])
-    st = np.concatenate([t[1] for t in tables])
-    x, y = a * ct, b * st
+    params = np.array(rows, np.float64).reshape(-1, 8).T.repeat(sizes, axis=1)
+    cx, cy, c, s = params[0], params[1], params[6], params[7]
+    trig = np.empty((2, n))  # cos t, sin t of every sample
+    tables = [unit_circle(k) for k in sizes]
+    np.concatenate([t[0] for t in tables], out=trig[0])
+    np.concatenate([t[1] for t in tables], out=trig[1])
+    # Rows x = a cos t and its normal's nx = b cos t; y = b sin t and ny = a sin t (the
+    # gradient of the implicit form, scaled by a b), the normal then made unit.
+    along = params[2:4] * trig[0]
+    across = params[4:6] * trig[1]
+    norm = np.hypot(along[1], across[1])
+    along[1] /= norm
+    across[1] /= norm
     # Points and normals as (N, 2) views of (2, N) arrays: contiguous columns, the same
     # values as outline's cx + c x - s y etc.
-    pts = np.empty((2, x.shape[0]))
-    np.add(cx, c * x, out=pts[0])
-    pts[0] -= s * y
-    np.add(cy, s * x, out=pts[1])
-    pts[1] += c * y
-    nx, ny = b * ct, a * st
-    norm = np.hypot(nx, ny)
-    nx /= norm
-    ny /= norm
-    normals = np.empty((2, x.shape[0]))
-    np.multiply(c, nx, out=normals[0])
-    normals[0] -= s * ny
-    np.multiply(s, nx, out=normals[1])
-    normals[1] += c * ny
-    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, owner=owner, local=local)
+    c_along, s_across = c * along, s * across
+    s_along, c_across = s * along, c * across
+    pts = np.empty((2, n))
+    normals = np.empty((2, n))
+    np.add(cx, c_along[0], out=pts[0])
+    pts[0] -= s_across[0]
+    np.add(cy, s_along[0], out=pts[1])
+    pts[1] += c_across[0]
+    np.subtract(c_along[1], s_across[1], out=normals[0])
+    np.add(s_along[1], c_across[1], out=normals[1])
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
-    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass."""
-    pu, pv = lines.points[:, 0], lines.points[:, 1]
-    nu, nv = lines.normals[:, 0], lines.normals[:, 1]
+    """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass (the same
+    values: every offset of every sample read in one gather, the window summed from
+    :attr:`Outlines.window`)."""
     h, w = image.gx.shape
-    offsets = np.array(NORMAL_OFFSETS_PX)[:, None]
-    qu = np.rint(pu + offsets * nu).astype(np.int64)  # (k, n)
-    qv = np.rint(pv + offsets * nv).astype(np.int64)
-    u = np.minimum(np.maximum(qu, 0), w - 1)
-    v = np.minimum(np.maximum(qv, 0), h - 1)
-    inside = (u == qu) & (v == qv)
-    flat = v * w + u
-    g = image.gx.ravel()[flat] * nu + image.gy.ravel()[flat] * nv
-    g = np.where(inside, g, 0.0)
-    # The strongest offset per sample (the first of equals, as argmax over the offsets).
+    pts, normals = lines.points.T, lines.normals.T  # (2, N) each: u, v rows
+    n = pts.shape[1]
+    # (2, k, N): u and v of every sample at every offset across its outline (p + o n, as
+    # contrast_profile's, written as sums and differences for the offsets -1, 0, 1).
+    q = np.empty((2, len(NORMAL_OFFSETS_PX), n))
+    for k, offset in enumerate(NORMAL_OFFSETS_PX):
+        if offset == 0.0:
+            q[:, k] = pts
+        elif abs(offset) == 1.0:
+            (np.add if offset > 0 else np.subtract)(pts, normals, out=q[:, k])
+        else:
+            np.add(pts, offset * normals, out=q[:, k])
+    at = np.rint(q, out=q).astype(np.int64)
+    # Every sample inside the image (the usual case) when the outlines' box, widened by the
+    # offsets and the rounding (and a margin for the samples' own rounding), is: no clamping.
+    reach = max(abs(o) for o in NORMAL_OFFSETS_PX) + 0.5 + _BOX_MARGIN_PX
+    u0, v0, u1, v1 = lines.box
+    if u0 - reach >= 0.0 and v0 - reach >= 0.0 and u1 + reach < w - 1 and v1 + reach < h - 1:
+        flat = at[1] * w + at[0]
+        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
+    else:
+        u = np.minimum(np.maximum(at[0], 0), w - 1)
+        v = np.minimum(np.maximum(at[1], 0), h - 1)
+        flat = v * w + u
+        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
+        g = np.where((u == at[0]) & (v == at[1]), g, 0.0)
+    # The strongest offset per sample (the first of equals, as a running strict maximum).
     mag = np.abs(g)
     best, top = g[0], mag[0]
     for k in range(1, g.shape[0]):
@@ -200,12 +260,9 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
         best = np.where(better, g[k], best)
         if k + 1 < g.shape[0]:
             top = np.maximum(top, mag[k])
-    k = WINDOW_SAMPLES
-    total = best.copy()
-    for shift in range(-(k // 2), k // 2 + 1):
-        if shift:
-            total += best[lines.cyclic(shift)]
-    return np.asarray(np.abs(total / k) / SOBEL_GAIN, np.float64)
+    # The window's sum in the order of a running sum from the sample itself (row by row).
+    total = best[lines.window].sum(axis=0)
+    return np.asarray(np.abs(total / WINDOW_SAMPLES) / SOBEL_GAIN, np.float64)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

@@ -268,12 +268,16 @@ class TopObjectDetector:
         # Built directly: dataclasses.replace costs several times the constructor.
         k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
                                   height=k.height)
-        radius_of = (None if self.config.kind_colours is None else
-                     radius_by_colour(work, self.config.radii_m, self.config.kind_colours))
         rgb = work if work.ndim == 3 else None
+        # Each candidate's face colour once, for its radius and the rest test's wall bands.
+        colour_of = None if rgb is None else face_colours(rgb)
+        radius_of = (None if self.config.kind_colours is None else
+                     radius_by_colour(work, self.config.radii_m, self.config.kind_colours,
+                                      colour_of))
         height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                            edge_points=points, image=rgb, height_of=height_of)
+                            edge_points=points, image=rgb, height_of=height_of,
+                            colour_of=colour_of)
         if (choice.index is not None and radius_of is not None and height_of is not None
                 and rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
@@ -297,7 +301,8 @@ class TopObjectDetector:
                                                         gate)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                    edge_points=points, image=rgb, height_of=height_of)
+                                    edge_points=points, image=rgb, height_of=height_of,
+                                    colour_of=colour_of)
             if retried and choice.index is not None and radius_of is not None:
                 # A face clearly nearer than such a refit is above it (development frame 3791
                 # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
@@ -397,23 +402,41 @@ def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]
 
 
 def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
-                     colours: tuple[tuple[float, float, float], ...]
+                     colours: tuple[tuple[float, float, float], ...],
+                     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None
                      ) -> Callable[[Ellipse], float | None] | None:
     """Ellipse -> radius (of ``radii``) of the object kind whose colour (``colours``, RGB 0-1,
     parallel to ``radii``) is nearest in chromaticity to the face's colour in the (H, W, 3)
-    RGB ``image`` the ellipse is given in; None for a gray image."""
+    RGB ``image`` the ellipse is given in; None for a gray image. ``colour_of``: the
+    :func:`face_colours` of ``image`` when the caller has it."""
     if image.ndim != 3:
         return None
     chroma = _chromaticities(colours)
+    colour = face_colours(image) if colour_of is None else colour_of
     # The top rule asks for a face's radius several times (rest test, depth test).
     known: dict[Ellipse, float | None] = {}
 
     def radius_of(ellipse: Ellipse) -> float | None:
         if ellipse not in known:
-            known[ellipse] = _nearest_kind(face_colour(ellipse, image), chroma, radii)
+            known[ellipse] = _nearest_kind(colour(ellipse), chroma, radii)
         return known[ellipse]
 
     return radius_of
+
+
+def face_colours(image: NDArray[np.uint8]) -> Callable[[Ellipse], NDArray[np.float64]]:
+    """Ellipse -> its face's (3,) colour in the (H, W, 3) RGB ``image`` (:func:`~stackpick_sim.
+    vision.wall.face_colour`; the array is shared: not to be modified), each face's once (its
+    radius and the rest test's wall bands both read it)."""
+    known: dict[Ellipse, NDArray[np.float64]] = {}
+
+    def colour_of(ellipse: Ellipse) -> NDArray[np.float64]:
+        colour = known.get(ellipse)
+        if colour is None:
+            colour = known[ellipse] = face_colour(ellipse, image)
+        return colour
+
+    return colour_of
 
 
 def _chromaticities(colours: tuple[tuple[float, float, float], ...]

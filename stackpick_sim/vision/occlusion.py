@@ -40,6 +40,7 @@ ellipses.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -59,7 +60,7 @@ from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
-from stackpick_sim.vision.wall_cover import under_another
+from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
 #: top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions and at low
@@ -127,10 +128,25 @@ class OcclusionEvidence:
     interior_edge_px: int
     perimeter_px: int
 
+    @classmethod
+    def of(cls, support: float, longest_gap_px: int, occluded_ends: int,
+           interior_edge_px: int, perimeter_px: int) -> OcclusionEvidence:
+        """``OcclusionEvidence(support=support, ...)`` (an equal object) at a fraction of the
+        frozen dataclass constructor's cost, as :meth:`~stackpick_sim.geometry.Ellipse.of`:
+        :func:`evidence_all` builds one per ellipse."""
+        ev = object.__new__(cls)
+        d = ev.__dict__
+        d["support"], d["longest_gap_px"], d["occluded_ends"] = (support, longest_gap_px,
+                                                                 occluded_ends)
+        d["interior_edge_px"], d["perimeter_px"] = interior_edge_px, perimeter_px
+        return ev
+
     @property
     def occluded(self) -> bool:
-        """True when any evidence says something lies on this ellipse."""
-        return bool(self.reason)
+        """True when any evidence says something lies on this ellipse (a :attr:`reason`;
+        the same tests, without writing it)."""
+        return bool(self.occluded_ends or self.support < TOP_MIN_SUPPORT
+                    or self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px)
 
     @property
     def reason(self) -> str:
@@ -167,13 +183,15 @@ def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
 def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                  support: NDArray[np.uint8] | None, gradients: EdgeImage | None = None
                  ) -> tuple[OcclusionEvidence, ...]:
-    """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) and the
+    """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) (integer
+    pixel coordinates, any order; row-major order, np.nonzero's, spares a sort) and the
     (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX; unused with ``gradients``).
 
     With ``gradients`` the circumference's support is read from the consistent edge contrast
     (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
-    All ellipses are handled together: their outlines are one array, and the edge pixels
-    near each (its bounding square) are (ellipse, pixel) pairs of one array.
+    All ellipses are handled together: their outlines are one array, the interior edges are
+    counted row by row (:func:`_interior_counts`), and the pixels near the gap ends are
+    (end, pixel) pairs of one array.
     """
     if not ellipses:
         return ()
@@ -189,84 +207,157 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     n_e = len(ellipses)
-    # Per ellipse: centre, reach, then per pair: cos, sin, axes and the axes less the inner
-    # and interior margins (as the pairs' arithmetic had them).
+    # The pixels' row-major keys v W + u (W past the largest u): any order of the pixels
+    # gives the same evidence, so they are sorted when they are not in row-major order.
+    width = int(edge_points[:, 0].max(initial=0.0)) + 2
+    keys = edge_points[:, 1] * width + edge_points[:, 0]
+    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
+        order = np.argsort(keys, kind="stable")
+        edge_points, keys = edge_points[order], keys[order]
+    interior = _interior_counts(ellipses, keys, width)
+    counts = lines.counts
+    support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
+    # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
+    # frame: paired on Python ints).
+    unsupported = ~ok
+    firsts = (unsupported & ok[lines.window[2]]).nonzero()[0].tolist()  # sample before: ok
+    sizes = counts.tolist()
+    longest = [0 if supported else n
+               for supported, n in zip(ok[lines.offsets[:-1]].tolist(), sizes, strict=True)]
+    occluded_ends = [0] * n_e
+    if firsts:
+        lasts = (unsupported & ok[lines.window[3]]).nonzero()[0].tolist()  # sample after: ok
+        ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest)
+        if ends:
+            for e in _junction_owners(ellipses, np.array(owners), samples[ends],
+                                      edge_points):
+                occluded_ends[e] += 1
+    return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
+                     sizes))
+
+
+def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int]
+              ) -> tuple[list[int], list[int]]:
+    """The supported samples at the ends of the gaps (runs of unsupported samples of at
+    least MIN_GAP_PX along their outline, cyclic) and each one's outline, given every run's
+    first and last samples (``firsts``, ``lasts``: ascending global sample indices) and the
+    outlines' sample ``offsets`` (E + 1); ``longest`` (per outline) is raised to the longest
+    run of each outline with runs."""
+    ends: list[int] = []
+    owners: list[int] = []
+    runs: dict[int, int] = {}
+    for first in firsts:
+        e = bisect.bisect_right(offsets, first) - 1
+        start, stop = offsets[e], offsets[e + 1]
+        # The run's last sample: the first last at or after its first in its outline, else
+        # (the run wraps round the outline's start) the outline's first last.
+        j = bisect.bisect_left(lasts, first)
+        last = (lasts[j] if j < len(lasts) and lasts[j] < stop
+                else lasts[bisect.bisect_left(lasts, start)])
+        length = (last - first) % (stop - start) + 1
+        if length > runs.get(e, 0):
+            runs[e] = length
+        if length >= MIN_GAP_PX:
+            ends += [first - 1 if first > start else stop - 1,
+                     last + 1 if last + 1 < stop else start]
+            owners += [e, e]
+    for e, length in runs.items():
+        longest[e] = length
+    return ends, owners
+
+
+def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], width: int
+                     ) -> list[int]:
+    """Per ellipse: how many edge pixels lie inside its axes less INTERIOR_MARGIN_PX (x^2 +
+    y^2 < 1 in its shrunk axes, as Ellipse.inside), the pixels (integer u, v >= 0) given by
+    their ascending row-major keys v ``width`` + u (``width`` past the largest u).
+
+    Row by row: on row v the inside is the open interval of u between the roots of the
+    quadratic x^2 + y^2 = 1, and the pixels in it are a range of the keys (two binary
+    searches); every (ellipse, row) pair in one array pass."""
+    params, sizes = [], []
+    for e in ellipses:
+        t = math.radians(e.angle_deg)
+        c, s = math.cos(t), math.sin(t)
+        ia = 1.0 / max(e.a - INTERIOR_MARGIN_PX, 1e-6) ** 2
+        ib = 1.0 / max(e.b - INTERIOR_MARGIN_PX, 1e-6) ** 2
+        # x^2 + y^2 = p du^2 + q du dv + r dv^2 about the centre.
+        p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
+        half = math.sqrt(p / (p * r - 0.25 * q * q))  # the rows it spans: |dv| <= half
+        first = math.ceil(e.cy - half)
+        params.append((e.cx, e.cy, p, q, r, float(first)))
+        sizes.append(max(0, math.floor(e.cy + half) - first + 1))
+    starts = np.zeros(len(sizes), np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    cx, cy, p, q, r, first = np.array(params, np.float64).T.repeat(sizes, axis=1)
+    row = first + (np.arange(int(sum(sizes))) - starts.repeat(sizes))
+    dv = row - cy
+    qdv = q * dv
+    disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+    root = np.sqrt(np.maximum(disc, 0.0))
+    # Open intervals of u, clipped to the keys' columns (an empty one where disc <= 0).
+    lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
+    hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+    hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
+    base = row * width
+    inside = keys.searchsorted(base + hi) - keys.searchsorted(base + lo, side="right")
+    if not inside.size:
+        return [0] * len(sizes)
+    # Per ellipse: the sum over its rows (none for an ellipse spanning no row).
+    counts = np.add.reduceat(np.maximum(np.append(inside, 0), 0), starts).tolist()
+    return [k if n else 0 for k, n in zip(counts, sizes, strict=True)]
+
+
+def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
+                     ends: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
+    """The ellipse (``owner``, indices into ``ellipses``) of each gap end
+    (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
+    ``edge_points``, in row-major order) off the ellipse (Sampson distance above
+    MERGE_TOLERANCE_PX) lies within JUNCTION_RADIUS_PX of it, and one inside the outline by
+    more than MERGE_TOLERANCE_PX within CROSSING_REACH_PX of it. Only the pixels of the rows
+    within reach of an end are tested, all (end, pixel) pairs in one pass."""
+    reach = max(JUNCTION_RADIUS_PX, CROSSING_REACH_PX)
+    end_k, at = _row_pairs(edge_points[:, 1], ends[:, 1] - reach, ends[:, 1] + reach)
+    du_end = edge_points[at, 0] - ends[end_k, 0]
+    dv_end = edge_points[at, 1] - ends[end_k, 1]
+    d2 = du_end * du_end + dv_end * dv_end
+    near = (d2 <= reach ** 2).nonzero()[0]
+    if not near.size:
+        return []
+    end_k, at, d2 = end_k[near], at[near], d2[near]
+    # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
+    # pixels run into the face); per pair, its end's ellipse's.
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a + JUNCTION_RADIUS_PX + 1, math.cos(t), math.sin(t), e.a,
-                     e.b, max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6),
-                     max(e.a - INTERIOR_MARGIN_PX, 1e-6), max(e.b - INTERIOR_MARGIN_PX, 1e-6)))
-    geo = np.array(rows, np.float64)
-    cx, cy, reach = geo[:, 0:1], geo[:, 1:2], geo[:, 2:3]
-    du = edge_points[:, 0] - cx
-    dv = edge_points[:, 1] - cy
-    pe, pm = ((np.abs(du) <= reach) & (np.abs(dv) <= reach)).nonzero()  # local pairs
-    at = pe * edge_points.shape[0] + pm
-    pdu, pdv = du.ravel()[at], dv.ravel()[at]
-    # The pairs run ellipse by ellipse: each ellipse's parameters repeated per pair.
-    per = np.bincount(pe, minlength=n_e)
-    pc, ps, pa, pb, a_in, b_in, a_int, b_int = geo.T[3:].repeat(per, axis=1)
-    xr, yr = pc * pdu + ps * pdv, -ps * pdu + pc * pdv
-    x, y = xr / pa, yr / pb
+        rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
+                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
+    cx, cy, c, s, a, b, a_in, b_in = np.array(rows, np.float64)[owner[end_k]].T
+    du = edge_points[at, 0] - cx
+    dv = edge_points[at, 1] - cy
+    xr, yr = c * du + s * dv, -s * du + c * dv
+    x, y = xr / a, yr / b
     # Sampson distance, as fitting.distances.
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / pa) ** 2 + (y / pb) ** 2) + 1e-12)
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
     off_curve = dist > MERGE_TOLERANCE_PX
     xs, ys = xr / a_in, yr / b_in
     inner = off_curve & (xs * xs + ys * ys < 1.0)
-    xs, ys = xr / a_int, yr / b_int
-    interior = np.bincount(pe[xs * xs + ys * ys < 1.0], minlength=n_e).tolist()
-    counts = lines.counts
-    support_share = (np.bincount(lines.owner, weights=ok, minlength=n_e) / counts).tolist()
-    # Gaps: cyclic runs of unsupported samples, from their first and last samples.
-    before, after = lines.cyclic(-1), lines.cyclic(1)
-    firsts = (~ok & ok[before]).nonzero()[0]
-    lasts = (~ok & ok[after]).nonzero()[0]
-    sizes = counts.tolist()
-    offsets = lines.offsets
-    longest = [0 if ok[base] else n for base, n in zip(offsets[:-1].tolist(), sizes,
-                                                       strict=True)]
-    ends = np.zeros(0, np.int64)  # global index of a supported sample at each gap's end
-    if firsts.size:
-        # Each run's last sample: the first last at or after its first in its outline, else
-        # (the run wraps round the outline's start) the outline's first last.
-        owner = lines.owner[firsts]
-        j = lasts.searchsorted(firsts)
-        lo = lasts.searchsorted(offsets[:-1])
-        wrapped = lasts[np.minimum(j, lasts.size - 1)] >= offsets[1:][owner]
-        wrapped |= j >= lasts.size
-        stop = lasts[np.where(wrapped, lo[owner], j)]
-        lengths = (stop - firsts) % counts[owner] + 1
-        runs: dict[int, int] = {}
-        for k, length in zip(owner.tolist(), lengths.tolist(), strict=True):
-            if length > runs.get(k, 0):
-                runs[k] = length
-        for k, length in runs.items():
-            longest[k] = length
-        gap = (lengths >= MIN_GAP_PX).nonzero()[0]
-        ends = np.concatenate([before[firsts[gap]], after[stop[gap]]])
-    occluded_ends = [0] * n_e
-    off = off_curve.nonzero()[0]
-    if ends.size and off.size:
-        end_e = lines.owner[ends]
-        # Each end against the off-curve pairs of its own ellipse (a contiguous range: the
-        # pairs run ellipse by ellipse).
-        bounds = pe[off].searchsorted(np.arange(n_e + 1))
-        first, size = bounds[end_e], bounds[end_e + 1] - bounds[end_e]
-        which = np.arange(ends.size).repeat(size)
-        pick = off[np.arange(which.size) - (size.cumsum() - size - first).repeat(size)]
-        end_u, end_v = samples[ends, 0][which], samples[ends, 1][which]
-        at_m = pm[pick]
-        d2 = (edge_points[at_m, 0] - end_u) ** 2 + (edge_points[at_m, 1] - end_v) ** 2
-        junction = np.bincount(which[d2 <= JUNCTION_RADIUS_PX ** 2], minlength=ends.size)
-        crossing = np.bincount(which[inner[pick] & (d2 <= CROSSING_REACH_PX ** 2)],
-                               minlength=ends.size)
-        for e in end_e[(junction > 0) & (crossing > 0)].tolist():
-            occluded_ends[e] += 1
-    return tuple(OcclusionEvidence(support=support_share[e], longest_gap_px=longest[e],
-                                   occluded_ends=occluded_ends[e],
-                                   interior_edge_px=interior[e], perimeter_px=sizes[e])
-                 for e in range(n_e))
+    junction = np.bincount(end_k[off_curve & (d2 <= JUNCTION_RADIUS_PX ** 2)],
+                           minlength=owner.size)
+    crossing = np.bincount(end_k[inner & (d2 <= CROSSING_REACH_PX ** 2)], minlength=owner.size)
+    return owner[(junction > 0) & (crossing > 0)].tolist()
+
+
+def _row_pairs(rows: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(query, point) index pairs of every point whose row (``rows``, (M,) ascending) lies in
+    [``low[k]``, ``high[k]``] of query k, query by query, in one array pass."""
+    start = rows.searchsorted(low)
+    size = np.maximum(rows.searchsorted(high, side="right") - start, 0)
+    query = np.arange(size.size).repeat(size)
+    # Each query's points: its start onwards (the running index less the sizes before it).
+    point = np.arange(query.size) + (start - (size.cumsum() - size)).repeat(size)
+    return query, point
 
 
 def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
@@ -420,7 +511,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
                edge_points: NDArray[np.float64] | None = None,
                image: NDArray[np.uint8] | None = None,
-               height_of: Callable[[float], float | None] | None = None) -> TopChoice:
+               height_of: Callable[[float], float | None] | None = None,
+               colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -438,7 +530,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     candidate's rests on loses to it (:mod:`stackpick_sim.vision.resting`), before the depth
     test. Returns the chosen index (else the
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
-    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already.
+    map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already;
+    ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
+    face_colour`), when the caller keeps them.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
@@ -461,8 +555,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev)]
+    # The candidates' wall bands, computed once for the cover and the rest tests.
+    bands: BandCache = {}
     if intrinsics is not None and len(pool) > 1:
-        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of)
+        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of, cache=bands)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or candidates
@@ -473,7 +569,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         # support alone) are above them (paper seed 404: the top's arc over a lower face of
         # its colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
-                         image)
+                         image, colour_of=colour_of, cache=bands)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates

@@ -32,7 +32,20 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
-from stackpick_sim.vision.wall import face_colour, wall_evidences
+from stackpick_sim.vision.wall import (
+    CHROMA_TOLERANCE,
+    MIN_RELATIVE_BRIGHTNESS,
+    WALL_BRIGHTNESS_MARGIN,
+    WALL_DEPTH_FRACTIONS,
+    WALL_RIM_POINTS,
+    WallEvidence,
+    face_colour,
+    tan_tilt,
+)
+from stackpick_sim.vision.wall_cover import COVER_DEPTH_FRACTIONS, BandCache, face_bands
+
+# The rest test reads the cover test's bands: the wall test's depths must be their first.
+assert COVER_DEPTH_FRACTIONS[:len(WALL_DEPTH_FRACTIONS)] == WALL_DEPTH_FRACTIONS
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
@@ -80,54 +93,149 @@ def contact(centres: NDArray[np.float64], normals: NDArray[np.float64],
     ``pairs[:, 1]`` to body ``pairs[:, 0]`` of cylinders given by face centre (N, 3) m, inward
     unit axis (N, 3), radius (N,) m and height (N,) m, camera frame; see the module
     docstring."""
-    dirs = _directions()
-    a, b = pairs[:, 0], pairs[:, 1]
-    sep = (-_support(centres[a], normals[a], radii[a], heights[a], -dirs)
-           - _support(centres[b], normals[b], radii[b], heights[b], dirs))
+    dirs, opposite = _direction_set(coarse=False)
+    sep = _separations(centres, normals, radii, heights, pairs, dirs, opposite)
     best = np.argmax(sep, axis=1)
     return sep[np.arange(len(pairs)), best], dirs[best]
 
 
+def _separations(centres: NDArray[np.float64], normals: NDArray[np.float64],
+                 radii: NDArray[np.float64], heights: NDArray[np.float64],
+                 pairs: NDArray[np.int64], dirs: NDArray[np.float64],
+                 opposite: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(P, D) separation of each pair's bodies (as :func:`contact`'s) along each of the
+    directions ``dirs`` (D, 3) (``opposite``: ``-dirs``)."""
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.asarray(-_support(centres[a], normals[a], radii[a], heights[a], opposite)
+                      - _support(centres[b], normals[b], radii[b], heights[b], dirs))
+
+
+#: Every this many of the separating-axis directions form the coarse set of the cost gate in
+#: :func:`rests_on`: a pair apart along one of them by more than CONTACT_GAP_M does not touch
+#: (the separation is a maximum over the directions, so a subset's is a lower bound). On the
+#: development frames 0-199 of ds_paper_dev3 this rules out 62 of 114 candidate face pairs
+#: whichever their pose solutions, and every pair of 44 of the 87 calls.
+COARSE_EVERY = 16
+
+
+@functools.lru_cache(maxsize=2)
+def _direction_set(coarse: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_directions`, or every COARSE_EVERY-th of them (contiguous), and their
+    opposites (read-only)."""
+    dirs = np.ascontiguousarray(_directions()[::COARSE_EVERY] if coarse else _directions())
+    opposite = -dirs
+    dirs.setflags(write=False)
+    opposite.setflags(write=False)
+    return dirs, opposite
+
+
 def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              radius_of: Callable[[Ellipse], float | None],
-             height_of: Callable[[float], float | None], image: NDArray[np.uint8]
-             ) -> list[bool]:
+             height_of: Callable[[float], float | None], image: NDArray[np.uint8], *,
+             colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+             cache: BandCache | None = None) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
     either gives None takes no part. The true height matters: one 5 mm too tall flips the
-    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3)."""
+    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3).
+    ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
+    face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
+    computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`)."""
     n = len(faces)
     under = [False] * n
-    bodies: list[tuple[int, NDArray[np.float64], NDArray[np.float64], float, float]] = []
+    kinds: list[tuple[int, float, float]] = []  # (face, radius, height) of the known kinds
     for i, face in enumerate(faces):
         radius = radius_of(face)
         height = None if radius is None else height_of(radius)
-        if radius is None or height is None:
-            continue
-        unit = unit_circle_poses(face, intrinsics)
-        bands = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], face, intrinsics,
-                               image, face_colour(face, image))
+        if radius is not None and height is not None:
+            kinds.append((i, radius, height))
+    if len(kinds) < 2:
+        return under
+    # Both pose solutions' bodies of each face (rows 2p, 2p + 1: face kinds[p]'s).
+    units = [unit_circle_poses(faces[i], intrinsics) for i, _, _ in kinds]
+    centres = np.array([s.centre_cam * radius for (_, radius, _), unit in zip(kinds, units,
+                                                                              strict=True)
+                        for s in unit])
+    normals = np.array([s.normal_cam for unit in units for s in unit])
+    radii = np.array([radius for _, radius, _ in kinds for _ in range(2)])
+    heights = np.array([height for _, _, height in kinds for _ in range(2)])
+    # Cost gate, before the wall bands choose the solutions: a pair of faces apart along one
+    # of the coarse directions whichever their solutions (all four combinations) does not
+    # touch (about half the development frames' calls have no other pair).
+    face_pairs = [(p, q) for p in range(len(kinds)) for q in range(p + 1, len(kinds))]
+    combos = np.array([(2 * p + j, 2 * q + k) for p, q in face_pairs for j in (0, 1)
+                       for k in (0, 1)], np.int64)
+    apart = (_separations(centres, normals, radii, heights, combos,
+                          *_direction_set(coarse=True)).max(axis=1)
+             > CONTACT_GAP_M).reshape(-1, 2, 2)
+    near = [pq for pq, gap in zip(face_pairs, apart.tolist(), strict=True)
+            if not all(gap[0] + gap[1])]
+    if not near:
+        return under
+    involved = sorted({p for pq in near for p in pq})
+    picks: dict[int, int] = {}
+    evidence = wall_evidences_of([faces[kinds[p][0]] for p in involved], intrinsics, image,
+                                 colour_of, cache)
+    for p, bands in zip(involved, evidence, strict=True):
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
             # smaller tilt, as the pose takes (paper seed 544: a flat face leaned on).
-            pick = int(np.argmax([float(s.normal_cam[2]) for s in unit]))
+            pick = int(np.argmax([float(s.normal_cam[2]) for s in units[p]]))
         if pick is not None:
-            bodies.append((i, unit[pick].centre_cam * radius, unit[pick].normal_cam, radius,
-                           height))
-    if len(bodies) < 2:
+            picks[p] = pick
+    # The chosen solutions' pairs not already apart along the coarse directions.
+    todo = [(p, q) for p, q in near if p in picks and q in picks
+            and not apart[face_pairs.index((p, q)), picks[p], picks[q]]]
+    if not todo:
         return under
-    pairs = np.array([(p, q) for p in range(len(bodies)) for q in range(p + 1, len(bodies))],
-                     np.int64)
-    sep, normal = contact(np.array([b[1] for b in bodies]), np.array([b[2] for b in bodies]),
-                          np.array([b[3] for b in bodies]), np.array([b[4] for b in bodies]),
-                          pairs)
+    sep, normal = contact(centres, normals, radii, heights,
+                          np.array([(2 * p + picks[p], 2 * q + picks[q]) for p, q in todo],
+                                   np.int64))
     up = normal @ UP_CAM
     touching = (sep <= CONTACT_GAP_M) & (sep >= -CONTACT_PENETRATION_M)
-    for (p, q), t, u in zip(pairs.tolist(), touching.tolist(), up.tolist(), strict=True):
+    for (p, q), t, u in zip(todo, touching.tolist(), up.tolist(), strict=True):
         if t and u >= MIN_REST_UP:  # p rests on q
-            under[bodies[q][0]] = True
+            under[kinds[q][0]] = True
         elif t and u <= -MIN_REST_UP:
-            under[bodies[p][0]] = True
+            under[kinds[p][0]] = True
     return under
+
+
+def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                      image: NDArray[np.uint8],
+                      colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+                      cache: BandCache | None = None) -> list[list[WallEvidence]]:
+    """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
+    pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
+    face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
+    pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
+    face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
+    depth). ``colour_of``: a face's colour, when the caller keeps them."""
+    pu, pv, keep = face_bands(faces, intrinsics, cache)
+    per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
+    h, w = image.shape[:2]
+    qu, qv = np.rint(pu[:, :per]).astype(np.int64), np.rint(pv[:, :per]).astype(np.int64)
+    owner, at = (keep[:, :per] & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()
+    n_sol = keep.shape[0]
+    counts = np.bincount(owner, minlength=n_sol)
+    colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
+    colours = np.array([np.asarray(colour(f), np.float64).reshape(-1) for f in faces])
+    face_sums = [max(float(c.sum()), 1.0) for c in colours]
+    face_of = owner // 2
+    cols = image[qv[owner, at], qu[owner, at]].astype(np.float64)
+    cols = cols[:, None] if cols.ndim == 1 else cols
+    sums = cols.sum(axis=1)
+    hue = np.array([c / total for c, total in zip(colours, face_sums, strict=True)])
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[face_of]).sum(axis=1)
+    unit = [s for f in faces for s in unit_circle_poses(f, intrinsics)]
+    brightest = np.array([(tan_tilt(s.normal_cam, s.centre_cam) + WALL_BRIGHTNESS_MARGIN)
+                          * face_sums[k // 2] for k, s in enumerate(unit)])
+    darkest = np.array([MIN_RELATIVE_BRIGHTNESS * total for total in face_sums])
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= darkest[face_of])
+          & (sums <= brightest[owner]))
+    hits = np.bincount(owner, weights=ok, minlength=n_sol)
+    evidence = [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
+                for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
+    return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]

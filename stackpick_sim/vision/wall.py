@@ -234,7 +234,7 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     face_sum = max(float(colour.sum()), 1.0)
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    brightest = (_tan_tilt(normal_cam, centre_cam) + WALL_BRIGHTNESS_MARGIN) * face_sum
+    brightest = (tan_tilt(normal_cam, centre_cam) + WALL_BRIGHTNESS_MARGIN) * face_sum
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
           & (sums <= brightest))
     return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))
@@ -259,7 +259,7 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     cols = cols[:, None] if cols.ndim == 1 else cols
     sums = cols.sum(axis=1)
     chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    brightest = np.array([(_tan_tilt(n, c) + WALL_BRIGHTNESS_MARGIN) * face_sum
+    brightest = np.array([(tan_tilt(n, c) + WALL_BRIGHTNESS_MARGIN) * face_sum
                           for n, c in solutions])
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
           & (sums <= brightest[owner]))
@@ -268,7 +268,7 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
 
-def _tan_tilt(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]) -> float:
+def tan_tilt(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]) -> float:
     """tan of the angle between the face normal and the viewing ray to the face centre."""
     # Three-vectors: Python floats (numpy's norm and dot cost more than the arithmetic).
     c0, c1, c2 = _floats(centre_cam)

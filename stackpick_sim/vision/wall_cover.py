@@ -50,8 +50,43 @@ COVER_MARGIN_PX = 1.0
 COVER_DEPTH_TOLERANCE_M = 0.003
 
 
+#: Bands kept by :func:`face_bands` for one run of the top rule: per (face, intrinsics), its
+#: two solutions' (u, v, outside) rows.
+BandCache = dict[tuple[Ellipse, CameraIntrinsics],
+                 tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]]
+
+
+def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+               cache: BandCache | None = None
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`~stackpick_sim.vision.wall.solution_bands` of both unit-radius pose solutions
+    of each face at COVER_DEPTH_FRACTIONS: pixels u, v (2n, P) and which lie outside the
+    face, rows 2i and 2i + 1 face i's (its :func:`~stackpick_sim.vision.pose.
+    unit_circle_poses` order), ellipses in the pixel frame of ``intrinsics``; the faces not
+    in ``cache`` in one array pass.
+
+    With a ``cache`` (the caller's, for one run of the top rule) each face's bands are
+    computed once and kept there: the cover test runs a second time with the radii, and the
+    rest test (:mod:`~stackpick_sim.vision.resting`) reads the same bands' first depths."""
+    kept: BandCache = {} if cache is None else cache
+    found = {f: kept.get((f, intrinsics)) for f in faces}
+    missing = [f for f, bands in found.items() if bands is None]
+    if missing:
+        sols = [(s.normal_cam, s.centre_cam) for f in missing
+                for s in unit_circle_poses(f, intrinsics)]
+        pu, pv, keep = solution_bands(sols, [f for f in missing for _ in range(2)], intrinsics,
+                                      COVER_DEPTH_FRACTIONS)
+        for i, f in enumerate(missing):
+            rows = slice(2 * i, 2 * i + 2)
+            found[f] = kept[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
+    got = [bands for f in faces if (bands := found[f]) is not None]
+    return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
+            np.concatenate([g[2] for g in got]))
+
+
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
-                   radii: Sequence[float | None] | None = None) -> NDArray[np.float64]:
+                   radii: Sequence[float | None] | None = None, *,
+                   cache: BandCache | None = None) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
     its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
     pixel frame of ``intrinsics``; every band and pair in one array pass.
@@ -59,12 +94,10 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     Solutions whose band shows fewer than MIN_BAND_SAMPLES points give 0. With ``radii``
     (each face's radius, m, or None if unknown; parallel to ``faces``), a band point inside
     face j counts only where face j lies in front of it (see COVER_DEPTH_TOLERANCE_M) when
-    both radii are known.
+    both radii are known. ``cache``: :func:`face_bands`'.
     """
     n = len(faces)
-    sols = [(s.normal_cam, s.centre_cam) for f in faces for s in unit_circle_poses(f, intrinsics)]
-    pu, pv, keep = solution_bands(sols, [f for f in faces for _ in range(2)], intrinsics,
-                                  COVER_DEPTH_FRACTIONS)
+    pu, pv, keep = face_bands(faces, intrinsics, cache)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
     rows = []
@@ -78,15 +111,16 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     y = (-s * du + c * dv) / b
     covered = (x * x + y * y < 1.0) & keep[:, None, :]
     if radii is not None:
+        sols = [(s.normal_cam, s.centre_cam) for f in faces
+                for s in unit_circle_poses(f, intrinsics)]
         covered &= _in_front(sols, pu, pv, radii, intrinsics)
     inside = np.count_nonzero(covered, axis=2)
-    share = np.zeros((n, n))
-    for k, (count, hits) in enumerate(zip(samples.tolist(), inside.tolist(), strict=True)):
-        if count >= MIN_BAND_SAMPLES:
-            i = k // 2
-            share[i] = np.maximum(share[i], [h / count for h in hits])
+    # Each solution's shares (0 for too few band points), the larger of each face's two.
+    each = np.where((samples >= MIN_BAND_SAMPLES)[:, None],
+                    inside / np.maximum(samples, 1)[:, None], 0.0)
+    share = each.reshape(n, 2, n).max(axis=1)
     np.fill_diagonal(share, 0.0)
-    return share
+    return np.asarray(share, np.float64)
 
 
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
@@ -124,16 +158,19 @@ def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -
 
 
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
-                  radius_of: Callable[[Ellipse], float | None] | None = None) -> list[bool]:
+                  radius_of: Callable[[Ellipse], float | None] | None = None, *,
+                  cache: BandCache | None = None) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
     solution), the face with the larger covered share is the one under. With ``radius_of``
     (a face's radius, m, or None if unknown), a cover must also be possible in depth (see
     COVER_DEPTH_TOLERANCE_M); that is checked only when the shares alone find one.
+    ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
     """
-    share = covered_shares(faces, intrinsics)
+    cache = {} if cache is None else cache
+    share = covered_shares(faces, intrinsics, cache=cache)
     if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
-        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces])
-    return [bool(np.any((share[i] >= MIN_COVERED_SHARE) & (share[i] > share[:, i])))
-            for i in range(len(faces))]
+        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache)
+    under = np.any((share >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
+    return [bool(u) for u in under]
