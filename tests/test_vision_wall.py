@@ -1,4 +1,5 @@
-"""Tests of the wall colour evidence, the region of interest and the sub-pixel refit."""
+"""Tests of the wall colour evidence, the pose solutions, the region of interest and the
+sub-pixel refit."""
 
 from __future__ import annotations
 
@@ -10,11 +11,18 @@ import pytest
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.edges import edge_image, unblurred_gradients
-from stackpick_sim.vision.pose import choose_by_band, circle_poses
+from stackpick_sim.vision.pose import choose_by_band, circle_poses, unit_circle_poses
 from stackpick_sim.vision.refine import edge_points, refine_on_profile, refine_subpixel, subpixel
 from stackpick_sim.vision.roi import find_roi
 from stackpick_sim.vision.synthetic import draw_ellipses, render_cylinders
-from stackpick_sim.vision.wall import WallEvidence, face_colour, wall_evidence, wall_evidences
+from stackpick_sim.vision.wall import (
+    FACE_SAMPLE_SCALE,
+    FACE_SAMPLES,
+    WallEvidence,
+    face_colour,
+    wall_evidence,
+    wall_evidences,
+)
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 
@@ -127,3 +135,43 @@ def test_wall_band_brighter_than_a_wall_can_be_is_not_wall() -> None:
     colour = np.median(image[face], axis=0)
     lit[(image.sum(axis=2) > 30) & ~face] = colour.astype(np.uint8)
     assert wall_evidence(sol.normal_cam, sol.centre_cam, ellipse, K, lit).share < 0.2
+
+
+def test_wall_evidences_match_one_at_a_time_off_the_image_edge() -> None:
+    # The same cylinder's face moved so that its bands run off the image: the one-pass form
+    # drops the same off-image samples as wall_evidence.
+    image, ellipse, _ = _cylinder((25.0, 10.0))
+    for du, dv in ((0.0, 0.0), (-150.0, 0.0), (140.0, -100.0), (0.0, 105.0)):
+        moved = Ellipse.of(ellipse.cx + du, ellipse.cy + dv, ellipse.a, ellipse.b,
+                           ellipse.angle_deg)
+        sols = unit_circle_poses(moved, K)
+        face = face_colour(ellipse, image)
+        one = [wall_evidence(s.normal_cam, s.centre_cam, moved, K, image, face) for s in sols]
+        assert wall_evidences([(s.normal_cam, s.centre_cam) for s in sols], moved, K, image,
+                              face) == one
+
+
+def test_face_colour_is_the_median_of_the_interior_samples() -> None:
+    rng = np.random.default_rng(5)
+    image = rng.integers(0, 256, (60, 80, 3), dtype=np.uint8)
+    # One well inside, one whose samples run off the top-left corner (clamped to it).
+    for ellipse in (Ellipse.of(40.3, 29.6, 20.0, 12.0, 30.0),
+                    Ellipse.of(2.0, 1.0, 30.0, 20.0, 0.0)):
+        t = np.linspace(0.0, 2.0 * np.pi, FACE_SAMPLES, endpoint=False)
+        th = math.radians(ellipse.angle_deg)
+        x = FACE_SAMPLE_SCALE * ellipse.a * np.cos(t)
+        y = FACE_SAMPLE_SCALE * ellipse.b * np.sin(t)
+        u = np.clip(np.rint(ellipse.cx + math.cos(th) * x - math.sin(th) * y), 0, 79)
+        v = np.clip(np.rint(ellipse.cy + math.sin(th) * x + math.cos(th) * y), 0, 59)
+        expected = np.median(image[v.astype(int), u.astype(int)].astype(float), axis=0)
+        np.testing.assert_array_equal(face_colour(ellipse, image), expected)
+
+
+def test_each_unit_circle_pose_images_as_the_ellipse() -> None:
+    _, ellipse, _ = _cylinder((30.0, -15.0))
+    for sol in unit_circle_poses(ellipse, K):
+        back = project_circle(sol.centre_cam, sol.normal_cam, 1.0, K)
+        assert abs(back.cx - ellipse.cx) < 1e-6 and abs(back.cy - ellipse.cy) < 1e-6
+        assert abs(back.a - ellipse.a) < 1e-6 and abs(back.b - ellipse.b) < 1e-6
+        assert abs((back.angle_deg - ellipse.angle_deg + 90.0) % 180.0 - 90.0) < 1e-6
+
