@@ -33,19 +33,14 @@ from numpy.typing import NDArray
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
 from stackpick_sim.vision.wall import (
-    CHROMA_TOLERANCE,
-    MIN_RELATIVE_BRIGHTNESS,
-    WALL_BRIGHTNESS_MARGIN,
     WALL_DEPTH_FRACTIONS,
     WALL_RIM_POINTS,
     WallEvidence,
+    band_evidences,
     face_colour,
     tan_tilt,
 )
-from stackpick_sim.vision.wall_cover import COVER_DEPTH_FRACTIONS, BandCache, face_bands
-
-# The rest test reads the cover test's bands: the wall test's depths must be their first.
-assert COVER_DEPTH_FRACTIONS[:len(WALL_DEPTH_FRACTIONS)] == WALL_DEPTH_FRACTIONS
+from stackpick_sim.vision.wall_cover import BandCache, face_bands
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
@@ -215,27 +210,10 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     depth). ``colour_of``: a face's colour, when the caller keeps them."""
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
-    h, w = image.shape[:2]
-    qu, qv = np.rint(pu[:, :per]).astype(np.int64), np.rint(pv[:, :per]).astype(np.int64)
-    owner, at = (keep[:, :per] & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()
-    n_sol = keep.shape[0]
-    counts = np.bincount(owner, minlength=n_sol)
     colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
-    colours = np.array([np.asarray(colour(f), np.float64).reshape(-1) for f in faces])
-    face_sums = [max(float(c.sum()), 1.0) for c in colours]
-    face_of = owner // 2
-    cols = image[qv[owner, at], qu[owner, at]].astype(np.float64)
-    cols = cols[:, None] if cols.ndim == 1 else cols
-    sums = cols.sum(axis=1)
-    hue = np.array([c / total for c, total in zip(colours, face_sums, strict=True)])
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[face_of]).sum(axis=1)
-    unit = [s for f in faces for s in unit_circle_poses(f, intrinsics)]
-    brightest = np.array([(tan_tilt(s.normal_cam, s.centre_cam) + WALL_BRIGHTNESS_MARGIN)
-                          * face_sums[k // 2] for k, s in enumerate(unit)])
-    darkest = np.array([MIN_RELATIVE_BRIGHTNESS * total for total in face_sums])
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= darkest[face_of])
-          & (sums <= brightest[owner]))
-    hits = np.bincount(owner, weights=ok, minlength=n_sol)
-    evidence = [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
-                for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
+    colours = np.array([np.asarray(colour(f), np.float64).reshape(-1) for f in faces
+                        for _ in range(2)])
+    tans = [tan_tilt(s.normal_cam, s.centre_cam) for f in faces
+            for s in unit_circle_poses(f, intrinsics)]
+    evidence = band_evidences(pu[:, :per], pv[:, :per], keep[:, :per], image, colours, tans)
     return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]

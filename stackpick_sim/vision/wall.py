@@ -247,21 +247,34 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
     n_sol = len(solutions)
     pu, pv, keep = solution_bands(solutions, ellipse, intrinsics)
-    per = keep.shape[0] // n_sol
+    colours = np.broadcast_to(face.reshape(1, -1), (n_sol, face.size))
+    return band_evidences(pu.reshape(n_sol, -1), pv.reshape(n_sol, -1),
+                          keep.reshape(n_sol, -1), image, colours,
+                          [tan_tilt(n, c) for n, c in solutions])
+
+
+def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
+                   image: NDArray[np.uint8], colours: NDArray[np.float64],
+                   tans: Sequence[float]) -> list[WallEvidence]:
+    """Per solution, the :func:`wall_evidence` test on band pixels already predicted: row s
+    of the (S, P) pixels ``pu``, ``pv`` and of ``keep`` (which lie outside the face) is
+    solution s's band, ``colours`` (S, C) its face's colour in the (H, W, C) or (H, W)
+    ``image`` and ``tans`` (S,) its :func:`tan_tilt`. Band pixels off the image are not
+    samples. One array pass for every solution, of one face or of several."""
+    n_sol, per = keep.shape
     h, w = image.shape[:2]
-    qu, qv = np.rint(pu).astype(np.int64), np.rint(pv).astype(np.int64)
-    take = (keep & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
+    qu, qv = np.rint(pu.ravel()).astype(np.int64), np.rint(pv.ravel()).astype(np.int64)
+    take = (keep.ravel() & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
     owner = take // per
     counts = np.bincount(owner, minlength=n_sol)
-    colour = face.reshape(-1)
-    face_sum = max(float(colour.sum()), 1.0)
+    face_sums = np.maximum(colours.sum(axis=1), 1.0)
     cols = image[qv[take], qu[take]].astype(np.float64)
     cols = cols[:, None] if cols.ndim == 1 else cols
     sums = cols.sum(axis=1)
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    brightest = np.array([(tan_tilt(n, c) + WALL_BRIGHTNESS_MARGIN) * face_sum
-                          for n, c in solutions])
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
+    hue = colours / face_sums[:, None]
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[owner]).sum(axis=1)
+    brightest = (np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN) * face_sums
+    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sums[owner])
           & (sums <= brightest[owner]))
     hits = np.bincount(owner, weights=ok, minlength=n_sol)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)

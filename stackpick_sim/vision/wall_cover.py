@@ -30,15 +30,17 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, unit_circle_poses
-from stackpick_sim.vision.wall import solution_band_points, solution_bands
+from stackpick_sim.vision.wall import WALL_DEPTH_FRACTIONS, solution_band_points, solution_bands
 
 #: A face is under another when at least this share of one solution's predicted wall band
 #: lies inside the other face. Placeholder from the development seeds 0-299.
 MIN_COVERED_SHARE = 0.15
-#: Depths along the axis (face radii) of the band checked for cover: 0.8 stays on the wall
-#: of the paper scene's squattest cylinder (height / radius = 0.86). Deeper than the colour
-#: test's band: an object resting on a wall often covers only its far part (dev seed 67).
-COVER_DEPTH_FRACTIONS: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
+#: Depths along the axis (face radii) of the band checked for cover: the colour test's
+#: (WALL_DEPTH_FRACTIONS, first: the rest test reads its bands from these) and 0.8, which
+#: stays on the wall of the paper scene's squattest cylinder (height / radius = 0.86).
+#: Deeper than the colour test's band: an object resting on a wall often covers only its
+#: far part (dev seed 67).
+COVER_DEPTH_FRACTIONS: tuple[float, ...] = (*WALL_DEPTH_FRACTIONS, 0.8)
 #: Band points must lie this far (px) inside the other ellipse: its blurred outline and the
 #: fit error are not evidence.
 COVER_MARGIN_PX = 1.0
