@@ -142,20 +142,29 @@ class OcclusionEvidence:
         return ev
 
     @property
+    def weakly_supported(self) -> bool:
+        """Edge support along less than TOP_MIN_SUPPORT of the circumference."""
+        return self.support < TOP_MIN_SUPPORT
+
+    @property
+    def edges_inside(self) -> bool:
+        """More interior edge pixels than MAX_INTERIOR_SHARE of the perimeter."""
+        return self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px
+
+    @property
     def occluded(self) -> bool:
         """True when any evidence says something lies on this ellipse (a :attr:`reason`;
         the same tests, without writing it)."""
-        return bool(self.occluded_ends or self.support < TOP_MIN_SUPPORT
-                    or self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px)
+        return bool(self.occluded_ends) or self.weakly_supported or self.edges_inside
 
     @property
     def reason(self) -> str:
         """Why the ellipse is taken as occluded; "" when it is a top candidate."""
         if self.occluded_ends:
             return f"{self.occluded_ends} edge end(s) at T-junctions"
-        if self.support < TOP_MIN_SUPPORT:
+        if self.weakly_supported:
             return f"support {self.support:.2f} < {TOP_MIN_SUPPORT}"
-        if self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px:
+        if self.edges_inside:
             return f"{self.interior_edge_px} edge px inside the face"
         return ""
 
@@ -428,8 +437,7 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
     MAX_INTERIOR_SHARE of the perimeter lie within RIM_BAND_PX of the outline (see
     RIM_BAND_PX): a whole face with its own rim inside its fit."""
     failed = [i for i, ev in enumerate(evidence)
-              if not ev.occluded_ends and ev.support >= TOP_MIN_SUPPORT
-              and ev.interior_edge_px > MAX_INTERIOR_SHARE * ev.perimeter_px]
+              if not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside]
     if not failed:
         return []
     deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, RIM_BAND_PX)
