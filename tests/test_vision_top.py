@@ -408,7 +408,7 @@ def test_object_kinds_give_colours_only_when_kinds_differ_in_colour() -> None:
 
 
 def test_deep_edge_count_on_the_spanned_rows_equals_the_full_count() -> None:
-    """deep_edge_counts' row-sliced count (edge pixels in np.nonzero order) is the count of
+    """deep_edge_counts' row-interval count (edge pixels in np.nonzero order) is the count of
     Ellipse.inside over all the pixels, exactly."""
     from stackpick_sim.vision.occlusion import deep_edge_counts
 

@@ -216,14 +216,9 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         ok = np.zeros(pix.shape[0], bool)
         ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
     n_e = len(ellipses)
-    # The pixels' row-major keys v W + u (W past the largest u): any order of the pixels
-    # gives the same evidence, so they are sorted when they are not in row-major order.
-    width = int(edge_points[:, 0].max(initial=0.0)) + 2
-    keys = edge_points[:, 1] * width + edge_points[:, 0]
-    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
-        order = np.argsort(keys, kind="stable")
-        edge_points, keys = edge_points[order], keys[order]
-    interior = _interior_counts(ellipses, keys, width)
+    # Any order of the pixels gives the same evidence: row-major, as the counts need.
+    edge_points, keys, width = _row_major(edge_points)
+    interior = _interior_counts(ellipses, keys, width, INTERIOR_MARGIN_PX)
     counts = lines.counts
     support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
@@ -275,11 +270,25 @@ def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: 
     return ends, owners
 
 
-def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], width: int
-                     ) -> list[int]:
-    """Per ellipse: how many edge pixels lie inside its axes less INTERIOR_MARGIN_PX (x^2 +
-    y^2 < 1 in its shrunk axes, as Ellipse.inside), the pixels (integer u, v >= 0) given by
-    their ascending row-major keys v ``width`` + u (``width`` past the largest u).
+def _row_major(edge_points: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """The edge pixels (M, 2) (integer u, v >= 0) in row-major order (sorted only when they
+    are not: np.nonzero's order already is), their ascending keys v W + u, and W (past the
+    largest u), as :func:`_interior_counts` takes them."""
+    width = int(edge_points[:, 0].max(initial=0.0)) + 2
+    keys = edge_points[:, 1] * width + edge_points[:, 0]
+    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
+        order = np.argsort(keys, kind="stable")
+        edge_points, keys = edge_points[order], keys[order]
+    return edge_points, keys, width
+
+
+def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], width: int,
+                     margin_px: float) -> list[int]:
+    """Per ellipse: how many edge pixels lie inside its axes less ``margin_px`` (x^2 + y^2 <
+    1 in its shrunk axes, as Ellipse.inside), the pixels (integer u, v >= 0) given by their
+    ascending row-major keys v ``width`` + u (``width`` past the largest u; see
+    :func:`_row_major`).
 
     Row by row: on row v the inside is the open interval of u between the roots of the
     quadratic x^2 + y^2 = 1, and the pixels in it are a range of the keys (two binary
@@ -288,8 +297,8 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
     for e in ellipses:
         t = math.radians(e.angle_deg)
         c, s = math.cos(t), math.sin(t)
-        ia = 1.0 / max(e.a - INTERIOR_MARGIN_PX, 1e-6) ** 2
-        ib = 1.0 / max(e.b - INTERIOR_MARGIN_PX, 1e-6) ** 2
+        ia = 1.0 / max(e.a - margin_px, 1e-6) ** 2
+        ib = 1.0 / max(e.b - margin_px, 1e-6) ** 2
         # x^2 + y^2 = p du^2 + q du dv + r dv^2 about the centre.
         p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
         half = math.sqrt(p / (p * r - 0.25 * q * q))  # the rows it spans: |dv| <= half
@@ -415,19 +424,12 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
 
 def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                      depth_px: float) -> list[int]:
-    """Per ellipse: how many edge pixels (M, 2) (u, v) lie inside it by more than
-    ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures).
-
-    ``edge_points`` in row-major order (sorted by v: np.nonzero's, as
-    :func:`~stackpick_sim.vision.refine.edge_points` gives them): only the rows an ellipse
-    spans are tested."""
-    rows = edge_points[:, 1]
-    counts = []
-    for e in ellipses:
-        reach = max(e.a, e.b)
-        lo, hi = rows.searchsorted([e.cy - reach, e.cy + reach])
-        counts.append(int(np.count_nonzero(e.inside(edge_points[lo:hi], depth_px))))
-    return counts
+    """Per ellipse: how many edge pixels (M, 2) (integer u, v >= 0) lie inside it by more
+    than ``depth_px`` (its axes shrunk by that much, as the interior-edge count measures;
+    :func:`_interior_counts`, row by row: np.nonzero's order, as
+    :func:`~stackpick_sim.vision.refine.edge_points` gives them, spares a sort)."""
+    _, keys, width = _row_major(edge_points)
+    return _interior_counts(ellipses, keys, width, depth_px)
 
 
 def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
