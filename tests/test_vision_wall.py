@@ -14,7 +14,7 @@ from stackpick_sim.vision.edges import edge_image, unblurred_gradients
 from stackpick_sim.vision.pose import choose_by_band, circle_poses, unit_circle_poses
 from stackpick_sim.vision.refine import edge_points, refine_on_profile, refine_subpixel, subpixel
 from stackpick_sim.vision.roi import find_roi
-from stackpick_sim.vision.synthetic import draw_ellipses, render_cylinders
+from stackpick_sim.vision.synthetic import BELT_GREY, draw_ellipses, render_cylinders
 from stackpick_sim.vision.wall import (
     FACE_SAMPLE_SCALE,
     FACE_SAMPLES,
@@ -49,6 +49,30 @@ def test_true_solution_band_shows_the_wall_colour(tilt: tuple[float, float]) -> 
     both = wall_evidences([(s.normal_cam, s.centre_cam) for s in sols], ellipse, K, image,
                           face_colour(ellipse, image))
     assert both == ev
+
+
+@pytest.mark.parametrize("tilt", [(30.0, 0.0), (-20.0, 15.0), (15.0, 10.0)])
+def test_grey_object_wall_told_from_the_belt_by_the_belts_colour(tilt: tuple[float, float]
+                                                                 ) -> None:
+    # A grey object has the belt's hue: both bands pass the hue test and tie. The belt's
+    # colour, read off the frame's border, rejects the wrong band's belt samples, and the
+    # detector's pose takes the true solution.
+    image, ellipse, normal = _cylinder(tilt, colour=(220, 220, 220))
+    sols = circle_poses(ellipse, K, 1.0)
+    true_i = int(np.argmax([float(s.normal_cam @ normal) for s in sols]))
+    hue_only = [wall_evidence(s.normal_cam, s.centre_cam, ellipse, K, image) for s in sols]
+    assert choose_by_band(hue_only) is None
+    belt = find_roi(image).belt
+    assert belt is not None and np.allclose(belt, BELT_GREY, atol=1.0)
+    with_belt = [wall_evidence(s.normal_cam, s.centre_cam, ellipse, K, image,
+                               belt=np.array(belt)) for s in sols]
+    assert with_belt[true_i].share > 0.8 and with_belt[1 - true_i].share < 0.2
+    assert choose_by_band(with_belt) == true_i
+    assert wall_evidences([(s.normal_cam, s.centre_cam) for s in sols], ellipse, K, image,
+                          face_colour(ellipse, image), np.array(belt)) == with_belt
+    det = detect(image, DetectorConfig(intrinsics=K, radii_m=(0.035,)))
+    assert det.pose is not None
+    assert abs(det.pose.theta_x_deg - tilt[0]) < 1.0 and abs(det.pose.theta_y_deg - tilt[1]) < 1.0
 
 
 def test_band_rule_tie_and_lone_band() -> None:

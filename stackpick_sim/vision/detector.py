@@ -269,6 +269,7 @@ class TopObjectDetector:
         k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
                                   height=k.height)
         rgb = work if work.ndim == 3 else None
+        belt = None if roi.belt is None else np.array(roi.belt)
         # Each candidate's face colour once, for its radius and the rest test's wall bands.
         colour_of = None if rgb is None else face_colours(rgb)
         radius_of = (None if self.config.kind_colours is None else
@@ -277,14 +278,14 @@ class TopObjectDetector:
         height_of = self.config.height_of()
         choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                             edge_points=points, image=rgb, height_of=height_of,
-                            colour_of=colour_of)
+                            colour_of=colour_of, belt=belt)
         if (choice.index is not None and radius_of is not None and height_of is not None
                 and rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
             # same-colour sliver beyond it (development frames 1769 of ds_paper_h1k, 2241 of
             # ds_paper_h2k, 857 of ds_paper_dev4).
             above = select_resting_rimmed([m.ellipse for m in merged], choice, grad, points,
-                                          k_crop, radius_of, height_of, rgb)
+                                          k_crop, radius_of, height_of, rgb, belt)
             if above is not None:
                 choice = replace(choice, index=above)
         spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
@@ -302,7 +303,7 @@ class TopObjectDetector:
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of,
-                                    colour_of=colour_of)
+                                    colour_of=colour_of, belt=belt)
             if retried and choice.index is not None and radius_of is not None:
                 # A face clearly nearer than such a refit is above it (development frame 3791
                 # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
@@ -363,7 +364,8 @@ class TopObjectDetector:
             pose = estimate_pose(_moved(top_ellipse, du, dv), k,
                                  self.config.radii_m if radius is None else (radius,), None,
                                  self.config.depth_range_m,
-                                 image=img if img.ndim == 3 else None, face_rgb=face)
+                                 image=img if img.ndim == 3 else None, face_rgb=face,
+                                 belt=belt)
         detection = Detection(ellipses=ellipses, segments=frame_chains, top=top, pose=pose,
                               timings_ms=timings, reason=choice.reason)
         t = lap("pose", t)

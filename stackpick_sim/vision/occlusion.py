@@ -459,8 +459,8 @@ def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
 def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges: EdgeImage,
                           edge_points: NDArray[np.float64], intrinsics: CameraIntrinsics,
                           radius_of: Callable[[Ellipse], float | None],
-                          height_of: Callable[[float], float | None], image: NDArray[np.uint8]
-                          ) -> int | None:
+                          height_of: Callable[[float], float | None], image: NDArray[np.uint8],
+                          belt: NDArray[np.float64] | None = None) -> int | None:
     """Index of a :func:`rim_only` ellipse whose object rests on the chosen face's, or None.
 
     The top rule's choice can be a whole lower face with a top face resting on it whose fit
@@ -477,7 +477,7 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     frame in fifty of the paper scene's; one in nine has a rimmed face): the fit is too large,
     so it reads nearer than its face is, and a face reading farther lies below the chosen
     one; such a lower face resting on it (a lean on its wall, below its face) is left to the
-    top rule."""
+    top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
@@ -496,7 +496,7 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     above = []
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True) or ellipses[i]
-        if rests_on([chosen, face], intrinsics, radius_of, height_of, image)[0]:
+        if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt)[0]:
             above.append(i)
     return _best_supported(above, ellipses, evidence) if above else None
 
@@ -522,7 +522,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                edge_points: NDArray[np.float64] | None = None,
                image: NDArray[np.uint8] | None = None,
                height_of: Callable[[float], float | None] | None = None,
-               colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None) -> TopChoice:
+               colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+               belt: NDArray[np.float64] | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -542,7 +543,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     best-supported unoccluded ellipse) or None with the reason. ``edge_points``: the edge
     map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already;
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
-    face_colour`), when the caller keeps them.
+    face_colour`), when the caller keeps them; ``belt``: the bare belt's colour in ``image``
+    (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands.
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
@@ -579,7 +581,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         # support alone) are above them (paper seed 404: the top's arc over a lower face of
         # its colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
-                         image, colour_of=colour_of, cache=bands)
+                         image, colour_of=colour_of, cache=bands, belt=belt)
         free = [i for i, u in zip(pool, under, strict=True) if not u]
         pool = free or pool
         candidates = [i for i in candidates if i in free] or free or candidates

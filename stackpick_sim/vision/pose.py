@@ -15,12 +15,13 @@ Only depth depends on it; the face-centre pixel and the tilt angles do not.
 **Two-fold ambiguity**: the cylinder's side wall is visible on the side its axis leans
 towards (the inward normal, projected). Given the colour image, each solution's predicted wall
 band is checked for the face's hue at a wall's brightness (:mod:`stackpick_sim.vision.wall`:
-under the ring light a wall is at most ~tan(tilt) as bright as its face): the true band shows
-the wall, the other the belt or another object, often a lower face of the same colour, which
-is as bright as the face. The solution with the clearly better band wins; a
-solution whose band is visible but not the face's colour loses. When neither predicts a
-visible band (a face seen nearly square on, where both solutions nearly coincide) the smaller
-tilt from the optical axis is taken: a face resting flat under a downward-looking camera.
+under the ring light a wall is at most ~tan(tilt) as bright as its face) and, given the belt's
+colour, for not being bare belt: the true band shows the wall, the other the belt or another
+object, often a lower face of the same colour, which is as bright as the face. The solution
+with the clearly better band wins; a solution whose band is visible but not the face's colour
+loses. When neither predicts a visible band (a face seen nearly square on, where both
+solutions nearly coincide) the smaller tilt from the optical axis is taken: a face resting
+flat under a downward-looking camera.
 Without an image, the older test is used: the two straight silhouette lines of each
 solution's wall (the hull of the face rim and a rim WALL_PROBE_RADII radii further along the
 axis) are checked against the edge map.
@@ -261,13 +262,16 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
                   support: NDArray[np.uint8] | None = None,
                   depth_range_m: tuple[float, float] | None = None, *,
                   image: NDArray[np.uint8] | None = None,
-                  face_rgb: NDArray[np.float64] | None = None) -> Pose:
+                  face_rgb: NDArray[np.float64] | None = None,
+                  belt: NDArray[np.float64] | None = None) -> Pose:
     """Pose of the face imaged as ``ellipse``; see the module docstring for the choices.
 
     ``image`` is the (H, W, 3) RGB frame used for the wall colour test (preferred);
     ``support`` the (H, W) 0/1 dilated edge map used for the edge-line wall test when no image
     is given. With neither, the smaller tilt is taken. ``face_rgb``: the face's (3,) colour in
-    ``image`` (:func:`~stackpick_sim.vision.wall.face_colour`) when the caller has it.
+    ``image`` (:func:`~stackpick_sim.vision.wall.face_colour`) when the caller has it;
+    ``belt`` the bare belt's colour in ``image`` (:attr:`~stackpick_sim.vision.roi.Roi.belt`),
+    which tells a grey object's wall from the belt.
     """
     unit = unit_circle_poses(ellipse, intrinsics)  # shared, read-only: not modified here
     radius = choose_radius(float(unit[0].centre_cam[2]), radii, depth_range_m)
@@ -277,7 +281,7 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     if image is not None:
         face = face_colour(ellipse, image) if face_rgb is None else face_rgb
         evidence = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], ellipse,
-                                  intrinsics, image, face)
+                                  intrinsics, image, face, belt)
         scores = [e.share for e in evidence]
         best = choose_by_band(evidence)
     elif support is not None:

@@ -128,7 +128,8 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              radius_of: Callable[[Ellipse], float | None],
              height_of: Callable[[float], float | None], image: NDArray[np.uint8], *,
              colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
-             cache: BandCache | None = None) -> list[bool]:
+             cache: BandCache | None = None,
+             belt: NDArray[np.float64] | None = None) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
@@ -136,7 +137,8 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3).
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
     face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
-    computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`)."""
+    computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`); ``belt``: the bare
+    belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`)."""
     n = len(faces)
     under = [False] * n
     kinds: list[tuple[int, float, float]] = []  # (face, radius, height) of the known kinds
@@ -171,7 +173,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     involved = sorted({p for pq in near for p in pq})
     picks: dict[int, int] = {}
     evidence = wall_evidences_of([faces[kinds[p][0]] for p in involved], intrinsics, image,
-                                 colour_of, cache)
+                                 colour_of, cache, belt)
     for p, bands in zip(involved, evidence, strict=True):
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
@@ -201,13 +203,15 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
 def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                       image: NDArray[np.uint8],
                       colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
-                      cache: BandCache | None = None) -> list[list[WallEvidence]]:
+                      cache: BandCache | None = None,
+                      belt: NDArray[np.float64] | None = None) -> list[list[WallEvidence]]:
     """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
     pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
     face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
     pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
     face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
-    depth). ``colour_of``: a face's colour, when the caller keeps them."""
+    depth). ``colour_of``: a face's colour, when the caller keeps them; ``belt``: the bare
+    belt's colour (C,) or None."""
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
     colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
@@ -215,5 +219,6 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                         for _ in range(2)])
     tans = [tan_tilt(s.normal_cam, s.centre_cam) for f in faces
             for s in unit_circle_poses(f, intrinsics)]
-    evidence = band_evidences(pu[:, :per], pv[:, :per], keep[:, :per], image, colours, tans)
+    evidence = band_evidences(pu[:, :per], pv[:, :per], keep[:, :per], image, colours, tans,
+                              belt)
     return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]

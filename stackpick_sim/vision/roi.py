@@ -5,7 +5,9 @@ around the pile (plus a margin) cuts every per-pixel stage in proportion, and th
 the edges never look outside it. The box is found on a DECIMATION-times smaller copy (area
 averages, taken in halving steps): a pixel is foreground when its brightest channel differs
 from the belt's (the median over the small image's border, which the pile rarely covers more
-than half of) by FOREGROUND_DELTA.
+than half of) by FOREGROUND_DELTA. The belt's colour (each channel's median over that border)
+is kept as well: the side-wall tests tell a grey object's wall from bare belt by it
+(:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
 Anything uncertain (no belt border, foreground everywhere) falls back to the whole frame.
 """
 
@@ -34,12 +36,14 @@ MARGIN_PX = 10
 
 @dataclass(frozen=True, kw_only=True)
 class Roi:
-    """A box of the frame: columns u0..u1, rows v0..v1 (end exclusive), pixels."""
+    """A box of the frame: columns u0..u1, rows v0..v1 (end exclusive), pixels, and the bare
+    belt's colour read off the frame's border (one value per channel; None when unread)."""
 
     u0: int
     v0: int
     u1: int
     v1: int
+    belt: tuple[float, ...] | None = None
 
     @property
     def offset(self) -> tuple[int, int]:
@@ -83,13 +87,16 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
         return Roi(u0=0, v0=0, u1=w, v1=h)
     border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])
     belt = float(column_median(border))
+    colour = column_median(np.concatenate([small[0], small[-1], small[1:-1, 0],
+                                           small[1:-1, -1]]))
+    belt_colour = tuple(float(c) for c in colour.reshape(-1))
     fg = cv2.absdiff(level, np.full_like(level, round(belt))) > FOREGROUND_DELTA
     # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
     bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
     if bw == 0 or bh == 0:
-        return Roi(u0=0, v0=0, u1=w, v1=h)
+        return Roi(u0=0, v0=0, u1=w, v1=h, belt=belt_colour)
     u0 = max(0, bu * DECIMATION - MARGIN_PX)
     v0 = max(0, bv * DECIMATION - MARGIN_PX)
     u1 = min(w, (bu + bw) * DECIMATION + MARGIN_PX)
     v1 = min(h, (bv + bh) * DECIMATION + MARGIN_PX)
-    return Roi(u0=u0, v0=v0, u1=u1, v1=v1)
+    return Roi(u0=u0, v0=v0, u1=u1, v1=v1, belt=belt_colour)

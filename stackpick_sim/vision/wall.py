@@ -8,7 +8,9 @@ differs: the ring light at the camera meets it obliquely, so it is darker than t
 most about tan(tilt) of it (WALL_BRIGHTNESS_MARGIN). A sample counts as wall when it has the
 face's hue at a wall's brightness. On the wrong solution's side the band falls on the grey
 belt or on another object; a lower face of the same colour passes the hue test but is about
-as bright as the face, which no wall of a face tilted < 45 deg is.
+as bright as the face, which no wall of a face tilted < 45 deg is. A grey object's wall has
+the belt's hue too: given the bare belt's colour, a sample that has it (BELT_DELTA) is not
+wall either (on the coloured objects of the paper's scenes the hue test already rejects it).
 
 The solution whose predicted band matches better resolves the two-fold tilt ambiguity
 (:mod:`stackpick_sim.vision.pose`). (Tried and dropped: calling a face whose best band is
@@ -54,6 +56,9 @@ MIN_RELATIVE_BRIGHTNESS = 0.12
 #: development seeds: true walls at <= tan(tilt) + 0.2, the same-coloured lower faces that the
 #: other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4).
 WALL_BRIGHTNESS_MARGIN = 0.3
+#: A band sample within this many grey levels of the bare belt's colour in every channel is
+#: belt, not wall (what tells them apart when the face has the belt's hue: a grey object).
+BELT_DELTA = 14.0
 #: Interior points whose median colour is the face's colour, at this share of the semi-axes.
 FACE_SAMPLE_SCALE = 0.5
 #: Interior sample count.
@@ -216,11 +221,15 @@ def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
 
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
                   ellipse: Ellipse, intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
-                  face: NDArray[np.float64] | None = None) -> WallEvidence:
+                  face: NDArray[np.float64] | None = None,
+                  belt: NDArray[np.float64] | None = None) -> WallEvidence:
     """Wall evidence of one unit-radius solution in an (H, W, 3) RGB or (H, W) gray image.
 
-    ``face`` is the face's colour if already known (see :func:`face_colour`). On a gray image
-    every sample has the face's "hue", so only the brightness floor tells belt from wall.
+    ``face`` is the face's colour if already known (see :func:`face_colour`); ``belt`` the
+    bare belt's colour (one value per channel; :attr:`~stackpick_sim.vision.roi.Roi.belt`):
+    a sample within BELT_DELTA of it is belt. On a gray image, or a grey object's, every
+    sample has the face's "hue", so only the brightness floor and the belt's colour tell
+    belt from wall.
     """
     pts = band_points(normal_cam, centre_cam, ellipse, intrinsics)
     h, w = image.shape[:2]
@@ -237,30 +246,36 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     brightest = (tan_tilt(normal_cam, centre_cam) + WALL_BRIGHTNESS_MARGIN) * face_sum
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
           & (sums <= brightest))
+    if belt is not None:
+        ok &= np.abs(cols - np.reshape(belt, (1, -1))).max(axis=1) > BELT_DELTA
     return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))
 
 
 def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
                    ellipse: Ellipse, intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
-                   face: NDArray[np.float64]) -> list[WallEvidence]:
+                   face: NDArray[np.float64], belt: NDArray[np.float64] | None = None
+                   ) -> list[WallEvidence]:
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
-    of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour."""
+    of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
+    ``belt`` the bare belt's (or None)."""
     n_sol = len(solutions)
     pu, pv, keep = solution_bands(solutions, ellipse, intrinsics)
     colours = np.broadcast_to(face.reshape(1, -1), (n_sol, face.size))
     return band_evidences(pu.reshape(n_sol, -1), pv.reshape(n_sol, -1),
                           keep.reshape(n_sol, -1), image, colours,
-                          [tan_tilt(n, c) for n, c in solutions])
+                          [tan_tilt(n, c) for n, c in solutions], belt)
 
 
 def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
                    image: NDArray[np.uint8], colours: NDArray[np.float64],
-                   tans: Sequence[float]) -> list[WallEvidence]:
+                   tans: Sequence[float], belt: NDArray[np.float64] | None = None
+                   ) -> list[WallEvidence]:
     """Per solution, the :func:`wall_evidence` test on band pixels already predicted: row s
     of the (S, P) pixels ``pu``, ``pv`` and of ``keep`` (which lie outside the face) is
     solution s's band, ``colours`` (S, C) its face's colour in the (H, W, C) or (H, W)
-    ``image`` and ``tans`` (S,) its :func:`tan_tilt`. Band pixels off the image are not
-    samples. One array pass for every solution, of one face or of several."""
+    ``image`` and ``tans`` (S,) its :func:`tan_tilt`; ``belt`` the bare belt's colour (C,)
+    or None. Band pixels off the image are not samples. One array pass for every solution,
+    of one face or of several."""
     n_sol, per = keep.shape
     h, w = image.shape[:2]
     qu, qv = np.rint(pu.ravel()).astype(np.int64), np.rint(pv.ravel()).astype(np.int64)
@@ -276,6 +291,8 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
     brightest = (np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN) * face_sums
     ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sums[owner])
           & (sums <= brightest[owner]))
+    if belt is not None:
+        ok &= np.abs(cols - np.reshape(belt, (1, -1))).max(axis=1) > BELT_DELTA
     hits = np.bincount(owner, weights=ok, minlength=n_sol)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]

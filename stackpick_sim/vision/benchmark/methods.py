@@ -40,6 +40,7 @@ from stackpick_sim.vision.detector import (
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import estimate_pose
+from stackpick_sim.vision.roi import find_roi
 
 #: Method names accepted by ``--methods``, in table order.
 METHOD_NAMES: tuple[str, ...] = ("ours", "rht", "findellipses", "edgedrawing")
@@ -92,15 +93,17 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
         radii = cfg.radii_m
         radius_of = (None if cfg.kind_colours is None
                      else radius_by_colour(rgb, radii, cfg.kind_colours))
+        belt_colour = find_roi(rgb).belt
+        belt = None if belt_colour is None else np.array(belt_colour)
         choice = select_top(ellipses, grad, frame.intrinsics, radius_of, image=rgb,
-                            height_of=cfg.height_of())
+                            height_of=cfg.height_of(), belt=belt)
         pose = None
         top = None
         if choice.index is not None:
             top = ellipses[choice.index]
             radius = None if radius_of is None else radius_of(top)
             p = estimate_pose(top, frame.intrinsics, radii if radius is None else (radius,),
-                              None, frame.depth_range_m, image=rgb)
+                              None, frame.depth_range_m, image=rgb, belt=belt)
             pose = (p.x, p.y, p.theta_x_deg, p.theta_y_deg)
         t2 = time.perf_counter()
         return MethodOutput(ellipses=ellipses, top=top, pose=pose, total_ms=(t2 - t0) * 1e3,
