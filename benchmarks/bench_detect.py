@@ -1,14 +1,14 @@
 """Reproduce the detection benchmark results in benchmarks/results/.
 
 Runs ``stackpick bench-detect`` for the held-out paper seeds (frames from a data set written by
-``stackpick dataset --scene paper --seeds 5000:6000 --out DATA``) and for the cluttered scene
+``stackpick dataset --scene paper --seeds 9000:10000 --out DATA``) and for the cluttered scene
 (frames from a data set given by --cluttered-data, else rendered in-process). Usage::
 
-    python benchmarks/bench_detect.py --paper-data /work/data/ds_paper_h5k \\
-        [--paper-seeds 5000:6000] [--cluttered-data DIR] [--cluttered-seeds 5000:5150]
+    python benchmarks/bench_detect.py --paper-data /work/data/ds_paper_h9k \\
+        [--paper-seeds 9000:10000] [--cluttered-data DIR] [--cluttered-seeds 9000:9150]
 
-Development used paper seeds 0-4999 (each thousand from 1000 on was an earlier session's
-hold-out); the reported numbers are on seeds 5000-5999 (paper) and 5000-5149 (cluttered),
+Development used paper seeds 0-6499 (each thousand from 1000 on was an earlier session's
+hold-out); the reported numbers are on seeds 9000-9999 (paper) and 9000-9149 (cluttered),
 never used in development.
 """
 
@@ -26,9 +26,9 @@ def run() -> int:
     """Run both benchmarks; return the first non-zero exit code, else 0."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--paper-data", type=Path, required=True)
-    p.add_argument("--paper-seeds", default="5000:6000")
+    p.add_argument("--paper-seeds", default="9000:10000")
     p.add_argument("--cluttered-data", type=Path, default=None)
-    p.add_argument("--cluttered-seeds", default="5000:5150")
+    p.add_argument("--cluttered-seeds", default="9000:9150")
     p.add_argument("--methods", default="ours,rht,findellipses,edgedrawing")
     args = p.parse_args()
     code = main(["bench-detect", "--data", str(args.paper_data), "--seeds", args.paper_seeds,

@@ -4,11 +4,14 @@ The belt is a uniform dark grey; the pile covers a fraction of the frame. Workin
 around the pile (plus a margin) cuts every per-pixel stage in proportion, and the stages past
 the edges never look outside it. The box is found on a DECIMATION-times smaller copy (area
 averages, taken in halving steps): a pixel is foreground when its brightest channel differs
-from the belt's (the median over the small image's border, which the pile rarely covers more
-than half of) by FOREGROUND_DELTA. The belt's colour (each channel's median over that border)
-is kept as well: the side-wall tests tell a grey object's wall from bare belt by it
-(:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
-Anything uncertain (no belt border, foreground everywhere) falls back to the whole frame.
+from the belt's by FOREGROUND_DELTA. The belt's level is the most common brightest-channel
+level of the small copy (its histogram smoothed over BELT_MODE_WINDOW levels): the belt is
+the frame's largest surface. (The median over the frame's border, used before, is taken by
+whatever lies beyond the belt's sides once the camera sees them: from 0.40 m up, the frame's
+top and bottom rows.) The belt's colour (the mean of the small copy's pixels within
+BELT_COLOUR_LEVELS of that level) is kept as well: the side-wall tests tell a grey object's
+wall from bare belt by it (:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
+Anything uncertain (a frame too small, foreground everywhere) falls back to the whole frame.
 """
 
 from __future__ import annotations
@@ -20,8 +23,6 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.vision.wall import column_median
-
 #: Side ratio of the small copy the box is found on (area averaging keeps thin walls); a
 #: power of two, reached in halving steps (see :func:`decimate`).
 DECIMATION = 4
@@ -32,6 +33,11 @@ FOREGROUND_DELTA = 14.0
 #: Margin added around the box, px: covers the decimation's rounding (DECIMATION px), the
 #: edge stage's 5x5 blur and 3x3 Sobel footprint and a dark wall rim missed by the threshold.
 MARGIN_PX = 10
+#: Levels the histogram of brightest-channel levels is smoothed over before its mode is taken:
+#: the belt spreads over ~15 levels (see FOREGROUND_DELTA), a face over a few.
+BELT_MODE_WINDOW = 9
+#: Pixels within this many levels of the belt's level give the belt's colour.
+BELT_COLOUR_LEVELS = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -77,7 +83,7 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     """The box around the non-belt pixels of a uint8 (H, W) or (H, W, 3) frame.
 
     The whole frame when no foreground is found (nothing to crop to: the later stages then
-    report the miss) or when the belt level cannot be read.
+    report the miss) or when the frame is too small to read the belt's level on.
     """
     h, w = image.shape[:2]
     small = decimate(image)
@@ -85,12 +91,8 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
              if small.ndim == 3 else small)
     if min(level.shape) < 3:
         return Roi(u0=0, v0=0, u1=w, v1=h)
-    border = np.concatenate([level[0], level[-1], level[1:-1, 0], level[1:-1, -1]])
-    belt = float(column_median(border))
-    colour = column_median(np.concatenate([small[0], small[-1], small[1:-1, 0],
-                                           small[1:-1, -1]]))
-    belt_colour = tuple(float(c) for c in colour.reshape(-1))
-    fg = cv2.absdiff(level, np.full_like(level, round(belt))) > FOREGROUND_DELTA
+    belt, belt_colour = belt_level(small, level)
+    fg = cv2.absdiff(level, np.full_like(level, belt)) > FOREGROUND_DELTA
     # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
     bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
     if bw == 0 or bh == 0:
@@ -100,3 +102,22 @@ def find_roi(image: NDArray[np.uint8]) -> Roi:
     u1 = min(w, (bu + bw) * DECIMATION + MARGIN_PX)
     v1 = min(h, (bv + bh) * DECIMATION + MARGIN_PX)
     return Roi(u0=u0, v0=v0, u1=u1, v1=v1, belt=belt_colour)
+
+
+def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8]
+               ) -> tuple[int, tuple[float, ...]]:
+    """The belt's brightest-channel level in the small copy ``small`` (H, W[, C]) whose
+    brightest channel is ``level`` (H, W), and its colour (one value per channel): see the
+    module docstring."""
+    counts = np.bincount(level.ravel(), minlength=256).astype(np.float64)
+    belt = int(np.argmax(np.convolve(counts, _MODE_KERNEL, mode="same")))
+    near = cv2.absdiff(level, np.full_like(level, belt)) <= BELT_COLOUR_LEVELS
+    pixels = small[near].reshape(-1, 1 if small.ndim == 2 else small.shape[2])
+    if pixels.shape[0] == 0:  # the smoothed peak between two close modes
+        return belt, (float(belt),) * pixels.shape[1]
+    return belt, tuple(float(c) for c in pixels.mean(axis=0))
+
+
+#: Triangular weights of the histogram smoothing: one peak, at the middle of a narrow mode
+#: (a flat window would tie over a mode narrower than itself).
+_MODE_KERNEL = np.bartlett(BELT_MODE_WINDOW + 2)[1:-1]
