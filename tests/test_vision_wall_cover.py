@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
-from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, circle_poses, unit_circle_poses
+from stackpick_sim.vision.pose import circle_poses, unit_circle_poses
 from stackpick_sim.vision.wall import band_points, solution_band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
     COVER_DEPTH_FRACTIONS,
     COVER_MARGIN_PX,
+    MIN_COVER_SAMPLES,
     MIN_COVERED_SHARE,
     covered_share,
     covered_shares,
@@ -56,7 +57,7 @@ def test_covered_shares_are_each_bands_share_inside_each_face() -> None:
     for i, face in enumerate(faces):
         bands = [band_points(s.normal_cam, s.centre_cam, face, K, COVER_DEPTH_FRACTIONS)
                  for s in circle_poses(face, K, 1.0)]
-        bands = [b for b in bands if b.shape[0] >= MIN_BAND_SAMPLES]
+        bands = [b for b in bands if b.shape[0] >= MIN_COVER_SAMPLES]
         for j, other in enumerate(faces):
             alone = max((float(np.mean(other.inside(b, COVER_MARGIN_PX))) for b in bands),
                         default=0.0)
