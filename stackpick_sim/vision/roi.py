@@ -109,13 +109,16 @@ def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8]
     """The belt's brightest-channel level in the small copy ``small`` (H, W[, C]) whose
     brightest channel is ``level`` (H, W), and its colour (one value per channel): see the
     module docstring."""
-    counts = np.bincount(level.ravel(), minlength=256).astype(np.float64)
+    # OpenCV's histogram, range mask and masked mean: a numpy boolean-mask mean of the
+    # colours costs ~70 us here, these ~15 us together.
+    counts = cv2.calcHist([level], [0], None, [256], [0, 256]).ravel()
     belt = int(np.argmax(np.convolve(counts, _MODE_KERNEL, mode="same")))
-    near = cv2.absdiff(level, np.full_like(level, belt)) <= BELT_COLOUR_LEVELS
-    pixels = small[near].reshape(-1, 1 if small.ndim == 2 else small.shape[2])
-    if pixels.shape[0] == 0:  # the smoothed peak between two close modes
-        return belt, (float(belt),) * pixels.shape[1]
-    return belt, tuple(float(c) for c in pixels.mean(axis=0))
+    near = cv2.inRange(level, max(0, belt - BELT_COLOUR_LEVELS),
+                       min(255, belt + BELT_COLOUR_LEVELS))
+    channels = 1 if small.ndim == 2 else int(small.shape[2])
+    if cv2.countNonZero(near) == 0:  # the smoothed peak between two close modes
+        return belt, (float(belt),) * channels
+    return belt, tuple(float(c) for c in cv2.mean(small, mask=near)[:channels])
 
 
 #: Triangular weights of the histogram smoothing: one peak, at the middle of a narrow mode
