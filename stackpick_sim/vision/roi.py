@@ -38,12 +38,15 @@ MARGIN_PX = 10
 BELT_MODE_WINDOW = 9
 #: Pixels within this many levels of the belt's level give the belt's colour.
 BELT_COLOUR_LEVELS = 2
+#: Triangular weights of the histogram smoothing: one peak, at the middle of a narrow mode
+#: (a flat window would tie over a mode narrower than itself).
+_MODE_KERNEL = np.bartlett(BELT_MODE_WINDOW + 2)[1:-1]
 
 
 @dataclass(frozen=True, kw_only=True)
 class Roi:
     """A box of the frame: columns u0..u1, rows v0..v1 (end exclusive), pixels, and the bare
-    belt's colour read off the frame's border (one value per channel; None when unread)."""
+    belt's colour (one value per channel, see the module docstring; None when unread)."""
 
     u0: int
     v0: int
@@ -119,8 +122,3 @@ def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8]
     if cv2.countNonZero(near) == 0:  # the smoothed peak between two close modes
         return belt, (float(belt),) * channels
     return belt, tuple(float(c) for c in cv2.mean(small, mask=near)[:channels])
-
-
-#: Triangular weights of the histogram smoothing: one peak, at the middle of a narrow mode
-#: (a flat window would tie over a mode narrower than itself).
-_MODE_KERNEL = np.bartlett(BELT_MODE_WINDOW + 2)[1:-1]
