@@ -9,8 +9,9 @@ The paper scene's targets (issue 3) apply to the paper scene only; here they are
     python benchmarks/bench_variants.py [--seeds 21000:21150] [--variants grey,high]
         [--out benchmarks/results/variants]
 
-Time: about 1.5 min per 150 frames and variant (rendering is most of it). Variants whose
-piles are hard to build print generation warnings for the seeds they skip.
+Time: about 2-3 min per 150 frames and variant on this project's machine (building and
+rendering the piles is most of it; flat piles take longest to build). Variants whose piles
+are hard to build print generation warnings for the seeds they skip.
 """
 
 from __future__ import annotations
