@@ -230,26 +230,11 @@ def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float6
     bare belt's colour (one value per channel; :attr:`~stackpick_sim.vision.roi.Roi.belt`):
     a sample within BELT_DELTA of it is belt. On a gray image, or a grey object's, every
     sample has the face's "hue", so only the brightness floor and the belt's colour tell
-    belt from wall.
+    belt from wall. The test itself is :func:`band_evidences`' (one copy for every caller).
     """
-    pts = band_points(normal_cam, centre_cam, ellipse, intrinsics)
-    h, w = image.shape[:2]
-    q = np.rint(pts).astype(np.int64)
-    q = q[(q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)]
-    if q.shape[0] == 0:
-        return WallEvidence(samples=0, share=0.0)
     colour = face_colour(ellipse, image) if face is None else face
-    cols = image[q[:, 1], q[:, 0]].astype(np.float64).reshape(q.shape[0], -1)
-    colour = colour.reshape(-1)
-    face_sum = max(float(colour.sum()), 1.0)
-    sums = cols.sum(axis=1)
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - colour / face_sum).sum(axis=1)
-    brightest = (tan_tilt(normal_cam, centre_cam) + WALL_BRIGHTNESS_MARGIN) * face_sum
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sum)
-          & (sums <= brightest))
-    if belt is not None:
-        ok &= np.abs(cols - np.reshape(belt, (1, -1))).max(axis=1) > BELT_DELTA
-    return WallEvidence(samples=int(q.shape[0]), share=float(ok.mean()))
+    return wall_evidences([(normal_cam, centre_cam)], ellipse, intrinsics, image,
+                          np.asarray(colour, np.float64), belt)[0]
 
 
 def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
