@@ -224,6 +224,20 @@ def test_a_face_of_another_size_at_the_prediction_is_not_the_track() -> None:
     assert np.linalg.norm(est.state(t, _look_pose()).centre[:2] - _on_belt(t)[:2]) < 5e-4
 
 
+def test_a_whole_fit_a_tenth_larger_than_the_tracked_face_is_another_outline() -> None:
+    # A fit that took in the arc of a neighbour of the face's colour: 15 % too large and
+    # nearer the prediction than the face itself (cluttered seed 10252). It is not fused,
+    # nor counted as a rejection; a fit 5 % too large (a face's own fit at worst) is fused.
+    est = _tracking_on_belt(4)
+    t = 4 * FRAME_DT
+    large = _face(t, _on_belt(t) + np.array([0.0005, 0.0, 0.0]), 1.15 * RADIUS)
+    assert not est.offer(replace(_observation(t, []), candidates=(large,)))
+    assert est.tracker.consecutive_rejections == 0
+    t = 5 * FRAME_DT
+    slightly = _face(t, _on_belt(t) + np.array([0.0005, 0.0, 0.0]), 1.05 * RADIUS)
+    assert est.offer(replace(_observation(t, []), candidates=(slightly,)))
+
+
 def test_a_tracked_face_cut_by_the_border_is_still_fused_while_its_centre_is_in_view() -> None:
     # A face creeping across the belt (world x, image v) towards the image's lower border:
     # once tracked, its ellipse is used while cut by the border (noise inflated). 20 mm/s
