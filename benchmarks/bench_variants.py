@@ -9,9 +9,15 @@ The paper scene's targets (issue 3) apply to the paper scene only; here they are
     python benchmarks/bench_variants.py [--seeds 21000:21150] [--variants grey,high]
         [--out benchmarks/results/variants]
 
+With ``--episodes``, whole picks instead: ``stackpick run`` (our detector, the scene's
+tracker) on each variant, and one table of pick success, failures and prediction error at
+the pick to ``--out``/summary.md (default ``--out`` then: benchmarks/results/variants_episodes;
+the per-episode audit files stay out of git, see .gitignore).
+
 Time: about 2-3 min per 150 frames and variant on this project's machine (building and
-rendering the piles is most of it; flat piles take longest to build). Variants whose piles
-are hard to build print generation warnings for the seeds they skip.
+rendering the piles is most of it; flat piles take longest to build); with ``--episodes``
+about 1.5-2 min per 150 episodes with two workers (flat: ~4 min). Variants whose piles are
+hard to build print generation warnings for the seeds they skip.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from pathlib import Path
 from stackpick_sim.cli.main import main
 
 RESULTS = Path(__file__).resolve().parent / "results" / "variants"
+EPISODE_RESULTS = RESULTS.with_name("variants_episodes")
 
 #: name -> (what changes, the ``--set`` overrides of the paper scene).
 VARIANTS: dict[str, tuple[str, list[str]]] = {
@@ -54,6 +61,15 @@ def _row(name: str, what: str, summary: dict) -> str:
             f"{summary['time_ms']['median']:.2f} |")
 
 
+def _episode_row(name: str, what: str, summary: dict) -> str:
+    lo, hi = summary["success_ci95"]
+    failures = ", ".join(f"{k} {v}" for k, v in summary["failures"].items() if v) or "none"
+    pred = summary["prediction_error_px"]
+    return (f"| {name} | {what} | {summary['successes']}/{summary['episodes']} = "
+            f"{100 * summary['success_rate']:.1f} % ({100 * lo:.1f}-{100 * hi:.1f}) | "
+            f"{failures} | {pred['median']:.2f} / {pred['p95']:.2f} |")
+
+
 def run() -> int:
     """Benchmark each variant asked for and write the summary; the first non-zero exit code
     of a variant's run, else 0."""
@@ -62,8 +78,14 @@ def run() -> int:
                    help="seeds rendered for every variant (default 21000:21150)")
     p.add_argument("--variants", default=",".join(VARIANTS),
                    help=f"comma-separated subset of {','.join(VARIANTS)} (default: all)")
-    p.add_argument("--out", type=Path, default=RESULTS, help=f"output directory ({RESULTS})")
+    p.add_argument("--episodes", action="store_true",
+                   help="run pick episodes (stackpick run) instead of the detection benchmark")
+    p.add_argument("--out", type=Path, default=None,
+                   help=f"output directory (default {RESULTS}, with --episodes "
+                        f"{EPISODE_RESULTS})")
     args = p.parse_args()
+    if args.out is None:
+        args.out = EPISODE_RESULTS if args.episodes else RESULTS
     names = [n.strip() for n in args.variants.split(",") if n.strip()]
     unknown = [n for n in names if n not in VARIANTS]
     if unknown or not names:
@@ -75,19 +97,33 @@ def run() -> int:
         out = args.out / name
         print(f"[{name}] {what}", flush=True)
         overrides = [a for s in sets for a in ("--set", s)]
-        got = main(["bench-detect", "--scene", "paper", *overrides, "--seeds", args.seeds,
-                    "--methods", "ours", "--out", str(out), "--quiet"])
+        if args.episodes:
+            got = main(["run", "--scene", "paper", *overrides, "--seeds", args.seeds,
+                        "--detector", "ours", "--out", str(out), "--quiet"])
+            if got == 0:
+                summary = json.loads((out / "summary.json").read_text())
+                rows.append(_episode_row(name, what, summary))
+        else:
+            got = main(["bench-detect", "--scene", "paper", *overrides, "--seeds", args.seeds,
+                        "--methods", "ours", "--out", str(out), "--quiet"])
+            if got == 0:
+                summary = json.loads((out / "results.json").read_text())["methods"]["ours"]
+                rows.append(_row(name, what, summary))
         code = code or got
-        if got == 0:
-            summary = json.loads((out / "results.json").read_text())["methods"]["ours"]
-            rows.append(_row(name, what, summary))
-    table = "\n".join([
-        f"## Our detector on scene variants, seeds {args.seeds}", "",
-        "Top success, P/R/F and errors as in `stackpick bench-detect`; errors median / p95.",
-        "",
-        "| variant | change from the paper scene | frames | top success | F | centre px | "
-        "theta_x deg | theta_y deg | time ms (med) |",
-        "|---|---|---|---|---|---|---|---|---|", *rows, ""])
+    if args.episodes:
+        head = [f"## Pick episodes on scene variants, seeds {args.seeds}", "",
+                "Our detector, as `stackpick run`; success with its 95 % Wilson interval; "
+                "prediction error at the pick, px, median / p95.", "",
+                "| variant | change from the paper scene | success | failures | "
+                "prediction error px |", "|---|---|---|---|---|"]
+    else:
+        head = [f"## Our detector on scene variants, seeds {args.seeds}", "",
+                "Top success, P/R/F and errors as in `stackpick bench-detect`; errors median "
+                "/ p95.", "",
+                "| variant | change from the paper scene | frames | top success | F | "
+                "centre px | theta_x deg | theta_y deg | time ms (med) |",
+                "|---|---|---|---|---|---|---|---|---|"]
+    table = "\n".join([*head, *rows, ""])
     (args.out / "summary.md").write_text(table)
     print(table)
     return code
