@@ -16,8 +16,9 @@ the per-episode audit files stay out of git, see .gitignore).
 
 Time: about 2-3 min per 150 frames and variant on this project's machine (building and
 rendering the piles is most of it; flat piles take longest to build); with ``--episodes``
-about 1.5-2 min per 150 episodes with two workers (flat: ~4 min). Variants whose piles are
-hard to build print generation warnings for the seeds they skip.
+about 1.5 min per 150 episodes with two workers on an otherwise idle machine (flat piles:
+~3.5 min). Variants whose piles are hard to build print generation warnings for the seeds
+they skip.
 """
 
 from __future__ import annotations

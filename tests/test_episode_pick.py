@@ -225,9 +225,9 @@ def test_a_face_of_another_size_at_the_prediction_is_not_the_track() -> None:
 
 
 def test_a_whole_fit_a_tenth_larger_than_the_tracked_face_is_another_outline() -> None:
-    # A fit that took in the arc of a neighbour of the face's colour: 15 % too large and
-    # nearer the prediction than the face itself (cluttered seed 10252). It is not fused,
-    # nor counted as a rejection; a fit 5 % too large (a face's own fit at worst) is fused.
+    # A fit that took in the arc of a neighbour of the face's colour: 15 % too large, 0.5 mm
+    # from the prediction (cluttered seed 10252). It is not fused, nor counted as a
+    # rejection; a fit 5 % too large (a face's own fit at worst) is fused.
     est = _tracking_on_belt(4)
     t = 4 * FRAME_DT
     large = _face(t, _on_belt(t) + np.array([0.0005, 0.0, 0.0]), 1.15 * RADIUS)

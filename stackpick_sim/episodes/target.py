@@ -106,7 +106,7 @@ ASSOCIATION_MAX = 0.0125
 #: 10200-10249): the tracked face's own fits (centre within 0.5 px of its true image) differ
 #: by under 3 % in 99 % of frames and by over 10 % in 2 of 1619; of the fits of other
 #: outlines near the prediction (3 px or more off the face, within 10 px of the prediction)
-#: 59 % differ by over 10 %, only 21 % by over 0.25, the earlier share. Such a fit, 3-6 px
+#: 59 % differ by over 10 %, only 21 % by over 25 %, the earlier share. Such a fit, 3-6 px
 #: off and 12-18 % too large, can lie nearer the prediction than the face itself and pull
 #: the track off it (cluttered seed 10252: fits of a top face that take in the outline of a
 #: face of its colour beside it).
