@@ -1,8 +1,9 @@
 # Two commands set everything up on a fresh machine:
 #   make demo   creates .venv, installs, runs a short seeded batch of pick episodes on the default
 #               scene and prints its summary
-#   make test   creates/updates .venv, runs ruff and mypy, the CI regression gate (a seeded
-#               batch of pick episodes checked against tests/baselines/paper_ci.json) and the tests
+#   make test   creates/updates .venv, installs Debian's chromium for the browser test when
+#               missing, runs ruff and mypy, the CI regression gate (a seeded batch of pick
+#               episodes checked against tests/baselines/paper_ci.json) and the tests
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -17,7 +18,7 @@ CI_GATE_ARGS := --scene paper --seeds 0:40 --workers 2 --quiet
 # Headless offscreen rendering through Mesa's EGL (no GPU, no display needed).
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test ci-gate ci-baseline lint bench gl-check system-deps clean
+.PHONY: demo test ci-gate ci-baseline lint bench gl-check browser system-deps clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
@@ -31,12 +32,28 @@ $(STAMP): pyproject.toml
 gl-check: $(STAMP)
 	@$(BIN)/python -m stackpick_sim.glcheck
 
+# The HTML report's browser test drives Debian's chromium (through the playwright package,
+# which downloads nothing). Installed here when missing (as root with apt-get); otherwise one
+# line says why not, and that test is skipped with the reason.
+CHROMIUM ?= /usr/bin/chromium
+browser:
+	@test -x $(CHROMIUM) || { \
+	  if [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then \
+	    echo "note: no $(CHROMIUM) and no root apt-get: the browser test will be skipped" \
+	      "(as root on Debian/Ubuntu: apt-get install chromium)"; \
+	  else \
+	    echo "installing Debian's chromium for the browser test (apt-get)"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+	      apt-get install -y -qq --no-install-recommends chromium >/dev/null; } || \
+	    echo "note: apt-get could not install chromium: the browser test will be skipped"; \
+	  fi; }
+
 demo: $(STAMP) gl-check
 	$(BIN)/stackpick run --scene paper --seeds 0:10 --out $(DEMO_OUT) --quiet
 
 # Lint and the gate run first so that pytest's summary stays the last line of the output.
-test: $(STAMP) gl-check lint ci-gate
-	$(BIN)/python -m pytest -q
+test: $(STAMP) gl-check browser lint ci-gate
+	STACKPICK_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q
 
 ci-gate: $(STAMP) gl-check
 	rm -rf $(CI_GATE_OUT)

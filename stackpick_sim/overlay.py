@@ -1,43 +1,254 @@
-"""Drawing ellipses and labels over images (ground truth, detections), for people to look at."""
+"""Pictures for people: ellipses, labels, poses and legends drawn over camera frames.
+
+Every outline and every text is drawn over a dark halo, so it reads on any object colour, on
+the belt and on the background alike. Labels are placed where they overlap neither each other
+nor the image border (:func:`place_labels`). Frames are enlarged (nearest neighbour) before
+drawing so that thin outlines and text stay readable on a 320x240 camera.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import Ellipse
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 
-#: Drawing colours, BGR (OpenCV's order): ground truth of a top object, of any other object.
-TOP_COLOUR = (60, 220, 60)
-OTHER_COLOUR = (60, 160, 255)
+if TYPE_CHECKING:
+    from stackpick_sim.sim.ground_truth import FrameTruth
+    from stackpick_sim.vision.detection import Detection
+
+#: Drawing colours, BGR (OpenCV's order): a top object, any other object, a true top face
+#: drawn over detections, the pose's normal arrow.
+TOP_COLOUR = (60, 230, 60)
+OTHER_COLOUR = (40, 170, 255)
+TRUTH_COLOUR = (255, 230, 40)
+NORMAL_COLOUR = (255, 255, 255)
+#: Colour of the halo under every outline and text.
+HALO_COLOUR = (0, 0, 0)
 #: Sub-pixel precision of drawn outlines: coordinates are scaled by 2**SHIFT.
 SHIFT = 4
+#: Font and default text scale (OpenCV's Hershey simplex: about 22 px per unit of scale).
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+LABEL_SCALE = 0.45
+#: Overlays are drawn on the frame enlarged by this factor.
+OVERLAY_SCALE = 2
+#: Length of the drawn face normal, as a multiple of the face's radius.
+NORMAL_LENGTH = 1.5
+
+
+def scale_ellipse(ellipse: Ellipse, k: float) -> Ellipse:
+    """``ellipse`` in an image enlarged ``k`` times (pixel centres stay pixel centres)."""
+    return type(ellipse)(cx=(ellipse.cx + 0.5) * k - 0.5, cy=(ellipse.cy + 0.5) * k - 0.5,
+                         a=ellipse.a * k, b=ellipse.b * k, angle_deg=ellipse.angle_deg)
+
+
+def scale_point(uv: Sequence[float], k: float) -> tuple[float, float]:
+    """Pixel ``uv`` in an image enlarged ``k`` times."""
+    return (uv[0] + 0.5) * k - 0.5, (uv[1] + 0.5) * k - 0.5
 
 
 def draw_ellipse(image: NDArray[np.uint8], ellipse: Ellipse, colour: tuple[int, int, int],
                  thickness: int = 1) -> None:
-    """Draw ``ellipse``'s outline into the BGR ``image`` in place, with sub-pixel accuracy."""
+    """Draw ``ellipse``'s outline over a dark halo into the BGR ``image`` in place, with
+    sub-pixel accuracy."""
     pts = np.round(ellipse.points(180) * (1 << SHIFT)).astype(np.int32)
-    cv2.polylines(image, [pts], isClosed=True, color=colour, thickness=thickness,
-                  lineType=cv2.LINE_AA, shift=SHIFT)
+    for col, th in ((HALO_COLOUR, thickness + 2), (colour, thickness)):
+        cv2.polylines(image, [pts], isClosed=True, color=col, thickness=th,
+                      lineType=cv2.LINE_AA, shift=SHIFT)
 
 
 def draw_marker(image: NDArray[np.uint8], uv: tuple[float, float], colour: tuple[int, int, int],
-                size: int = 6) -> None:
-    """A small cross at pixel ``uv`` (u, v)."""
-    cv2.drawMarker(image, (round(uv[0]), round(uv[1])), colour, cv2.MARKER_CROSS, size, 1,
-                   cv2.LINE_AA)
+                size: int = 10, thickness: int = 1) -> None:
+    """A cross at pixel ``uv`` (u, v) over a dark halo."""
+    at = (round(uv[0]), round(uv[1]))
+    for col, th in ((HALO_COLOUR, thickness + 2), (colour, thickness)):
+        cv2.drawMarker(image, at, col, cv2.MARKER_CROSS, size, th, cv2.LINE_AA)
+
+
+def draw_arrow(image: NDArray[np.uint8], start: tuple[float, float], end: tuple[float, float],
+               colour: tuple[int, int, int]) -> None:
+    """An arrow from ``start`` to ``end`` (pixels) over a dark halo."""
+    a, b = (round(start[0]), round(start[1])), (round(end[0]), round(end[1]))
+    for col, th in ((HALO_COLOUR, 4), (colour, 2)):
+        cv2.arrowedLine(image, a, b, col, th, cv2.LINE_AA, tipLength=0.25)
+
+
+def text_size(text: str, scale: float = LABEL_SCALE) -> tuple[int, int]:
+    """(width, height) of ``text`` in px, descenders and halo included."""
+    (w, h), base = cv2.getTextSize(text, FONT, scale, 1)
+    return w + 2, h + base + 2
+
+
+def draw_text(image: NDArray[np.uint8], text: str, org: tuple[float, float],
+              colour: tuple[int, int, int], scale: float = LABEL_SCALE) -> None:
+    """Text with its baseline's left end at ``org``, over a dark halo."""
+    at = (round(org[0]), round(org[1]))
+    weight = 2 if scale >= 0.6 else 1
+    for col, th in ((HALO_COLOUR, weight + 2), (colour, weight)):
+        cv2.putText(image, text, at, FONT, scale, col, th, cv2.LINE_AA)
 
 
 def draw_label(image: NDArray[np.uint8], text: str, uv: tuple[float, float],
                colour: tuple[int, int, int]) -> None:
-    """Small text near pixel ``uv`` with a dark outline so it reads on any background."""
-    org = (round(uv[0]), round(uv[1]))
-    for col, th in (((0, 0, 0), 3), (colour, 1)):
-        cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.35, col, th, cv2.LINE_AA)
+    """Label text at pixel ``uv`` (its baseline's left end), readable on any background."""
+    draw_text(image, text, uv, colour)
+
+
+@dataclass(frozen=True)
+class Label:
+    """A label to place near an ellipse: its text, colour and the ellipse."""
+
+    text: str
+    colour: tuple[int, int, int]
+    ellipse: Ellipse
+
+
+def _overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> int:
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    return max(0, w) * max(0, h)
+
+
+def place_labels(labels: Sequence[Label], size: tuple[int, int],
+                 blocked: Sequence[tuple[int, int, int, int]] = ()
+                 ) -> list[tuple[int, int, int, int]]:
+    """Boxes (x0, y0, x1, y1) for ``labels`` in an image of ``size`` (width, height): beside
+    its ellipse (above, below, right, left, then further out), inside the image, overlapping
+    no other label nor the ``blocked`` boxes (a legend); the least overlapping place when
+    every place overlaps."""
+    width, height = size
+    placed: list[tuple[int, int, int, int]] = list(blocked)
+    boxes = []
+    for label in labels:
+        w, h = text_size(label.text)
+        e = label.ellipse
+        x0, y0, x1, y1 = e.bounds()
+        spots = []
+        for gap in (3, 3 + h, 3 + 2 * h):
+            spots += [(e.cx - w / 2, y0 - gap - h), (e.cx - w / 2, y1 + gap),
+                      (x1 + gap, e.cy - h / 2), (x0 - gap - w, e.cy - h / 2)]
+        best: tuple[int, tuple[int, int, int, int]] | None = None
+        for sx, sy in spots:
+            bx = int(min(max(sx, 0), width - w))
+            by = int(min(max(sy, 0), height - h))
+            box = (bx, by, bx + w, by + h)
+            cost = sum(_overlap(box, p) for p in placed)
+            if best is None or cost < best[0]:
+                best = (cost, box)
+            if cost == 0:
+                break
+        assert best is not None
+        placed.append(best[1])
+        boxes.append(best[1])
+    return boxes
+
+
+def draw_labels(image: NDArray[np.uint8], labels: Sequence[Label],
+                blocked: Sequence[tuple[int, int, int, int]] = ()) -> None:
+    """Draw ``labels`` where :func:`place_labels` puts them."""
+    h, w = image.shape[:2]
+    for label, box in zip(labels, place_labels(labels, (w, h), blocked), strict=True):
+        base = cv2.getTextSize(label.text, FONT, LABEL_SCALE, 1)[1]
+        draw_text(image, label.text, (box[0] + 1, box[3] - base - 1), label.colour)
+
+
+def draw_legend(image: NDArray[np.uint8], entries: Sequence[tuple[str, tuple[int, int, int]]]
+                ) -> tuple[int, int, int, int]:
+    """A legend box in the top-left corner: one coloured line per entry; returns its box."""
+    pad, line = 6, text_size("Ag")[1] + 2
+    width = max(text_size(text)[0] for text, _ in entries) + 2 * pad + 22
+    height = line * len(entries) + 2 * pad
+    corner = image[:height, :width].astype(np.float32)
+    image[:height, :width] = (0.35 * corner).astype(np.uint8)  # darkened backdrop
+    for i, (text, colour) in enumerate(entries):
+        y = pad + line * i + line // 2
+        for col, th in ((HALO_COLOUR, 4), (colour, 2)):
+            cv2.line(image, (pad, y), (pad + 16, y), col, th, cv2.LINE_AA)
+        draw_text(image, text, (pad + 22, y + line // 2 - 4), (255, 255, 255))
+    return 0, 0, width, height
 
 
 def upscale(image: NDArray[np.uint8], factor: int) -> NDArray[np.uint8]:
     """Nearest-neighbour enlargement so thin overlays stay readable on small frames."""
     return np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)
+
+
+def bgr_canvas(image: NDArray[np.uint8], factor: int = OVERLAY_SCALE) -> NDArray[np.uint8]:
+    """A BGR copy of an RGB, RGBA or grey uint8 image, enlarged ``factor`` times."""
+    if image.ndim == 2:
+        rgb = np.repeat(image[..., None], 3, axis=2)
+    else:
+        rgb = image[..., :3]
+    return np.ascontiguousarray(upscale(np.ascontiguousarray(rgb[..., ::-1]), factor))
+
+
+def draw_pose(image: NDArray[np.uint8], centre_px: tuple[float, float],
+              centre_cam: NDArray[np.float64], normal_cam: NDArray[np.float64],
+              radius_m: float, intrinsics: CameraIntrinsics, k: float) -> None:
+    """The pose of a face: a cross at its centre and an arrow along its outward normal
+    (towards the camera side of the face), ``NORMAL_LENGTH`` radii long, projected."""
+    outward = -np.asarray(normal_cam, dtype=float)
+    tip_cam = np.asarray(centre_cam, dtype=float) + NORMAL_LENGTH * radius_m * outward
+    start = scale_point(centre_px, k)
+    if tip_cam[2] > 1e-6:
+        tip = scale_point(intrinsics.project(tip_cam)[0], k)
+        draw_arrow(image, start, tip, NORMAL_COLOUR)
+    draw_marker(image, start, TOP_COLOUR, 16, 2)
+
+
+def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth,
+                  k: int = OVERLAY_SCALE) -> NDArray[np.uint8]:
+    """BGR picture, ``k`` times enlarged: each object's ground-truth face ellipse (green: top
+    objects, orange: the others) with a cross at its projected face centre and a label with
+    its name, visible share and TOP; faces hidden entirely (0 % visible) are not drawn."""
+    out = bgr_canvas(image_rgb, k)
+    legend = draw_legend(out, [("top object (nothing on it, face >= 98 % visible)", TOP_COLOUR),
+                               ("other object: % of its face visible", OTHER_COLOUR)])
+    labels = []
+    for obj in truth.objects:
+        if obj.ellipse is None or round(100 * obj.visible_fraction) == 0:
+            continue
+        colour = TOP_COLOUR if obj.is_top else OTHER_COLOUR
+        scaled = scale_ellipse(obj.ellipse, k)
+        draw_ellipse(out, scaled, colour, thickness=1)
+        draw_marker(out, scale_point(obj.face_center_px, k), colour)
+        text = f"{obj.name} {100 * obj.visible_fraction:.0f}%" + (" TOP" if obj.is_top else "")
+        labels.append(Label(text, colour, scaled))
+    draw_labels(out, labels, [legend])
+    return out
+
+
+def detection_overlay(image: NDArray[np.uint8], detection: Detection,
+                      intrinsics: CameraIntrinsics | None,
+                      k: int = OVERLAY_SCALE) -> NDArray[np.uint8]:
+    """BGR picture, ``k`` times enlarged, of a detector's result: every ellipse labelled with
+    its index and support (green and TOP: the top object), the top face's pose (a cross at its
+    centre, an arrow along its normal, when ``intrinsics`` are known) and a legend."""
+    out = bgr_canvas(image, k)
+    entries = [("top object: [index] support TOP", TOP_COLOUR),
+               ("other ellipse: [index] support", OTHER_COLOUR)]
+    if detection.pose is not None and intrinsics is not None:
+        entries.append(("face normal (cross: face centre)", NORMAL_COLOUR))
+    legend = draw_legend(out, entries)
+    labels = []
+    for i, det in enumerate(detection.ellipses):
+        top = i == detection.top
+        colour = TOP_COLOUR if top else OTHER_COLOUR
+        scaled = scale_ellipse(det.ellipse, k)
+        draw_ellipse(out, scaled, colour, thickness=2 if top else 1)
+        labels.append(Label(f"[{i}] {det.support:.2f}" + (" TOP" if top else ""), colour,
+                            scaled))
+    pose = detection.pose
+    if pose is not None and intrinsics is not None:
+        draw_pose(out, (pose.x, pose.y), pose.centre_cam, pose.normal_cam, pose.radius_m,
+                  intrinsics, k)
+    draw_labels(out, labels, [legend])
+    if not detection:
+        h = out.shape[0]
+        draw_text(out, f"no top object: {detection.reason}", (8, h - 10), (255, 255, 255))
+    return out

@@ -10,7 +10,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from stackpick_sim.cli.common import add_scene_args, parse_seeds, scene_from_args
+from stackpick_sim.cli.common import (
+    DEFAULT_SEEDS,
+    SEEDS_HELP,
+    add_scene_args,
+    parse_seeds,
+    scene_from_args,
+)
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.vision.benchmark import (
     METHOD_NAMES,
@@ -27,9 +33,6 @@ from stackpick_sim.vision.benchmark.frames import (
 )
 from stackpick_sim.vision.benchmark.scoring import COUNTED_VISIBLE_FRACTION, MATCH_IOU
 
-#: Seeds rendered when neither --seeds nor --data is given.
-DEFAULT_SEEDS = "0:100"
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``bench-detect`` subcommand."""
@@ -41,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(one thread) with ratios to ours, and the paper's Table 1 layout.")
     add_scene_args(p)
     p.add_argument("--seeds", default=None, metavar="SEEDS",
-                   help="N, START:STOP (end exclusive) or N,N,... (default: 0:100); with "
+                   help=f"{SEEDS_HELP}; with "
                    "--data, the seeds of the data set to use (default: all present)")
     p.add_argument("--data", type=Path, metavar="DIR",
                    help="read frames from a `stackpick dataset` directory instead of rendering")

@@ -9,6 +9,11 @@ from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ConfigError
 
+#: The seeds a command runs when --seeds is not given (every command that takes --seeds).
+DEFAULT_SEEDS = "0:10"
+#: --seeds' help text.
+SEEDS_HELP = f"N, START:STOP (end exclusive) or N,N,... (default: {DEFAULT_SEEDS})"
+
 
 def add_scene_args(parser: argparse.ArgumentParser) -> None:
     """``--scene NAME_OR_PATH`` and repeatable ``--set key=value``."""

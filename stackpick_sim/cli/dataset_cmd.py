@@ -10,7 +10,13 @@ from pathlib import Path
 import cv2
 from tqdm import tqdm
 
-from stackpick_sim.cli.common import add_scene_args, parse_seeds, scene_from_args
+from stackpick_sim.cli.common import (
+    DEFAULT_SEEDS,
+    SEEDS_HELP,
+    add_scene_args,
+    parse_seeds,
+    scene_from_args,
+)
 from stackpick_sim.config.loader import scene_to_dict
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.sim.snapshot import seeded_look_frame
@@ -25,8 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "scene config, per-seed summaries and any seed whose pile could not be generated). "
         "This is the input of the detection benchmark.")
     add_scene_args(p)
-    p.add_argument("--seeds", default="0:100", metavar="SEEDS",
-                   help="N, START:STOP (end exclusive) or N,N,... (default: 0:100)")
+    p.add_argument("--seeds", default=DEFAULT_SEEDS, metavar="SEEDS", help=SEEDS_HELP)
     p.add_argument("--out", type=Path, required=True, help="output directory (created)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)

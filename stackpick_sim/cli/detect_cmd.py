@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.exceptions import ImageError
 from stackpick_sim.geometry import CameraIntrinsics
+from stackpick_sim.overlay import detection_overlay
 from stackpick_sim.vision.detection import Detection
 from stackpick_sim.vision.detector import (
     DEFAULT_FOVY_DEG,
@@ -47,19 +48,11 @@ def _read(path: str) -> NDArray[np.uint8]:
     return np.asarray(img)
 
 
-def draw_overlay(image: NDArray[np.uint8], detection: Detection) -> NDArray[np.uint8]:
-    """(H, W, 3) BGR copy of an RGB/grey image with ellipses (top in green) and pose drawn."""
-    out = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
-    out = cv2.cvtColor(out[:, :, :3].astype(np.uint8), cv2.COLOR_RGB2BGR)
-    for i, det in enumerate(detection.ellipses):
-        e = det.ellipse
-        colour = (0, 255, 0) if i == detection.top else (0, 0, 255)
-        cv2.ellipse(out, ((e.cx, e.cy), (2 * e.a, 2 * e.b), e.angle_deg), colour, 1,
-                    cv2.LINE_AA)
-    if detection.pose is not None:
-        p = detection.pose
-        cv2.drawMarker(out, (round(p.x), round(p.y)), (0, 255, 0), cv2.MARKER_CROSS, 8, 1)
-    return np.asarray(out, np.uint8)
+def draw_overlay(image: NDArray[np.uint8], detection: Detection,
+                 intrinsics: CameraIntrinsics | None) -> NDArray[np.uint8]:
+    """BGR picture (twice the image's size) of the detections: labelled ellipses (top in
+    green), the top face's pose and a legend."""
+    return detection_overlay(image, detection, intrinsics)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -71,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
                             depth_range_m=tuple(args.depth_range) if args.depth_range else None)
     detection = detect(image, config)
     if args.overlay:
-        if not cv2.imwrite(args.overlay, draw_overlay(image, detection)):
+        if not cv2.imwrite(args.overlay, draw_overlay(image, detection, config.intrinsics)):
             raise ImageError(f"cannot write overlay '{args.overlay}'")
     if args.json:
         print(json.dumps(detection.as_dict(), indent=2))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import os
 import sys
 from collections.abc import Sequence
@@ -22,6 +23,14 @@ COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect
                                      "replay", "sweep", "report", "check")
 
 
+def package_version() -> str:
+    """The installed stackpick-sim's version, or "unknown" when it runs from a bare source tree."""
+    try:
+        return importlib.metadata.version("stackpick-sim")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every subcommand registered."""
     parser = argparse.ArgumentParser(
@@ -29,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="MuJoCo digital twin of a vision-guided cell that picks the top object off "
         "stacks of cylinders on a moving conveyor.",
     )
+    parser.add_argument("--version", action="version", version=f"stackpick {package_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMAND_MODULES:
         importlib.import_module(f"stackpick_sim.cli.{name}_cmd").register(sub)

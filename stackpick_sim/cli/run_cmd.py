@@ -6,7 +6,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from stackpick_sim.cli.common import add_scene_args, parse_seeds, positive_int
+from stackpick_sim.cli.common import (
+    DEFAULT_SEEDS,
+    SEEDS_HELP,
+    add_scene_args,
+    parse_seeds,
+    positive_int,
+)
 from stackpick_sim.config.scene_config import DETECTORS, TRACKER_FRAMES
 from stackpick_sim.episodes.summary import summary_markdown
 from stackpick_sim.runs.progress import Progress
@@ -66,8 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "OUT/episodes/SEED/{scene.xml,initial_qpos.npy,final_qpos.npy} are for audit and "
         "'stackpick replay'; OUT/run.log has the tracebacks of failed workers.")
     add_scene_args(p)
-    p.add_argument("--seeds", default="0:10", help="N, START:STOP (end exclusive) or N,N,... "
-                   "(default: 0:10)")
+    p.add_argument("--seeds", default=DEFAULT_SEEDS, metavar="SEEDS", help=SEEDS_HELP)
     p.add_argument("--detector", choices=DETECTORS, default=None,
                    help="ours: the vision pipeline; oracle: ground-truth top object and pose "
                    "(default: the scene's episode.detector)")

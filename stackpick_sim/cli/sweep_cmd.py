@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from stackpick_sim.cli.common import add_scene_args, parse_seeds
+from stackpick_sim.cli.common import DEFAULT_SEEDS, SEEDS_HELP, add_scene_args, parse_seeds
 from stackpick_sim.cli.run_cmd import add_execution_args, executor_from_args, spec_from_args
 from stackpick_sim.config.scene_config import DETECTORS
 from stackpick_sim.runs.lock import RunLock
@@ -27,8 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--param", action="append", required=True, metavar="KEY=V1,V2,...",
                    help="a scene key and its values (TOML); repeatable: the grid is the "
                    "product, e.g. --param conveyor.speed=0.05,0.1,0.2,0.3")
-    p.add_argument("--seeds", default="0:10", help="N, START:STOP or N,N,... for every cell "
-                   "(default: 0:10)")
+    p.add_argument("--seeds", default=DEFAULT_SEEDS, metavar="SEEDS",
+                   help=f"{SEEDS_HELP}; every cell runs them")
     p.add_argument("--detector", choices=DETECTORS, default=None,
                    help="ours or oracle (default: the scene's episode.detector)")
     p.add_argument("--out", type=Path, required=True, help="output directory (created)")

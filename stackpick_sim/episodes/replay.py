@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,21 +18,14 @@ from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.batch import RunSpec, episode_dir
 from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
 from stackpick_sim.episodes.record import EpisodeRecord
-from stackpick_sim.episodes.sensing import Observation
-from stackpick_sim.exceptions import EpisodeError
-from stackpick_sim.overlay import OTHER_COLOUR, TOP_COLOUR, draw_ellipse, draw_label, draw_marker
-from stackpick_sim.sim.camera import make_renderer
+from stackpick_sim.episodes.video import H264Writer, ReplayFilm, frame_size
+from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.runs.journal import RESULTS_FILE, read_records
 from stackpick_sim.sim.stacks import generate_scene
 
 #: One video frame every this many control ticks (10 ms each by default: ~33 frames per
 #: second of sim time, played at that rate: real time).
 TICKS_PER_FRAME = 3
-#: Both views are shown at this size, px (width, height): twice the wrist camera's.
-VIEW_SIZE = (640, 480)
-#: FourCC of MPEG-4 part 2, which opencv-contrib-python-headless writes without extra codecs.
-MP4V: int = cv2.VideoWriter.fourcc(*"mp4v")
-#: Colour of the tracker's estimate, BGR.
-ESTIMATE_COLOUR = (255, 80, 255)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,69 +38,41 @@ class ReplayResult:
     final_diff: float
 
 
-def _wrist_view(obs: Observation | None, info: TickInfo) -> NDArray[np.uint8]:
-    w, h = VIEW_SIZE
-    if obs is None or obs.image is None:
-        return np.zeros((h, w, 3), np.uint8)
-    k = w / obs.image.shape[1]
-    out: NDArray[np.uint8] = np.ascontiguousarray(
-        cv2.resize(cv2.cvtColor(obs.image, cv2.COLOR_RGB2BGR), VIEW_SIZE,
-                   interpolation=cv2.INTER_NEAREST), dtype=np.uint8)
-    for cand in obs.candidates:
-        if cand.ellipse is None:
-            continue
-        e = cand.ellipse
-        scaled = type(e)(cx=(e.cx + 0.5) * k - 0.5, cy=(e.cy + 0.5) * k - 0.5, a=e.a * k,
-                         b=e.b * k, angle_deg=e.angle_deg)
-        draw_ellipse(out, scaled, TOP_COLOUR if cand.is_top else OTHER_COLOUR, 2)
-    est = info.episode.estimator
-    if est.initialised:
-        state = est.state(obs.capture_time, obs.world_T_cam)
-        r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
-        c = r.T @ (state.centre - p)
-        if c[2] > 1e-3:
-            u, v = info.episode.scene.cell.intrinsics.project(c)[0]
-            draw_marker(out, ((u + 0.5) * k - 0.5, (v + 0.5) * k - 0.5), ESTIMATE_COLOUR, 14)
-    draw_label(out, f"t={info.time:.2f} s  {info.phase}", (8, 18), (255, 255, 255))
-    return out
-
-
-def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
-    """Re-run ``seed`` of the batch in ``out_dir`` and write ``video`` (mp4v)."""
+def replay_episode(out_dir: Path, seed: int, video: Path,
+                   show_truth: bool = False) -> ReplayResult:
+    """Re-run ``seed`` of the batch in ``out_dir`` and write ``video`` (H.264, see
+    :mod:`stackpick_sim.episodes.video`); ``show_truth`` draws the true top faces too."""
     spec = RunSpec.from_dir(out_dir)
     scene = generate_scene(load_scene(spec.scene, spec.overrides), seed)
     cell = scene.cell
     stored = episode_dir(out_dir, seed)
     initial_diff = _diff(stored / "initial_qpos.npy", cell.data.qpos)
-    overview = make_renderer(cell.model, VIEW_SIZE[1], VIEW_SIZE[0])
-    writer = cv2.VideoWriter(str(video), MP4V,
-                             1.0 / (TICKS_PER_FRAME * cell.cfg.episode.control_period),
-                             (2 * VIEW_SIZE[0], VIEW_SIZE[1]))
-    if not writer.isOpened():
-        overview.close()
-        raise EpisodeError(f"cannot open {video} for writing an mp4v video")
-    latest: list[Observation | None] = [None]
+    fps = 1.0 / (TICKS_PER_FRAME * cell.cfg.episode.control_period)
     ticks = [0]
-    frames = [0]
+    with H264Writer(video, frame_size(), fps) as writer:
+        film = ReplayFilm(cell, writer, seed=seed, recorded=_recorded(out_dir, seed),
+                          show_truth=show_truth)
 
-    def on_tick(info: TickInfo) -> None:
-        for obs in info.observations:
-            latest[0] = obs
-        ticks[0] += 1
-        if (ticks[0] - 1) % TICKS_PER_FRAME:
-            return
-        overview.update_scene(cell.data, camera="overview")
-        right = cv2.cvtColor(overview.render(), cv2.COLOR_RGB2BGR)
-        writer.write(np.hstack([_wrist_view(latest[0], info), right]))
-        frames[0] += 1
+        def on_tick(info: TickInfo) -> None:
+            film.on_tick(info, draw=ticks[0] % TICKS_PER_FRAME == 0)
+            ticks[0] += 1
 
-    try:
-        record = run_episode(scene, EpisodeHooks(on_tick=on_tick, keep_images=True))
-    finally:
-        writer.release()
-        overview.close()
-    return ReplayResult(record=record, frames=frames[0], initial_diff=initial_diff,
+        try:
+            record = run_episode(scene, EpisodeHooks(on_tick=on_tick, keep_images=True))
+            film.finish(record, fps)
+        finally:
+            film.close()
+    return ReplayResult(record=record, frames=writer.frames, initial_diff=initial_diff,
                         final_diff=_diff(stored / "final_qpos.npy", cell.data.qpos))
+
+
+def _recorded(out_dir: Path, seed: int) -> dict[str, Any] | None:
+    """The run's record of ``seed`` (its outcome goes in the video's banner), if readable."""
+    try:
+        records, _, _ = read_records(out_dir / RESULTS_FILE)
+    except (OSError, ValueError, StackpickError):
+        return None
+    return records.get(seed)
 
 
 def _diff(path: Path, qpos: NDArray[np.float64]) -> float:

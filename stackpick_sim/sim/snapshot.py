@@ -5,15 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim import overlay
 from stackpick_sim.config.scene_config import SceneConfig
-from stackpick_sim.overlay import (
-    OTHER_COLOUR,
-    TOP_COLOUR,
-    draw_ellipse,
-    draw_label,
-    draw_marker,
-    upscale,
-)
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
 from stackpick_sim.sim.stacks import Scene, generate_scene
@@ -45,19 +38,5 @@ def seeded_look_frame(cfg: SceneConfig,
 
 
 def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth) -> NDArray[np.uint8]:
-    """BGR picture: ground-truth face ellipses (green: top objects), face centres, names."""
-    k = OVERLAY_SCALE
-    out = upscale(np.ascontiguousarray(image_rgb[..., ::-1]), k)  # RGB -> BGR
-    for obj in truth.objects:
-        if obj.ellipse is None:
-            continue
-        colour = TOP_COLOUR if obj.is_top else OTHER_COLOUR
-        e = obj.ellipse
-        scaled = type(e)(cx=(e.cx + 0.5) * k - 0.5, cy=(e.cy + 0.5) * k - 0.5, a=e.a * k,
-                         b=e.b * k, angle_deg=e.angle_deg)
-        draw_ellipse(out, scaled, colour, thickness=1)
-        u, v = obj.face_center_px
-        draw_marker(out, ((u + 0.5) * k - 0.5, (v + 0.5) * k - 0.5), colour)
-        label = f"{obj.name} {100 * obj.visible_fraction:.0f}%" + (" TOP" if obj.is_top else "")
-        draw_label(out, label, (scaled.cx - 30, scaled.cy - scaled.b - 4), colour)
-    return out
+    """BGR picture: ground-truth face ellipses (green: top objects), face centres, labels."""
+    return overlay.truth_overlay(image_rgb, truth, OVERLAY_SCALE)
