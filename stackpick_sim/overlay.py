@@ -53,11 +53,12 @@ def scale_point(uv: Sequence[float], k: float) -> tuple[float, float]:
 
 
 def draw_ellipse(image: NDArray[np.uint8], ellipse: Ellipse, colour: tuple[int, int, int],
-                 thickness: int = 1) -> None:
-    """Draw ``ellipse``'s outline over a dark halo into the BGR ``image`` in place, with
-    sub-pixel accuracy."""
+                 thickness: int = 1, halo: bool = True) -> None:
+    """Draw ``ellipse``'s outline (over a dark halo unless not ``halo``) into the BGR
+    ``image`` in place, with sub-pixel accuracy."""
     pts = np.round(ellipse.points(180) * (1 << SHIFT)).astype(np.int32)
-    for col, th in ((HALO_COLOUR, thickness + 2), (colour, thickness)):
+    strokes = ((HALO_COLOUR, thickness + 2), (colour, thickness))
+    for col, th in strokes if halo else strokes[1:]:
         cv2.polylines(image, [pts], isClosed=True, color=col, thickness=th,
                       lineType=cv2.LINE_AA, shift=SHIFT)
 
@@ -81,16 +82,18 @@ def draw_arrow(image: NDArray[np.uint8], start: tuple[float, float], end: tuple[
 def text_size(text: str, scale: float = LABEL_SCALE) -> tuple[int, int]:
     """(width, height) of ``text`` in px, descenders and halo included."""
     (w, h), base = cv2.getTextSize(text, FONT, scale, 1)
-    return w + 2, h + base + 2
+    return w + 6, h + base + 4
 
 
 def draw_text(image: NDArray[np.uint8], text: str, org: tuple[float, float],
               colour: tuple[int, int, int], scale: float = LABEL_SCALE) -> None:
-    """Text with its baseline's left end at ``org``, over a dark halo."""
-    at = (round(org[0]), round(org[1]))
+    """Text with its baseline's left end at ``org``, over a dark halo (the same glyphs shifted
+    one pixel each way: a thicker stroke would advance the glyphs differently)."""
+    x, y = round(org[0]), round(org[1])
     weight = 2 if scale >= 0.6 else 1
-    for col, th in ((HALO_COLOUR, weight + 2), (colour, weight)):
-        cv2.putText(image, text, at, FONT, scale, col, th, cv2.LINE_AA)
+    for dx, dy in ((-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)):
+        cv2.putText(image, text, (x + dx, y + dy), FONT, scale, HALO_COLOUR, weight, cv2.LINE_AA)
+    cv2.putText(image, text, (x, y), FONT, scale, colour, weight, cv2.LINE_AA)
 
 
 def draw_label(image: NDArray[np.uint8], text: str, uv: tuple[float, float],
@@ -148,29 +151,53 @@ def place_labels(labels: Sequence[Label], size: tuple[int, int],
     return boxes
 
 
+def _darken(image: NDArray[np.uint8], box: tuple[int, int, int, int], keep: float) -> None:
+    """Darken ``box`` (x0, y0, x1, y1) of ``image`` to ``keep`` of its brightness."""
+    x0, y0, x1, y1 = box
+    region = image[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)]
+    region[:] = (keep * region.astype(np.float32)).astype(np.uint8)
+
+
 def draw_labels(image: NDArray[np.uint8], labels: Sequence[Label],
                 blocked: Sequence[tuple[int, int, int, int]] = ()) -> None:
-    """Draw ``labels`` where :func:`place_labels` puts them."""
+    """Draw ``labels`` on darkened boxes where :func:`place_labels` puts them."""
     h, w = image.shape[:2]
     for label, box in zip(labels, place_labels(labels, (w, h), blocked), strict=True):
         base = cv2.getTextSize(label.text, FONT, LABEL_SCALE, 1)[1]
-        draw_text(image, label.text, (box[0] + 1, box[3] - base - 1), label.colour)
+        _darken(image, box, 0.3)
+        draw_text(image, label.text, (box[0] + 3, box[3] - base - 2), label.colour)
 
 
-def draw_legend(image: NDArray[np.uint8], entries: Sequence[tuple[str, tuple[int, int, int]]]
-                ) -> tuple[int, int, int, int]:
-    """A legend box in the top-left corner: one coloured line per entry; returns its box."""
-    pad, line = 6, text_size("Ag")[1] + 2
-    width = max(text_size(text)[0] for text, _ in entries) + 2 * pad + 22
-    height = line * len(entries) + 2 * pad
-    corner = image[:height, :width].astype(np.float32)
-    image[:height, :width] = (0.35 * corner).astype(np.uint8)  # darkened backdrop
-    for i, (text, colour) in enumerate(entries):
-        y = pad + line * i + line // 2
-        for col, th in ((HALO_COLOUR, 4), (colour, 2)):
-            cv2.line(image, (pad, y), (pad + 16, y), col, th, cv2.LINE_AA)
-        draw_text(image, text, (pad + 22, y + line // 2 - 4), (255, 255, 255))
-    return 0, 0, width, height
+def with_legend(image: NDArray[np.uint8], entries: Sequence[tuple[str, tuple[int, int, int]]]
+                ) -> NDArray[np.uint8]:
+    """``image`` with a legend strip below it: one coloured line and text per entry, laid out
+    left to right and wrapped to the image's width."""
+    pad, line = 6, text_size("Ag")[1] + 4
+    width = image.shape[1]
+    rows: list[list[tuple[str, tuple[int, int, int]]]] = [[]]
+    used = pad
+    for text, colour in entries:
+        need = 22 + text_size(text)[0] + 2 * pad
+        if rows[-1] and used + need > width:
+            rows.append([])
+            used = pad
+        rows[-1].append((text, colour))
+        used += need
+    strip = np.zeros((line * len(rows) + pad, width, 3), np.uint8)
+    for r, row in enumerate(rows):
+        x, y = pad, pad + line * r + line // 2
+        for text, colour in row:
+            for col, th in ((HALO_COLOUR, 4), (colour, 2)):
+                cv2.line(strip, (x, y), (x + 16, y), col, th, cv2.LINE_AA)
+            draw_text(strip, text, (x + 22, y + line // 2 - 5), (235, 235, 235))
+            x += 22 + text_size(text)[0] + 2 * pad
+    return np.ascontiguousarray(np.vstack([image, strip]))
+
+
+def marker_box(uv: tuple[float, float], size: int = 10) -> tuple[int, int, int, int]:
+    """The box a marker of ``size`` px at ``uv`` covers (labels keep off it)."""
+    half = size // 2 + 2
+    return round(uv[0]) - half, round(uv[1]) - half, round(uv[0]) + half, round(uv[1]) + half
 
 
 def upscale(image: NDArray[np.uint8], factor: int) -> NDArray[np.uint8]:
@@ -189,16 +216,21 @@ def bgr_canvas(image: NDArray[np.uint8], factor: int = OVERLAY_SCALE) -> NDArray
 
 def draw_pose(image: NDArray[np.uint8], centre_px: tuple[float, float],
               centre_cam: NDArray[np.float64], normal_cam: NDArray[np.float64],
-              radius_m: float, intrinsics: CameraIntrinsics, k: float) -> None:
+              radius_m: float, intrinsics: CameraIntrinsics, k: float
+              ) -> list[tuple[int, int, int, int]]:
     """The pose of a face: a cross at its centre and an arrow along its outward normal
-    (towards the camera side of the face), ``NORMAL_LENGTH`` radii long, projected."""
+    (towards the camera side of the face), ``NORMAL_LENGTH`` radii long, projected; returns
+    the boxes they cover."""
     outward = -np.asarray(normal_cam, dtype=float)
     tip_cam = np.asarray(centre_cam, dtype=float) + NORMAL_LENGTH * radius_m * outward
     start = scale_point(centre_px, k)
+    covered = [marker_box(start, 16)]
     if tip_cam[2] > 1e-6:
         tip = scale_point(intrinsics.project(tip_cam)[0], k)
         draw_arrow(image, start, tip, NORMAL_COLOUR)
+        covered.append(marker_box(tip, 16))
     draw_marker(image, start, TOP_COLOUR, 16, 2)
+    return covered
 
 
 def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth,
@@ -207,20 +239,22 @@ def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth,
     objects, orange: the others) with a cross at its projected face centre and a label with
     its name, visible share and TOP; faces hidden entirely (0 % visible) are not drawn."""
     out = bgr_canvas(image_rgb, k)
-    legend = draw_legend(out, [("top object (nothing on it, face >= 98 % visible)", TOP_COLOUR),
-                               ("other object: % of its face visible", OTHER_COLOUR)])
-    labels = []
+    labels, centres = [], []
     for obj in truth.objects:
         if obj.ellipse is None or round(100 * obj.visible_fraction) == 0:
             continue
         colour = TOP_COLOUR if obj.is_top else OTHER_COLOUR
         scaled = scale_ellipse(obj.ellipse, k)
         draw_ellipse(out, scaled, colour, thickness=1)
-        draw_marker(out, scale_point(obj.face_center_px, k), colour)
+        centre = scale_point(obj.face_center_px, k)
+        draw_marker(out, centre, colour)
+        centres.append(marker_box(centre))
         text = f"{obj.name} {100 * obj.visible_fraction:.0f}%" + (" TOP" if obj.is_top else "")
         labels.append(Label(text, colour, scaled))
-    draw_labels(out, labels, [legend])
-    return out
+    draw_labels(out, labels, centres)
+    return with_legend(out, [("top object: nothing on it, face >= 98 % visible", TOP_COLOUR),
+                             ("other object: share of its face visible", OTHER_COLOUR),
+                             ("+ projected face centre", (235, 235, 235))])
 
 
 def detection_overlay(image: NDArray[np.uint8], detection: Detection,
@@ -233,8 +267,7 @@ def detection_overlay(image: NDArray[np.uint8], detection: Detection,
     entries = [("top object: [index] support TOP", TOP_COLOUR),
                ("other ellipse: [index] support", OTHER_COLOUR)]
     if detection.pose is not None and intrinsics is not None:
-        entries.append(("face normal (cross: face centre)", NORMAL_COLOUR))
-    legend = draw_legend(out, entries)
+        entries.append(("top face's normal, + its centre", NORMAL_COLOUR))
     labels = []
     for i, det in enumerate(detection.ellipses):
         top = i == detection.top
@@ -244,11 +277,11 @@ def detection_overlay(image: NDArray[np.uint8], detection: Detection,
         labels.append(Label(f"[{i}] {det.support:.2f}" + (" TOP" if top else ""), colour,
                             scaled))
     pose = detection.pose
+    blocked: list[tuple[int, int, int, int]] = []
     if pose is not None and intrinsics is not None:
-        draw_pose(out, (pose.x, pose.y), pose.centre_cam, pose.normal_cam, pose.radius_m,
-                  intrinsics, k)
-    draw_labels(out, labels, [legend])
+        blocked = draw_pose(out, (pose.x, pose.y), pose.centre_cam, pose.normal_cam,
+                            pose.radius_m, intrinsics, k)
+    draw_labels(out, labels, blocked)
     if not detection:
-        h = out.shape[0]
-        draw_text(out, f"no top object: {detection.reason}", (8, h - 10), (255, 255, 255))
-    return out
+        entries.append((f"no top object: {detection.reason}", (90, 90, 255)))
+    return with_legend(out, entries)

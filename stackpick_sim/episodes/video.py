@@ -46,7 +46,7 @@ LEGEND_HEIGHT = 32
 HOLD_END_S = 1.5
 #: The outside camera: distance from the pile's centre, m; azimuth and elevation, deg
 #: (MuJoCo's free-camera convention); vertical field of view follows the renderer's model.
-OUTSIDE_DISTANCE = 0.75
+OUTSIDE_DISTANCE = 0.6
 OUTSIDE_AZIMUTH_DEG = 150.0
 OUTSIDE_ELEVATION_DEG = -28.0
 #: Height above the pile's centre the outside camera aims at, m: the tool above it in view.
@@ -217,12 +217,12 @@ class ReplayFilm:
         k = w / obs.image.shape[1]
         out = np.ascontiguousarray(cv2.resize(obs.image[..., ::-1], VIEW_SIZE,
                                               interpolation=cv2.INTER_NEAREST), dtype=np.uint8)
-        for ellipse in self._truth.get(round(obs.capture_time, 6), []):
-            draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 1)
         for cand in obs.candidates:
             if cand.ellipse is not None:
                 draw_ellipse(out, scale_ellipse(cand.ellipse, k),
-                             TOP_COLOUR if cand.is_top else OTHER_COLOUR, 2)
+                             TOP_COLOUR if cand.is_top else OTHER_COLOUR, 3)
+        for ellipse in self._truth.get(round(obs.capture_time, 6), []):
+            draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 1, halo=False)
         est = info.episode.estimator
         if est.initialised:
             state = est.state(obs.capture_time, obs.world_T_cam)
