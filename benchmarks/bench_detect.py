@@ -4,12 +4,12 @@ Runs ``stackpick bench-detect`` for the held-out paper seeds (frames from a data
 ``stackpick dataset --scene paper --seeds 9000:10000 --out DATA``) and for the cluttered scene
 (frames from a data set given by --cluttered-data, else rendered in-process). Usage::
 
-    python benchmarks/bench_detect.py --paper-data /work/data/ds_paper_h9k \\
+    python benchmarks/bench_detect.py --paper-data DATA \\
         [--paper-seeds 9000:10000] [--cluttered-data DIR] [--cluttered-seeds 9000:9150]
 
-Development used paper seeds 0-6499 (each thousand from 1000 on was an earlier session's
-hold-out); the reported numbers are on seeds 9000-9999 (paper) and 9000-9149 (cluttered),
-never used in development.
+The reported numbers are on seeds 9000-9999 (paper) and 9000-9149 (cluttered), which the
+detector was never tuned on (paper seeds 0-6499 were: keep new work off the held-out
+ranges; docs/figures.md lists every figure's seeds).
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ Each variant is the paper scene with a few keys changed (VARIANTS: object colour
 height and resolution, light, pile shape). For each, ``stackpick bench-detect --methods
 ours`` renders the seeds' frames in-process and scores them; the per-variant results go to
 ``--out``/NAME/, and one table of top success, F and pose errors to ``--out``/summary.md.
-The paper scene's targets (issue 3) apply to the paper scene only; here they are a yardstick.
+The paper scene's acceptance targets apply to the paper scene only; here they are a
+yardstick.
 
     python benchmarks/bench_variants.py [--seeds 21000:21150] [--variants grey,high]
         [--out benchmarks/results/variants]

@@ -1,6 +1,6 @@
 """Per-stage time of the detector against a baseline commit, as ratios, on the same frames.
 
-    python benchmarks/bench_vision_stages.py --data /work/data/ds_paper_dev3 --seeds 0:400 \\
+    python benchmarks/bench_vision_stages.py --data DATA --seeds 0:400 \\
         [--baseline main] [--rounds 3] [--repeats 3]
 
 The baseline commit's ``stackpick_sim`` is exported to a temporary directory; the baseline and
@@ -12,7 +12,8 @@ the work done. Per frame the fastest repeat counts; the table gives medians over
 and rounds and the ratio baseline / working tree. The outputs (ellipses, top, pose) of the two
 are compared as well: a speed-up should not change them.
 
-Use development seeds only: held-out seeds are for the reported benchmark.
+DATA is a ``stackpick dataset --scene paper --seeds 0:400`` directory. Time on seeds outside
+the held-out ranges of the reported figures (docs/figures.md).
 """
 
 from __future__ import annotations
@@ -135,7 +136,7 @@ def main() -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, required=True, help="a `stackpick dataset` directory")
-    p.add_argument("--seeds", default="0:400", help="development seeds (default 0:400)")
+    p.add_argument("--seeds", default="0:400", help="seeds of the data set to time (default 0:400)")
     p.add_argument("--baseline", default="main", help="git ref of the baseline (default main)")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--repeats", type=int, default=3)

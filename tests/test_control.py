@@ -1,6 +1,6 @@
 """Eye-in-hand chain, servo law and mink execution on an inline 6-DOF arm (and the VS-060).
 
-The inline arm copies the VS-060's joint table from NOTES.md (Denso's vs060.urdf) with a
+The inline arm copies the VS-060's joint table (Denso's vs060.urdf, see models/vs060) with a
 wrist camera 60 mm beside the approach axis, looking along it.
 """
 
@@ -67,7 +67,7 @@ ARM_XML = """
 </mujoco>
 """
 JOINTS = tuple(f"joint{i}" for i in range(1, 7))
-#: rad/s, Denso vs060.urdf via NOTES.md
+#: rad/s, from Denso's vs060.urdf
 SPEED_LIMITS = dict(zip(JOINTS, (3.927, 2.618, 2.858, 3.927, 3.022, 6.283), strict=True))
 #: Tool pointing straight down at (0.427, -0.142, 0.22) m: joint 1 turned upstream by 0.32 rad
 #: (found once with a mink FrameTask); the object starts up-belt of the tool.

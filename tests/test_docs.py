@@ -7,6 +7,7 @@ import importlib.util
 import re
 import shlex
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -32,7 +33,8 @@ def _commands(path: Path) -> list[str]:
     return lines
 
 
-def _scene_keys_module():  # noqa: ANN202 - the docs script, loaded from its path
+def _scene_keys_module() -> Any:
+    """docs/scene_keys.py, loaded from its path."""
     spec = importlib.util.spec_from_file_location("scene_keys", ROOT / "docs" / "scene_keys.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

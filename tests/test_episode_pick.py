@@ -480,7 +480,7 @@ def _enlarged(obs: Observation, scale: float) -> Observation:
 
 
 def test_the_lowest_face_height_outlasts_later_views_that_read_the_face_too_high() -> None:
-    # Paper development seeds 633, 653: the look pose reads the face height right; later
+    # Paper scene, seeds 633 and 653: the look pose reads the face height right; later
     # views' outlines take in the side wall and read it 10-18 mm too high, and the median
     # of the latest heights follows them. The lowest height stays the face's, and the
     # descent's floor reaches the true face.
@@ -495,9 +495,9 @@ def test_the_lowest_face_height_outlasts_later_views_that_read_the_face_too_high
 
 
 def test_a_face_read_too_high_by_the_approach_views_is_still_picked() -> None:
-    # Paper development seed 653 (vision): the approach's and servo's outlines of the face
-    # take in its side wall, and the track puts the face 13 mm too high; the descent used to
-    # stop 7 mm above it (missed_grasp).
+    # Paper scene, seed 653, our detector: the approach's and servo's outlines of the face
+    # take in its side wall, and the track puts the face 13 mm too high; a descent that
+    # trusted that height would stop 7 mm above the face (missed_grasp).
     rec = run_episode(generate_scene(load_scene("paper", []), 653))
     assert rec.success, f"{rec.failure}: {rec.failure_detail}"
 

@@ -161,7 +161,7 @@ def test_belt_frame_beats_image_frame_when_camera_moves() -> None:
             image_err[q].append(float(np.linalg.norm(tracker.predict_at(t_pick).position
                                                      - truth_px)))
     best_image = min(float(np.median(v)) for v in image_err.values())
-    assert np.median(belt_err) < 1.0  # the issue's < 1 px target
+    assert np.median(belt_err) < 1.0  # the < 1 px prediction target
     assert np.median(belt_err) < 0.2 * best_image
 
 
@@ -292,7 +292,7 @@ def test_image_frame_with_camera_motion_carried_through_the_plane_matches_belt()
                                     INTRINSICS, cam)[0]
         belt_err.append(float(np.linalg.norm(belt_px - truth_px)))
         image_err.append(float(np.linalg.norm(image.predict_at(t_pick).position - truth_px)))
-    assert np.median(image_err) < 1.0  # the issue's < 1 px target
+    assert np.median(image_err) < 1.0  # the < 1 px prediction target
     assert np.median(image_err) < 1.5 * np.median(belt_err)
     assert plain_rejections > runs * (frames - 2) / 2  # most of the uncompensated ones
 

@@ -14,9 +14,10 @@ from stackpick_sim.exceptions import IKError, ModelError
 from stackpick_sim.paths import model_path
 from stackpick_sim.sim import ik, robot
 
-# The VS-060 table of /work/shared/NOTES.md (Denso's vs060.urdf): origin in parent (m), axis,
+# The VS-060's joint table from Denso's vs060.urdf (DENSORobot/denso_robot_ros, see
+# models/vs060/README.md): origin in parent (m), axis,
 # range (rad), speed limit (rad/s).
-NOTES_TABLE = (
+URDF_TABLE = (
     ((0.0, 0.0, 0.1815), (0, 0, 1), (-2.96706, 2.96706), 3.927),
     ((0.0, 0.0, 0.1635), (0, 1, 0), (-2.094395, 2.094395), 2.618),
     ((0.0, 0.0, 0.305), (0, 1, 0), (-2.181662, 2.70526), 2.858),
@@ -172,7 +173,7 @@ def test_noisy_controls_one_second_without_warnings(which: str,
 
 def test_joints_match_the_notes_table(arm_model: mujoco.MjModel,
                                       robot_model: mujoco.MjModel) -> None:
-    for i, (origin, axis, rng_, _) in enumerate(NOTES_TABLE):
+    for i, (origin, axis, rng_, _) in enumerate(URDF_TABLE):
         joint = arm_model.joint(robot.ARM_JOINTS[i])
         body = arm_model.body(int(joint.bodyid[0]))
         np.testing.assert_allclose(body.pos, origin, atol=1e-12)
@@ -184,7 +185,7 @@ def test_joints_match_the_notes_table(arm_model: mujoco.MjModel,
         actuator = robot_model.actuator(robot.ARM_ACTUATORS[i])
         assert actuator.trnid[0] == composed.id
         np.testing.assert_allclose(actuator.ctrlrange, rng_, atol=MJCF_ROUNDING)
-    np.testing.assert_array_equal(robot.VELOCITY_LIMITS, [row[3] for row in NOTES_TABLE])
+    np.testing.assert_array_equal(robot.VELOCITY_LIMITS, [row[3] for row in URDF_TABLE])
 
 
 def test_fk_at_zero_puts_flange_at_the_urdf_figure(robot_model: mujoco.MjModel) -> None:

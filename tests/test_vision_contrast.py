@@ -86,8 +86,8 @@ def _nested_discs(gap_px: float, seed: int) -> tuple[Ellipse, Ellipse, EdgeImage
     return outer, inner, edge_image(image)
 
 
-# 5 px: a top face on a same-colour lower face a few px larger (development seeds 202, 339),
-# beyond the strongest-edge refit's reach.
+# 5 px: a top face on a same-colour lower face a few px larger (as in the paper scene's
+# seeds 202 and 339), beyond the strongest-edge refit's reach.
 @pytest.mark.parametrize(("gap_px", "seed"), [(2.5, 9), (5.0, 11)])
 def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one(
         gap_px: float, seed: int) -> None:

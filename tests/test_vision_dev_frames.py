@@ -1,4 +1,4 @@
-"""Pinned paper-scene development frames (rendered by the simulator, with their ground truth)
+"""Pinned paper-scene frames (rendered by the simulator, with their ground truth)
 on which a detector step decides: the detector's choice is a true top face, and without the
 step it is a whole lower face that the top rests on, or no face at all; and a refit of the top
 face on a lower outline is not reported beside it."""
@@ -18,9 +18,9 @@ from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
 
-#: Frames copied from the development data sets ds_paper_dev4 (857), ds_paper_h1k (1374,
-#: 1438, 1769), ds_paper_h2k (2241, 2333) and ds_paper_h3k (3032, 3070, 3120, 3355, 3504,
-#: 3791, 3886), PNG and ground-truth JSON as `stackpick dataset` wrote them.
+#: The paper scene's frames of seeds 857, 1374, 1438, 1769, 2241, 2333, 3032, 3070, 3120,
+#: 3355, 3504, 3791 and 3886: PNG and ground-truth JSON as `stackpick dataset --scene paper`
+#: writes them.
 FRAMES = Path(__file__).parent / "data" / "paper_dev_frames"
 
 

@@ -18,7 +18,7 @@ K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 ORANGE, BLUE = (0.85, 0.6, 0.25), (0.3, 0.6, 0.85)  # the paper scene's kinds
 CONFIG = DetectorConfig(intrinsics=K, radii_m=(0.035, 0.025), kind_colours=(ORANGE, BLUE),
                         heights_m=(0.03, 0.025), depth_range_m=(0.15, 0.3))
-#: Paper scene development frame 377 of ds_paper_dev3 (ground truth, camera frame, lowest
+#: The paper scene's seed 377 at the look pose (ground truth, camera frame, lowest
 #: first): face centre (m), inward normal, face RGB as rendered. Five large cylinders; the top
 #: one lies on a slightly larger lower face of its colour and shade, and its outline breaks
 #: into short arcs at the junctions with the faces beneath, none of which the merge joins.
@@ -100,7 +100,7 @@ def test_top_face_never_merged_is_found_from_pairs_of_its_arcs(
     assert missed.top_ellipse is None, missed.reason
 
 
-#: Paper scene development frame 820 of ds_paper_dev4 (as FRAME_377): four small cylinders
+#: The paper scene's seed 820 at the look pose (as FRAME_377): four small cylinders
 #: nearly square on; the top face lies on a lower face of its colour, its fits take in part of
 #: that face's outline, and only its contrast refit (support ~0.85, nothing crossing it)
 #: follows its own faint boundary.

@@ -77,9 +77,9 @@ def _two_discs(lower: Ellipse, lower_level: float, upper: Ellipse, upper_level: 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_last_resort_takes_a_face_whose_gap_is_an_invisible_boundary(seed: int) -> None:
-    # A top disc on a lower one of the very same shade (development seed 292): the boundary
-    # over the lower disc does not show, so no face passes the rule; neither has a T-junction
-    # or an edge inside, and the top shows more of its outline.
+    # A top disc on a lower one of the very same shade (as in the paper scene's seed 292):
+    # the boundary over the lower disc does not show, so no face passes the rule; neither has
+    # a T-junction or an edge inside, and the top shows more of its outline.
     lower = Ellipse(cx=140, cy=120, a=30, b=26, angle_deg=20)
     upper = Ellipse(cx=185, cy=125, a=42, b=37, angle_deg=110)
     image = _two_discs(lower, 150.0, upper, 150.0, seed)
@@ -109,7 +109,7 @@ def _silhouette_fit(image: np.ndarray) -> Ellipse:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_rim_band_last_resort_takes_a_face_fitted_on_a_lower_sliver(seed: int) -> None:
     # A top disc on a lower disc of its colour, a little darker, whose sliver shows up to
-    # ~5 px beyond the top's rim (development frame 202 of ds_paper_dev3): the fit on the
+    # ~5 px beyond the top's rim (as in the paper scene's seed 202): the fit on the
     # strong silhouette holds the top's own faint rim inside, so it fails on interior edges.
     upper = Ellipse(cx=165, cy=120, a=48, b=47, angle_deg=0)
     lower = Ellipse(cx=158, cy=120, a=46, b=46, angle_deg=0)
@@ -363,7 +363,7 @@ def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
     assert select_top([big, small], edges, K, radius_of).index == 1
 
     def same_radius(e: Ellipse) -> float:
-        return 0.03  # depths then differ by < DEPTH_TIE_M: the old rule decides
+        return 0.03  # depths then differ by < DEPTH_TIE_M: the size rule decides
 
     assert select_top([big, small], edges, K, same_radius).index == 0
 
