@@ -49,11 +49,11 @@ def test_no_frame_shows_a_black_wrist_camera(video: Path) -> None:
         assert wrist.mean() > 20  # the belt and the pile, not an empty frame
 
 
-def test_the_banner_carries_large_text(video: Path) -> None:
+def test_the_banner_text_is_large_enough_to_read(video: Path) -> None:
     _, frames = _frames(video)
-    banner = frames[0][:BANNER_HEIGHT, : VIEW_SIZE[0]].max(axis=2)
-    rows = np.flatnonzero((banner > 150).any(axis=1))
-    assert rows.size and rows.max() - rows.min() >= 30  # two lines of text ~14 px and more
+    first_line = frames[0][: BANNER_HEIGHT // 2, : VIEW_SIZE[0]].max(axis=2)
+    rows = np.flatnonzero((first_line > 150).sum(axis=1) > 2)
+    assert rows.size and rows.max() - rows.min() >= 14  # letters at least 14 px high
 
 
 def test_outcome_text_names_the_reason_and_its_detail() -> None:

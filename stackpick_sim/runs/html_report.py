@@ -38,6 +38,8 @@ from stackpick_sim.runs.spec import RunSpec, episode_dir
 HTML_FILE = "report.html"
 #: Width of a failed seed's thumbnail on the page, CSS px.
 THUMB_WIDTH = 320
+#: Failed seeds whose frame is shown (each may have to be regenerated, about a second each).
+MAX_THUMBNAILS = 24
 
 #: A look-pose frame of a seed's pile with its ground truth drawn, as PNG bytes.
 FrameSource = Callable[[Path, int], bytes | None]
@@ -142,13 +144,18 @@ def look_frame_png(run_dir: Path, seed: int) -> bytes | None:
     return bytes(png) if ok else None
 
 
-def _failure_cards(data: ReportData, run: RunData, frames: FrameSource) -> list[str]:
+def _failure_cards(data: ReportData, run: RunData, frames: FrameSource,
+                   budget: list[int]) -> list[str]:
+    """A card per failed seed (at most MAX_FAILED_LISTED); ``budget`` holds how many more
+    frames the page shows."""
     cards = []
     for r in run.failed()[:MAX_FAILED_LISTED]:
         seed = int(r["seed"])
-        png = frames(run.path, seed)
+        png = frames(run.path, seed) if budget[0] > 0 else None
+        budget[0] -= 1
         thumb = (f'<img alt="seed {seed}, look-pose frame" src="{_data_uri(png)}">' if png
-                 else "<p>(no frame)</p>")
+                 else f"<p>(no frame: <code>stackpick render</code> with this run's scene and "
+                 f"<code>--seed {seed}</code> makes it)</p>")
         video = video_path(run.path, seed)
         play = (f'<a href="{_link(data.directory, video)}">video</a>' if video.is_file()
                 else f"<code>{_e(replay_command(run.path, seed))}</code>")
@@ -223,7 +230,8 @@ def report_html(data: ReportData, frames: FrameSource = look_frame_png) -> str:
         png = (data.directory / name).read_bytes()
         parts.append(f'<img class="plot" alt="{_e(PLOT_FILES[name])}" src="{_data_uri(png)}">')
     parts.append("<h2>Failed episodes</h2>")
-    cards = [c for run in data.runs for c in _failure_cards(data, run, frames)]
+    budget = [MAX_THUMBNAILS]
+    cards = [c for run in data.runs for c in _failure_cards(data, run, frames, budget)]
     if cards:
         parts += ["<p>Each with its wrist camera's frame at the look pose, where the first "
                   "detection is made (ground truth drawn: green the true top objects), and "
