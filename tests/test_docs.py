@@ -57,6 +57,19 @@ def test_every_command_shown_parses(page: Path) -> None:
             raise AssertionError(f"{page.name}: `{line}` does not parse") from exc
 
 
+#: Pages the README links to that other parts of the documentation provide.
+PROVIDED_ELSEWHERE = {"docs/api.md", "docs/records.md"}
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_relative_link_resolves(page: Path) -> None:
+    for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", page.read_text()):
+        path = (page.parent / target).resolve()
+        if str(path.relative_to(ROOT)) in PROVIDED_ELSEWHERE:
+            continue
+        assert path.exists(), f"{page.name} links to a missing {target}"
+
+
 def test_the_readme_shows_commands_and_python() -> None:
     readme = ROOT / "README.md"
     assert len(_commands(readme)) >= 8
