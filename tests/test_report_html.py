@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
+from urllib.parse import unquote
 
 import cv2
 import numpy as np
@@ -61,7 +62,7 @@ def test_a_sweep_page_has_its_cells_and_chart(tmp_path: Path) -> None:
     page = write_html(write_report(out), _frame).read_text()
     assert 'id="cells"' in page and "conveyor.speed=0.3" in page
     assert 'alt="success rate vs. parameter"' in page
-    assert 'href="cells/conveyor.speed=0.1/results.jsonl"' in page
+    assert 'href="cells/conveyor.speed%3D0.1/results.jsonl"' in page
 
 
 def _browser() -> object:
@@ -98,7 +99,7 @@ def test_the_page_in_a_headless_browser_sorts_and_its_links_resolve(tmp_path: Pa
             assert len(hrefs) >= 3
             for href in hrefs:
                 assert href.startswith("file://")
-                assert Path(href.removeprefix("file://").replace("%3D", "=")).exists(), href
+                assert Path(unquote(href.removeprefix("file://"))).exists(), href
 
             def column(n: int) -> list[str]:
                 return page.eval_on_selector_all(

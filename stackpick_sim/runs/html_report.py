@@ -16,6 +16,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import cv2
 
@@ -116,7 +117,7 @@ def _data_uri(png: bytes) -> str:
 
 def _link(page_dir: Path, target: Path) -> str:
     """A relative URL from the page to ``target``."""
-    return "/".join(_e(p) for p in Path(os.path.relpath(target, page_dir)).parts)
+    return "/".join(quote(p) for p in Path(os.path.relpath(target, page_dir)).parts)
 
 
 def _number(record: dict[str, Any], keys: tuple[str, ...]) -> float | None:

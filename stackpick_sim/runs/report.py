@@ -9,6 +9,7 @@ same content as one self-contained web page.
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -89,7 +90,8 @@ def load_report_data(directory: Path) -> ReportData:
 
 def replay_command(run_dir: Path, seed: int) -> str:
     """The command that replays ``seed`` of ``run_dir`` as a video beside its records."""
-    return f"stackpick replay {run_dir} {seed} --video {video_path(run_dir, seed)}"
+    video = shlex.quote(str(video_path(run_dir, seed)))
+    return f"stackpick replay {shlex.quote(str(run_dir))} {seed} --video {video}"
 
 
 def video_path(run_dir: Path, seed: int) -> Path:
