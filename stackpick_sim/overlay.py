@@ -53,13 +53,15 @@ def scale_point(uv: Sequence[float], k: float) -> tuple[float, float]:
 
 
 def draw_ellipse(image: NDArray[np.uint8], ellipse: Ellipse, colour: tuple[int, int, int],
-                 thickness: int = 1, halo: bool = True) -> None:
-    """Draw ``ellipse``'s outline (over a dark halo unless not ``halo``) into the BGR
-    ``image`` in place, with sub-pixel accuracy."""
+                 thickness: int = 1, halo: bool = True, dashed: bool = False) -> None:
+    """Draw ``ellipse``'s outline (over a dark halo unless not ``halo``; in 36 dashes when
+    ``dashed``, to show over another outline) into the BGR ``image`` in place, with sub-pixel
+    accuracy."""
     pts = np.round(ellipse.points(180) * (1 << SHIFT)).astype(np.int32)
+    parts = [pts[i:i + 6] for i in range(0, len(pts), 10)] if dashed else [pts]
     strokes = ((HALO_COLOUR, thickness + 2), (colour, thickness))
     for col, th in strokes if halo else strokes[1:]:
-        cv2.polylines(image, [pts], isClosed=True, color=col, thickness=th,
+        cv2.polylines(image, parts, isClosed=not dashed, color=col, thickness=th,
                       lineType=cv2.LINE_AA, shift=SHIFT)
 
 

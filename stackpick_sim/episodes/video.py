@@ -222,7 +222,8 @@ class ReplayFilm:
                 draw_ellipse(out, scale_ellipse(cand.ellipse, k),
                              TOP_COLOUR if cand.is_top else OTHER_COLOUR, 3)
         for ellipse in self._truth.get(round(obs.capture_time, 6), []):
-            draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 1, halo=False)
+            draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 2, halo=False,
+                         dashed=True)
         est = info.episode.estimator
         if est.initialised:
             state = est.state(obs.capture_time, obs.world_T_cam)
@@ -250,7 +251,7 @@ class ReplayFilm:
             colour = SUCCESS_TEXT if outcome == "success" else FAILURE_TEXT
             draw_text(frame, label + outcome, (12, 54), colour, 0.6)
         legend = ("wrist camera: green detected top, orange other detections, magenta + "
-                  "tracker estimate" + (", cyan true top" if self._show_truth else "")
+                  "tracker estimate" + (", cyan dashes true top" if self._show_truth else "")
                   + "    |    outside view following the pile")
         draw_text(frame, legend, (12, BANNER_HEIGHT + h + 21), BANNER_TEXT, 0.45)
         return frame
