@@ -187,7 +187,7 @@ def success_vs_param_figure(rows: Sequence[Mapping[str, Any]], keys: Sequence[st
         ax.errorbar(xs, ys, yerr=err, marker="o", capsize=4, label=label)
         for x, y, r in zip(xs, ys, rs, strict=True):
             ax.annotate(f"{r['successes']}/{r['episodes']}", (x, y), textcoords="offset points",
-                        xytext=(6, -12), fontsize=7)
+                        xytext=(6, 6 if y < 50 else -12), fontsize=7)
     ax.set_title(f"pick success vs. {x_key}")
     ax.set_xlabel(x_key)
     ax.set_ylabel("success rate, % (95 % Wilson interval)")
