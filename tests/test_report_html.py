@@ -49,7 +49,7 @@ def test_the_page_is_self_contained_and_lists_every_episode(tmp_path: Path) -> N
     assert not re.search(r"""(src|href)=["']?(https?:|//)""", page)  # nothing fetched
     assert page.count("<tr>") == 8 + 1  # the episodes and the heading
     assert page.count('class="failure"') == 2 and LONG_DETAIL in page
-    assert 'href="replay_5.mp4"' in page  # the video that exists is linked ...
+    assert page.count('href="replay_5.mp4"') == 2  # the video that exists: card and table ...
     assert "stackpick replay" in page and 'href="replay_2.mp4"' not in page  # ... else the command
     assert page.count("data:image/png;base64,") == 3 + 2  # the plots and the thumbnails
     assert "Success 6/8 = 75.0 % (95 % Wilson interval" in page

@@ -189,6 +189,9 @@ def _episode_rows(data: ReportData) -> list[str]:
                 v = _number(r, keys)
                 cells.append(f'<td class="num" data-v="{"" if v is None else v}">'
                              f'{"" if v is None else f"{v:.3g}"}</td>')
+            video = video_path(run.path, int(seed))
+            cells.append(f'<td><a href="{_link(data.directory, video)}">video</a></td>'
+                         if video.is_file() else "<td></td>")
             rows.append("<tr>" + "".join(cells) + "</tr>")
     return rows
 
@@ -242,7 +245,7 @@ def report_html(data: ReportData, frames: FrameSource = look_frame_png) -> str:
         parts.append(f"<p>No failed episodes in "
                      f"{sum(len(r.records) for r in data.runs)} recorded.</p>")
     head = ["seed", *(["cell"] if data.is_sweep else []), "outcome", "reason", "detail",
-            *(h for h, _ in _NUMBERS)]
+            *(h for h, _ in _NUMBERS), "replay"]
     parts += ["<h2>Episodes</h2><p>Click a column's heading to sort by it.</p>",
               '<table class="sortable" id="episodes"><thead><tr>'
               + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr></thead><tbody>",
