@@ -170,7 +170,7 @@ def encode_image(image: NDArray, ext: str, order: Literal["rgb", "bgr"]) -> byte
         except cv2.error as exc:
             ok, buf = False, None
             said.append(str(exc).strip().splitlines()[-1])
-    if not ok:
+    if not ok or buf is None:
         raise OutputError(f"cannot encode a {ext} image: {said[-1] if said else 'unknown error'}")
     return bytes(buf)
 

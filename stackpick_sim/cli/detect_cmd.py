@@ -14,7 +14,6 @@ from numpy.typing import NDArray
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics
 from stackpick_sim.image_io import read_image, write_image
-from stackpick_sim.vision.edges import as_rgb_or_gray
 from stackpick_sim.vision.detection import Detection
 from stackpick_sim.vision.detector import (
     DEFAULT_FOVY_DEG,
@@ -22,6 +21,7 @@ from stackpick_sim.vision.detector import (
     DetectorConfig,
     detect,
 )
+from stackpick_sim.vision.edges import as_rgb_or_gray
 
 
 def register(subparsers: Any) -> None:
