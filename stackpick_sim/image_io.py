@@ -2,8 +2,9 @@
 
 :func:`read_image` reads the bytes itself (any path the OS accepts, also one that is not
 UTF-8), refuses what is not a regular file before opening it (a FIFO would block), refuses a
-file larger than :data:`MAX_FILE_BYTES` or an image whose header declares more than
-:data:`MAX_IMAGE_PIXELS` before anything is decoded, and decodes with OpenCV with the
+file larger than :data:`MAX_FILE_BYTES`, a format other than those of :data:`READ_FORMATS`
+or an image whose header declares more than :data:`MAX_IMAGE_PIXELS` before anything is
+decoded (:mod:`stackpick_sim.image_header`), and decodes with OpenCV with the
 codecs' own messages captured: every problem is one
 :class:`~stackpick_sim.exceptions.ImageError` that names the file and quotes the codec's
 reason. :func:`write_image` encodes in memory and writes through
@@ -14,16 +15,18 @@ from __future__ import annotations
 
 import os
 import stat
-import struct
 from pathlib import Path
 from typing import Literal
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.exceptions import ImageError, OutputError
 from stackpick_sim.files import shown, write_bytes
+from stackpick_sim.image_header import image_header
 from stackpick_sim.liboutput import captured_stderr
+from stackpick_sim.vision.edges import as_rgb_or_gray
 
 #: The most pixels an image file may declare: a 4096 x 4096 frame, the largest camera a
 #: scene configures (``camera.width``/``camera.height``); the detector refuses more too.
@@ -32,50 +35,9 @@ MAX_IMAGE_PIXELS = 4096 * 4096
 #: MAX_IMAGE_PIXELS (8 bytes a pixel) plus 1 MiB of metadata. Float TIFFs of the largest
 #: size exceed it and are refused.
 MAX_FILE_BYTES = 8 * MAX_IMAGE_PIXELS + (1 << 20)
+#: The formats read_image accepts (those whose header image_header reads).
+READ_FORMATS = "PNG, JPEG, TIFF, BMP, WebP or PNM"
 
-# OpenCV's codecs check a declared size against this before allocating (read at first
-# decode); it backs up the header checks below for the formats they do not parse.
-os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_IMAGE_PIXELS))
-
-import cv2  # noqa: E402 - after the size limit is in the environment
-
-from stackpick_sim.vision.edges import as_rgb_or_gray  # noqa: E402
-
-_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-# JPEG start-of-frame markers (baseline, progressive, lossless, arithmetic); not DHT/JPG/DAC.
-_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
-
-
-def _png_size(data: bytes) -> tuple[int, int] | None:
-    if data[:8] != _PNG_MAGIC or data[12:16] != b"IHDR" or len(data) < 24:
-        return None
-    w, h = struct.unpack(">II", data[16:24])
-    return int(w), int(h)
-
-
-def _jpeg_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) from the first start-of-frame segment, or None."""
-    if data[:2] != b"\xff\xd8":
-        return None
-    i = 2
-    while i + 9 <= len(data):
-        if data[i] != 0xFF:
-            return None
-        marker = data[i + 1]
-        if marker == 0xFF:  # fill byte
-            i += 1
-            continue
-        length = struct.unpack(">H", data[i + 2:i + 4])[0]
-        if marker in _JPEG_SOF:
-            h, w = struct.unpack(">HH", data[i + 5:i + 9])
-            return int(w), int(h)
-        i += 2 + length
-    return None
-
-
-def declared_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) a PNG or JPEG header declares, or None for other formats."""
-    return _png_size(data) or _jpeg_size(data)
 
 
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
@@ -106,9 +68,13 @@ def decode_image(data: bytes, name: str = "<bytes>") -> NDArray:
     """Decode image file bytes as OpenCV stores them ((H, W) or (H, W, C) BGR[A], the file's
     dtype); ImageError naming ``name`` if the bytes are not an image of at most
     MAX_IMAGE_PIXELS."""
-    size = declared_size(data)
-    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
-        raise ImageError(f"image '{name}' declares {size[0]}x{size[1]} px, more than the "
+    header = image_header(data)
+    if header is None:
+        raise ImageError(f"cannot read image '{name}': not a {READ_FORMATS} image, or its "
+                         "header is damaged")
+    kind, w, h = header
+    if w * h > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{kind} image '{name}' declares {w}x{h} px, more than the "
                          f"{MAX_IMAGE_PIXELS} pixel limit (4096 x 4096)")
     with captured_stderr() as said:
         try:
@@ -120,7 +86,7 @@ def decode_image(data: bytes, name: str = "<bytes>") -> NDArray:
         raise ImageError(f"image '{name}' declares more than the {MAX_IMAGE_PIXELS} pixel "
                          "limit (4096 x 4096)")
     if img is None or img.size == 0:
-        reason = said[-1] if said else "not a PNG, JPEG, TIFF, BMP or other image OpenCV reads"
+        reason = said[-1] if said else "the codec found no image in it"
         raise ImageError(f"cannot decode image '{name}': {reason}")
     return np.asarray(img)
 
