@@ -29,6 +29,8 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable, Iterator
+from functools import partial
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -43,6 +45,8 @@ TOML_PIECES = ("[", "]", "=", '"', "'", "\n", "[[", "1e300", "-1", "nan", "inf",
                "}", ",", ".", "#", "\\", "\x00", "\xff", "[conveyor]\n", "extends = 'paper'\n",
                "x = 1\n", "[" * 300, "0" * 400, "\ufeff", "\r\n")
 SAVED_PER_FAMILY = 5
+#: Largest random array, elements (a 320 x 240 x 3 frame).
+MAX_ELEMENTS = 320 * 240 * 3
 
 
 # --- inputs ---------------------------------------------------------------------------------
@@ -55,6 +59,8 @@ def random_array(rng: np.random.Generator) -> np.ndarray:
     shape = tuple(int(s) for s in rng.integers(0, 320 if big else 64, size=ndim))
     if ndim == 3 and rng.random() < 0.7:
         shape = (*shape[:2], int(rng.choice([1, 3, 4])))
+    while np.prod(shape) > MAX_ELEMENTS:  # 4-D shapes and the like: keep each input small
+        shape = tuple(max(1, s // 2) for s in shape)
     raw = rng.normal(128, 100, size=shape)
     if dtype.kind == "f":
         raw[rng.random(shape) < 0.02] = rng.choice(SPECIAL)
@@ -132,21 +138,23 @@ def random_override(rng: np.random.Generator, keys: list[str]) -> str:
     return f"{key}={value}"
 
 
-def make_inputs(family: str, count: int, seed: int) -> list[Any]:
+def make_inputs(family: str, count: int, seed: int) -> Iterator[Any]:
+    """The family's ``count`` seeded inputs, one at a time."""
     rng = np.random.default_rng([seed, FAMILIES.index(family)])
+    make: Callable[[], Any]
     if family == "arrays":
-        return [random_array(rng) for _ in range(count)]
-    if family == "image-files":
-        seeds = _seed_files()
-        return [random_file(rng, seeds) for _ in range(count)]
-    if family == "scene-files":
+        make = partial(random_array, rng)
+    elif family == "image-files":
+        make = partial(random_file, rng, _seed_files())
+    elif family == "scene-files":
         from stackpick_sim.paths import SCENES_DIR
 
-        paper = (SCENES_DIR / "paper.toml").read_text()
-        return [random_scene_text(rng, paper) for _ in range(count)]
-    from stackpick_sim.config.loader import known_keys
+        make = partial(random_scene_text, rng, (SCENES_DIR / "paper.toml").read_text())
+    else:
+        from stackpick_sim.config.loader import known_keys
 
-    return [random_override(rng, known_keys()) for _ in range(count)]
+        make = partial(random_override, rng, known_keys())
+    return (make() for _ in range(count))
 
 
 # --- the worker -----------------------------------------------------------------------------
@@ -290,7 +298,7 @@ def main() -> int:
                     with open(args.out / f"{family}-{index}.pickle", "wb") as fh:
                         pickle.dump({"family": family, "input": item, "outcome": outcome}, fh)
                     print(f"  {family} #{index}: {outcome}", file=sys.stderr)
-            print(f"{family:12s} {len(inputs):7d} {counts['ok']:6d} {counts['clean error']:12d} "
+            print(f"{family:12s} {args.count:7d} {counts['ok']:6d} {counts['clean error']:12d} "
                   f"{counts['crash']:6d} {counts['timeout']:8d} "
                   f"{time.perf_counter() - start:6.0f}", flush=True)
     finally:
