@@ -47,7 +47,7 @@ class ConveyorCfg:
     """The belt: a static box whose surface moves (MuJoCo ``surfacevel``)."""
 
     speed: float = 0.1
-    """Nominal belt speed, m/s along world +y."""
+    """Nominal belt speed, m/s along world +y; 0 to 1.0 m/s."""
     speed_jitter: float = 0.0
     """Std of the belt speed noise (the paper's n(k)), m/s, redrawn every ``jitter_period``;
     0 to 0.1 m/s (a tenth of the fastest belt: a drive holds its speed to a few per cent)."""
@@ -55,9 +55,10 @@ class ConveyorCfg:
     """Seconds between redraws of the speed noise; 0.001 to 10 s (from a drive controller's
     1 ms tick to a slow drift)."""
     x: float = 0.40
-    """Belt centre line, world x, m (the VS-060 reaches tool-down picks to about 0.56 m)."""
+    """Belt centre line, world x, m; 0.3 to 0.6 m (the VS-060 reaches tool-down picks to
+    about 0.56 m)."""
     top_z: float = 0.10
-    """Height of the belt surface, m."""
+    """Height of the belt surface, m; 0.02 to 0.5 m."""
     width: float = 0.30
     """Belt width along x, m; 0.05 to 2 m (conveyor belts are made from a few cm to 2 m
     wide; it must also exceed four times the widest object's radius, see SceneConfig)."""
@@ -88,11 +89,11 @@ class ObjectTypeCfg:
     """One kind of cylinder (the paper used two)."""
 
     radius: float
-    """m"""
+    """m; 0.01 to 0.06"""
     height: float
-    """m"""
+    """m; 0.01 to 0.15"""
     mass: float
-    """kg"""
+    """kg; 0.01 to 0.6 (what the suction cup holds)"""
     rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
     """Colour, components in [0, 1]."""
 
@@ -119,19 +120,21 @@ class ObjectsCfg:
     """How piles are made."""
 
     count: tuple[int, int] = (3, 5)
-    """[min, max] number of cylinders per scene, both inclusive."""
+    """[min, max] number of cylinders per scene, both inclusive; 1 <= min <= max <= 10."""
     types: tuple[str, ...] = ("large", "small")
     """Names of ``object_types`` to draw from, uniformly."""
     max_tilt_deg: float = 45.0
-    """Largest allowed tilt of a settled cylinder's axis from vertical, degrees."""
+    """Largest allowed tilt of a settled cylinder's axis from vertical, degrees; above 0, at
+    most 80."""
     pile_radius: float = 0.05
-    """Horizontal spread of drop points around the pile centre, m."""
+    """Horizontal spread of drop points around the pile centre, m; 0 to 0.1 m."""
     centre_jitter: float = 0.02
-    """Std of the pile centre's offset from the look point, m."""
+    """Std of the pile centre's offset from the look point, m; 0 to 0.05 m."""
     max_face_height: float = 0.15
     """Highest a top face's centre may lie above the belt, m: a pile with a higher face is
     redrawn, and the detectors look for faces between this height and the belt (see
-    :func:`stackpick_sim.geometry.face_depth_range`)."""
+    :func:`stackpick_sim.geometry.face_depth_range`); 0.01 to 0.5 m, above the lowest
+    object's height and at least MIN_FACE_CLEARANCE below ``camera.look_height``."""
 
     def __post_init__(self) -> None:
         lo, hi = self.count
@@ -155,24 +158,25 @@ class CameraCfg:
     """The wrist camera."""
 
     width: int = 320
-    """px (the paper's camera: 320x240)"""
+    """px (the paper's camera: 320x240); 16 to 4096"""
     height: int = 240
-    """px"""
+    """px; 16 to 4096"""
     fovy_deg: float = 45.0
-    """Vertical field of view, degrees."""
+    """Vertical field of view, degrees; 10 to 120."""
     look_height: float = 0.30
-    """Camera height above the belt surface at the look pose, m."""
+    """Camera height above the belt surface at the look pose, m; 0.15 to 0.6 m."""
     noise_std: float = 0.0
-    """Std of additive Gaussian pixel noise, grey levels (0-255 scale)."""
+    """Std of additive Gaussian pixel noise, grey levels (0-255 scale); 0 to 50."""
     fps: float = 30.0
-    """Frame rate, Hz."""
+    """Frame rate, Hz; 1 to 240."""
     shadows: bool = False
     """Render shadows (several times slower on a CPU renderer; the ring light casts few)."""
     latency_s: float = 0.010
     """Delay from a frame's capture to its detection being usable, s. Measured: the vision
     pipeline's median ``timings_ms["total"]`` on 320x240 paper-scene frames was 8-9 ms on the
     project's 2-core machine (benchmarks/bench_episodes.py, 2025), rounded up to 10 ms.
-    Modelled as this constant, never the wall clock, so episodes are deterministic."""
+    Modelled as this constant, never the wall clock, so episodes are deterministic. 0 to
+    1 s."""
 
     def __post_init__(self) -> None:
         _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
@@ -194,15 +198,17 @@ class LightsCfg:
     """The paper's ring light (Fig. 3a): lights around the camera, each with its own intensity."""
 
     intensity: float = 1.0
-    """One factor scaling all ring lights; 1.0 nominal."""
+    """One factor scaling all ring lights; 1.0 nominal; 0 to 5."""
     ring: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)
-    """Relative intensity of each ring light; their number is the length of this list."""
+    """Relative intensity of each ring light; their number is the length of this list; 1 to
+    16 lights, each 0 to 5."""
     ring_radius: float = 0.045
-    """Radius of the ring around the optical axis, m."""
+    """Radius of the ring around the optical axis, m; 0.01 to 0.2 m."""
     ambient: float = 0.15
-    """Ambient light of the room, [0, 1]."""
+    """Ambient light of the room, 0 to 1."""
     jitter: float = 0.0
-    """Relative std of a per-frame random scaling of each ring light (illumination jitter)."""
+    """Relative std of a per-frame random scaling of each ring light (illumination jitter);
+    0 to 0.5."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
@@ -221,11 +227,11 @@ class SimCfg:
     """Physics settings."""
 
     timestep: float = 0.002
-    """s"""
+    """s; 1e-4 to 0.01"""
     settle_time: float = 1.5
-    """Longest time one dropped object is simulated to come to rest, s."""
+    """Longest time one dropped object is simulated to come to rest, s; 0.2 to 10 s."""
     max_attempts: int = 200
-    """Rejection-sampling budget per scene."""
+    """Rejection-sampling budget per scene; 1 to 10000."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.timestep) and 1e-4 <= self.timestep <= 0.01, "sim.timestep",
@@ -276,14 +282,15 @@ class EpisodeCfg:
     tracker_frame: TrackerFrame = "belt"
     """Kalman state frame: ``belt`` (back-projected, metres) or ``image`` (paper, pixels)."""
     control_period: float = 0.01
-    """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
+    """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``;
+    0.001 to 0.1 s."""
     track_frames: int = 3
-    """Detections fused before the approach starts (two initialise the filter)."""
+    """Detections fused before the approach starts (two initialise the filter); 2 to 30."""
     max_retargets: int = 0
     """Times an episode may drop its tracked face for one that later frames voted top
     (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
     every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
-    cost picks (README, "Which face is picked")."""
+    cost picks (README, "Which face is picked"). 0 to 3."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
@@ -320,7 +327,7 @@ class EpisodeCfg:
     lift_retreat: float = 0.0
     """Horizontal travel of the tool towards the robot's base (the J1 axis) during the lift,
     m, in proportion to the rise: a grasp near the edge of the workspace (a fast belt carries
-    the face far out) cannot rise straight up with the arm stretched."""
+    the face far out) cannot rise straight up with the arm stretched. 0 to 0.3 m."""
     verify_time: float = 0.15
     """Time the lifted object must stay held, s; 0 to 5 s."""
     timeout_look: float = 0.2
