@@ -22,6 +22,7 @@ under --out to reproduce them.
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
 import os
 import pickle
@@ -159,6 +160,10 @@ def make_inputs(family: str, count: int, seed: int) -> Iterator[Any]:
 
 # --- the worker -----------------------------------------------------------------------------
 
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} in JSON output")
+
+
 def _run_cli(argv: list[str]) -> str:
     """Run ``stackpick ARGV`` in this process with fds 1 and 2 captured; the outcome."""
     from stackpick_sim.cli.main import main
@@ -180,7 +185,10 @@ def _run_cli(argv: list[str]) -> str:
             os.close(saved[1])
         err.seek(0)
         lines = err.read().decode("utf-8", "replace").splitlines()
+        out.seek(0)
+        printed = out.read()
     if code == 0 and not lines:
+        json.loads(printed, parse_constant=_no_constant)  # strict JSON: no NaN, Infinity
         return "ok"
     if code == 2 and len(lines) == 1 and "error:" in lines[0]:
         return "clean error"

@@ -6,6 +6,7 @@ A few hundred examples in all; benchmarks/fuzz.py runs thousands per family.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -87,6 +88,10 @@ def image_files(draw: st.DrawFn) -> bytes:
     return bytes(data[:draw(st.integers(0, len(data)))])
 
 
+def _no_constant(name: str) -> None:
+    raise AssertionError(f"{name} in JSON output")
+
+
 @FAST
 @given(data=image_files())
 def test_detect_on_any_file_exits_0_or_2_with_one_line(
@@ -102,6 +107,7 @@ def test_detect_on_any_file_exits_0_or_2_with_one_line(
         assert err.count("\n") == 1 and "error:" in err and out == "", err
     else:
         assert err == ""
+        json.loads(out, parse_constant=_no_constant)
 
 
 PAPER = (SCENES_DIR / "paper.toml").read_text()
