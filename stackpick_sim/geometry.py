@@ -38,6 +38,14 @@ FloatArray = NDArray[np.float64]
 FOVY_RANGE_DEG = (1.0, 170.0)
 
 
+def check_fovy(fovy_deg: float) -> None:
+    """ConfigError unless ``fovy_deg`` is a vertical field of view in FOVY_RANGE_DEG."""
+    lo, hi = FOVY_RANGE_DEG
+    if not (math.isfinite(fovy_deg) and lo <= fovy_deg <= hi):
+        raise ConfigError(f"vertical field of view {fovy_deg!r} deg is out of range; "
+                          f"allowed: {lo:g} to {hi:g} degrees")
+
+
 @dataclass(frozen=True, kw_only=True)
 class CameraIntrinsics:
     """Pinhole intrinsics in pixels (no distortion: MuJoCo renders an ideal pinhole).
@@ -75,10 +83,7 @@ class CameraIntrinsics:
 
         ``fovy_deg`` must lie in FOVY_RANGE_DEG (ConfigError otherwise).
         """
-        lo, hi = FOVY_RANGE_DEG
-        if not (math.isfinite(fovy_deg) and lo <= fovy_deg <= hi):
-            raise ConfigError(f"vertical field of view {fovy_deg!r} deg is out of range; "
-                              f"allowed: {lo:g} to {hi:g} degrees")
+        check_fovy(fovy_deg)
         f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
         return cls(fx=f, fy=f, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0,
                    width=width, height=height)

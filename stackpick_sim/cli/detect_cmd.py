@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics
+from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics, check_fovy
 from stackpick_sim.image_io import read_image, write_image
 from stackpick_sim.vision.detection import Detection
 from stackpick_sim.vision.detector import (
@@ -52,7 +52,9 @@ DEPTH_RANGE_M = (0.01, 10.0)
 
 
 def _check_ranges(args: argparse.Namespace) -> None:
-    """ConfigError naming the allowed range for a --radii or --depth-range value outside it."""
+    """ConfigError naming the allowed range for a --fovy, --radii or --depth-range value
+    outside it (before the image is read)."""
+    check_fovy(args.fovy)
     lo, hi = RADIUS_RANGE_M
     for r in args.radii:
         if not (math.isfinite(r) and lo <= r <= hi):
