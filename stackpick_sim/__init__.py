@@ -9,6 +9,9 @@ import sys
 # whether MuJoCo chose before us, so that a rendering failure can say so.
 MUJOCO_IMPORTED_FIRST = "mujoco" in sys.modules and "MUJOCO_GL" not in os.environ
 os.environ.setdefault("MUJOCO_GL", "egl")
+# OpenCV's codecs refuse a declared size above this before allocating (read when cv2 loads);
+# it backs up stackpick_sim.image_io's own header check (4096 x 4096 px).
+os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(4096 * 4096))
 
 from stackpick_sim.exceptions import (  # noqa: E402 - after the GL default
     ConfigError,

@@ -46,3 +46,7 @@ class EstimationError(StackpickError):
 
 class EpisodeError(StackpickError):
     """An episode cannot be set up or run as asked (bad settings, unknown failure reason)."""
+
+
+class OutputError(StackpickError):
+    """An output file cannot be written whole (no such directory, full disk, not a file...)."""

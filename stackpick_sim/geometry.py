@@ -26,15 +26,33 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.exceptions import ConfigError
+
 #: Rotation taking MuJoCo camera axes (x right, y up, -z forward) to OpenCV's.
 MJ_CAM_TO_CV: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
 
 FloatArray = NDArray[np.float64]
+#: Vertical fields of view a pinhole camera model may have, degrees: from a long telephoto
+#: lens (1 deg) to the widest rectilinear lenses (170 deg); a pinhole image of a wider field
+#: stretches without bound towards its edges.
+FOVY_RANGE_DEG = (1.0, 170.0)
+
+
+def check_fovy(fovy_deg: float) -> None:
+    """ConfigError unless ``fovy_deg`` is a vertical field of view in FOVY_RANGE_DEG."""
+    lo, hi = FOVY_RANGE_DEG
+    if not (math.isfinite(fovy_deg) and lo <= fovy_deg <= hi):
+        raise ConfigError(f"vertical field of view {fovy_deg!r} deg is out of range; "
+                          f"allowed: {lo:g} to {hi:g} degrees")
 
 
 @dataclass(frozen=True, kw_only=True)
 class CameraIntrinsics:
-    """Pinhole intrinsics in pixels (no distortion: MuJoCo renders an ideal pinhole)."""
+    """Pinhole intrinsics in pixels (no distortion: MuJoCo renders an ideal pinhole).
+
+    ``fx``, ``fy``: focal lengths, px, finite and > 0; ``cx``, ``cy``: principal point, px,
+    finite; ``width``, ``height``: image size, px, >= 1. Anything else raises ConfigError.
+    """
 
     fx: float
     fy: float
@@ -43,9 +61,29 @@ class CameraIntrinsics:
     width: int
     height: int
 
+    def __post_init__(self) -> None:
+        for name in ("fx", "fy"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"camera intrinsics {name} = {value!r} is out of range; "
+                                  "allowed: a finite focal length > 0 px")
+        for name in ("cx", "cy"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigError(f"camera intrinsics {name} = {getattr(self, name)!r} must "
+                                  "be a finite principal point, px")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ConfigError(f"camera intrinsics {name} = {value!r} must be an image "
+                                  "size of at least 1 px")
+
     @classmethod
     def from_fovy(cls, fovy_deg: float, width: int, height: int) -> CameraIntrinsics:
-        """Intrinsics of a MuJoCo camera of vertical field of view ``fovy_deg``, square pixels."""
+        """Intrinsics of a MuJoCo camera of vertical field of view ``fovy_deg``, square pixels.
+
+        ``fovy_deg`` must lie in FOVY_RANGE_DEG (ConfigError otherwise).
+        """
+        check_fovy(fovy_deg)
         f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
         return cls(fx=f, fy=f, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0,
                    width=width, height=height)

@@ -18,6 +18,7 @@ from stackpick_sim.cli.common import (
     scene_from_args,
 )
 from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.files import write_text
 from stackpick_sim.vision.benchmark import (
     METHOD_NAMES,
     make_methods,
@@ -86,13 +87,13 @@ def run(args: argparse.Namespace) -> int:
     first = records.get("ours", next(iter(records.values())))
     text += "\n" + table1(kept, first)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "results.md").write_text(text)
+    write_text(args.out / "results.md", text)
     meta = {"source": source, "scene": cfg.name, "seeds": [f.seed for f in kept],
             "methods": names, "match_iou": MATCH_IOU,
             "counted_visible_fraction": COUNTED_VISIBLE_FRACTION, "threads": 1,
             "machine": platform.processor() or platform.machine(),
             "python": platform.python_version()}
-    (args.out / "results.json").write_text(json.dumps({"meta": meta, "methods": summaries},
-                                                      indent=1))
+    write_text(args.out / "results.json", json.dumps({"meta": meta, "methods": summaries},
+                                                     indent=1))
     print(text)
     return 0

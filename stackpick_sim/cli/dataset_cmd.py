@@ -7,7 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-import cv2
 from tqdm import tqdm
 
 from stackpick_sim.cli.common import (
@@ -19,6 +18,8 @@ from stackpick_sim.cli.common import (
 )
 from stackpick_sim.config.loader import scene_to_dict
 from stackpick_sim.exceptions import SceneGenerationError
+from stackpick_sim.files import shown, write_text
+from stackpick_sim.image_io import write_image
 from stackpick_sim.sim.snapshot import seeded_look_frame
 
 
@@ -54,14 +55,14 @@ def run(args: argparse.Namespace) -> int:
             tqdm.write(f"warning: {exc}", file=sys.stderr)
             continue
         stem = out / f"{seed:06d}"
-        cv2.imwrite(f"{stem}.png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        write_image(f"{stem}.png", image, order="rgb")
         record = {"scene": cfg.name, "seed": seed, "attempts": scene.attempts, **truth.as_dict()}
-        Path(f"{stem}.json").write_text(json.dumps(record, indent=1))
+        write_text(f"{stem}.json", json.dumps(record, indent=1))
         summaries.append({"seed": seed, "objects": len(truth.objects),
                           "top_objects": truth.top_objects, "attempts": scene.attempts,
                           "build_wall_s": round(scene.build_wall_s, 4)})
     index = {"scene": scene_to_dict(cfg), "seeds": summaries,
              "failed": {str(k): v for k, v in failures.items()}}
-    (out / "index.json").write_text(json.dumps(index, indent=1))
-    print(f"wrote {len(summaries)} frames to {out} ({len(failures)} seed(s) failed)")
+    write_text(out / "index.json", json.dumps(index, indent=1))
+    print(f"wrote {len(summaries)} frames to {shown(out)} ({len(failures)} seed(s) failed)")
     return 0 if summaries else 1

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.glcheck import gl_failure_message
+from stackpick_sim.liboutput import route_mujoco_warnings
 
 #: Subcommand modules, in the order --help lists them.
 COMMAND_MODULES: tuple[str, ...] = ("render", "dataset", "detect", "bench_detect", "run",
@@ -52,6 +53,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         print(f"stackpick: error: {gl_failure_message(exc)}", file=sys.stderr)
         return 2
+    route_mujoco_warnings()
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))

@@ -6,9 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
-import cv2
-
 from stackpick_sim.cli.common import add_scene_args, scene_from_args, seed_arg
+from stackpick_sim.files import shown, write_text
+from stackpick_sim.image_io import write_image
 from stackpick_sim.sim.camera import make_renderer
 from stackpick_sim.sim.snapshot import seeded_look_frame, truth_overlay
 
@@ -37,15 +37,15 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)  # before the work: an unwritable --out fails fast
     scene, image, truth = seeded_look_frame(cfg, args.seed)
-    cv2.imwrite(str(out / "frame.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-    cv2.imwrite(str(out / "overlay.png"), truth_overlay(image, truth))
+    write_image(out / "frame.png", image, order="rgb")
+    write_image(out / "overlay.png", truth_overlay(image, truth), order="bgr")
     record = {"scene": cfg.name, "seed": args.seed, "attempts": scene.attempts, **truth.as_dict()}
-    (out / "truth.json").write_text(json.dumps(record, indent=1))
-    (out / "scene.xml").write_text(scene.cell.spec_xml)
+    write_text(out / "truth.json", json.dumps(record, indent=1))
+    write_text(out / "scene.xml", scene.cell.spec_xml)
     outside = make_renderer(scene.cell.model, *OVERVIEW_SIZE)
     try:
         outside.update_scene(scene.cell.data, camera="overview")
-        cv2.imwrite(str(out / "external.png"), cv2.cvtColor(outside.render(), cv2.COLOR_RGB2BGR))
+        write_image(out / "external.png", outside.render(), order="rgb")
     finally:
         outside.close()
     print(f"scene {cfg.name} seed {args.seed}: {len(truth.objects)} objects, "
@@ -57,5 +57,5 @@ def run(args: argparse.Namespace) -> int:
                  f"{e.angle_deg:.0f} deg" if e is not None else "face behind the camera")
         print(f"  {o.name:5s} {o.type_name:6s} tilt {o.tilt_deg:4.1f} deg  visible "
               f"{100 * o.visible_fraction:5.1f}%  {shape}{'  TOP' if o.is_top else ''}")
-    print(f"wrote {out}/frame.png, overlay.png, external.png, truth.json, scene.xml")
+    print(f"wrote {shown(out)}/frame.png, overlay.png, external.png, truth.json, scene.xml")
     return 0

@@ -9,6 +9,7 @@ from pathlib import Path
 from stackpick_sim.cli.common import DEFAULT_SEEDS, SEEDS_HELP, add_scene_args, parse_seeds
 from stackpick_sim.cli.run_cmd import add_execution_args, executor_from_args, spec_from_args
 from stackpick_sim.config.scene_config import DETECTORS
+from stackpick_sim.files import write_text
 from stackpick_sim.runs.lock import RunLock
 from stackpick_sim.runs.runner import run_dirs
 from stackpick_sim.runs.sweep import cell_rows, parse_param, sweep_jobs, sweep_markdown
@@ -48,9 +49,9 @@ def run(args: argparse.Namespace) -> int:
                          retry_unfinished=args.retry_unfinished, show_progress=not args.quiet)
         desc = json.loads((args.out / "sweep.json").read_text())
         rows = cell_rows(desc, stats.summaries)
-        (args.out / "sweep_summary.json").write_text(json.dumps(rows, indent=1))
+        write_text(args.out / "sweep_summary.json", json.dumps(rows, indent=1))
         text = sweep_markdown(desc, rows)
-        (args.out / "sweep.md").write_text(text)
+        write_text(args.out / "sweep.md", text)
     print(text)
     print(f"ran {stats.ran} episodes ({stats.skipped} already recorded) in "
           f"{stats.wall_s:.1f} s: {stats.episodes_per_s:.3f} episodes/s")

@@ -18,10 +18,16 @@ from typing import Any
 
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.files import shown
 from stackpick_sim.paths import SCENES_DIR
 
 #: How many ``extends`` links a scene may follow (guards against cycles).
 MAX_EXTENDS_DEPTH = 8
+#: The largest scene file read, bytes (a scene is a few dozen keys; this bounds the parse).
+MAX_SCENE_BYTES = 1 << 20
+#: How deeply tables and lists may nest in a scene file or an override value (a scene's
+#: deepest key is ``object_types.NAME.rgba``: 3 levels and a list).
+MAX_NESTING = 8
 
 
 def available_scenes() -> list[str]:
@@ -32,9 +38,12 @@ def available_scenes() -> list[str]:
 def resolve_scene_path(name_or_path: str) -> Path:
     """A scene name (``paper``) or a path to a ``.toml`` file, resolved to an existing file."""
     candidate = Path(name_or_path)
+    if "\0" in name_or_path:
+        raise ConfigError(f"scene {name_or_path!r} is not a file name (it holds a NUL byte)")
     if candidate.suffix == ".toml" or candidate.parent != Path("."):
         if not candidate.is_file():
-            raise ConfigError(f"scene file {str(candidate)!r} does not exist")
+            state = "is not a regular file" if candidate.exists() else "does not exist"
+            raise ConfigError(f"scene file '{shown(candidate)}' {state}")
         return candidate
     shipped = SCENES_DIR / f"{name_or_path}.toml"
     if not shipped.is_file():
@@ -43,14 +52,50 @@ def resolve_scene_path(name_or_path: str) -> Path:
     return shipped
 
 
+def _nesting(value: Any) -> int:
+    """How deeply tables and lists nest in a parsed TOML value (iterative: no recursion)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        item, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if deepest > MAX_NESTING:
+            break
+        children = item.values() if isinstance(item, Mapping) else (
+            item if isinstance(item, list) else ())
+        stack += [(child, depth + 1) for child in children]
+    return deepest
+
+
+def _loads(text: str, what: str) -> dict[str, Any]:
+    """Parse TOML text (TOMLDecodeError if malformed); ConfigError naming ``what`` if it nests
+    tables or lists more than MAX_NESTING levels deep."""
+    try:
+        doc: dict[str, Any] | None = tomllib.loads(text)
+    except RecursionError:
+        doc = None
+    if doc is None or _nesting(doc) > MAX_NESTING:
+        raise ConfigError(f"{what} nests tables or lists more than {MAX_NESTING} levels deep")
+    return doc
+
+
 def _read_toml(path: Path) -> dict[str, Any]:
+    name = shown(path)
     try:
         with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"malformed TOML in {path}: {exc}") from None
+            data = fh.read(MAX_SCENE_BYTES + 1)
     except OSError as exc:
-        raise ConfigError(f"cannot read scene file {path}: {exc.strerror}") from None
+        raise ConfigError(f"cannot read scene file {name}: {exc.strerror}") from None
+    if len(data) > MAX_SCENE_BYTES:
+        raise ConfigError(f"scene file {name} is larger than {MAX_SCENE_BYTES} bytes")
+    try:
+        text = data.decode("utf-8-sig")  # a BOM some editors write is fine
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"scene file {name} is not UTF-8 text (byte {exc.start}); save it "
+                          "as UTF-8") from None
+    try:
+        return _loads(text, f"scene file {name}")
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"malformed TOML in {name}: {exc}") from None
 
 
 def _merge(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
@@ -197,9 +242,11 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key:
         raise ConfigError(f"override {text!r} is not of the form key=value "
                           "(e.g. --set conveyor.speed=0.2)")
+    if "\n" in text or "\r" in text:
+        raise ConfigError(f"override {text!r} spans several lines; give each key its own --set")
     hint = _hint_at(key)
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        value = _loads(f"v = {raw.strip()}", f"override {key}")["v"]
     except tomllib.TOMLDecodeError:
         if hint is str or typing.get_origin(hint) is typing.Literal:
             return key, raw.strip()

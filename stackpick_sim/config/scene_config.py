@@ -36,34 +36,48 @@ def _non_negative(key: str, value: float) -> None:
     _require(math.isfinite(value) and value >= 0, key, value, "a finite number >= 0")
 
 
+def _within(key: str, value: float, lo: float, hi: float, unit: str) -> None:
+    """ConfigError unless ``lo <= value <= hi`` (and finite), naming the range with its unit."""
+    _require(math.isfinite(value) and lo <= value <= hi, key, value,
+             f"{lo:g} to {hi:g} {unit}".rstrip())
+
+
 @dataclass(frozen=True, kw_only=True)
 class ConveyorCfg:
     """The belt: a static box whose surface moves (MuJoCo ``surfacevel``)."""
 
     speed: float = 0.1
-    """Nominal belt speed, m/s along world +y."""
+    """Nominal belt speed, m/s along world +y; 0 to 1.0 m/s."""
     speed_jitter: float = 0.0
-    """Std of the belt speed noise (the paper's n(k)), m/s, redrawn every ``jitter_period``."""
+    """Std of the belt speed noise (the paper's n(k)), m/s, redrawn every ``jitter_period``;
+    0 to 0.1 m/s (a tenth of the fastest belt: a drive holds its speed to a few per cent)."""
     jitter_period: float = 0.1
-    """Seconds between redraws of the speed noise."""
+    """Seconds between redraws of the speed noise; 0.001 to 10 s (from a drive controller's
+    1 ms tick to a slow drift)."""
     x: float = 0.40
-    """Belt centre line, world x, m (the VS-060 reaches tool-down picks to about 0.56 m)."""
+    """Belt centre line, world x, m; 0.3 to 0.6 m (the VS-060 reaches tool-down picks to
+    about 0.56 m)."""
     top_z: float = 0.10
-    """Height of the belt surface, m."""
+    """Height of the belt surface, m; 0.02 to 0.5 m."""
     width: float = 0.30
-    """Belt width along x, m."""
+    """Belt width along x, m; 0.05 to 2 m (conveyor belts are made from a few cm to 2 m
+    wide; it must also exceed four times the widest object's radius, see SceneConfig)."""
     length: float = 1.40
-    """Belt length along y, m, centred on y = 0; objects past its ends are out of the cell."""
+    """Belt length along y, m, centred on y = 0; objects past its ends are out of the cell;
+    0.2 to 10 m (from about a pile's length to a long line section)."""
     friction: float = 1.0
-    """Sliding friction of the belt surface (it carries objects by friction)."""
+    """Sliding friction of the belt surface (it carries objects by friction); 0.05 to 5
+    (from a slick PTFE belt to a grippy rubber one; above that MuJoCo's contact sticks the
+    same)."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and 0 <= self.speed <= 1.0, "conveyor.speed",
                  self.speed, "0 to 1.0 m/s")
-        _non_negative("conveyor.speed_jitter", self.speed_jitter)
-        _positive("conveyor.jitter_period", self.jitter_period)
-        for key in ("width", "length", "friction"):
-            _positive(f"conveyor.{key}", getattr(self, key))
+        _within("conveyor.speed_jitter", self.speed_jitter, 0.0, 0.1, "m/s")
+        _within("conveyor.jitter_period", self.jitter_period, 0.001, 10.0, "s")
+        _within("conveyor.width", self.width, 0.05, 2.0, "m")
+        _within("conveyor.length", self.length, 0.2, 10.0, "m")
+        _within("conveyor.friction", self.friction, 0.05, 5.0, "")
         _require(math.isfinite(self.top_z) and 0.02 <= self.top_z <= 0.5, "conveyor.top_z",
                  self.top_z, "0.02 to 0.5 m")
         _require(math.isfinite(self.x) and 0.3 <= self.x <= 0.6, "conveyor.x", self.x,
@@ -75,11 +89,11 @@ class ObjectTypeCfg:
     """One kind of cylinder (the paper used two)."""
 
     radius: float
-    """m"""
+    """m; 0.01 to 0.06"""
     height: float
-    """m"""
+    """m; 0.01 to 0.15"""
     mass: float
-    """kg"""
+    """kg; 0.01 to 0.6 (what the suction cup holds)"""
     rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
     """Colour, components in [0, 1]."""
 
@@ -106,19 +120,21 @@ class ObjectsCfg:
     """How piles are made."""
 
     count: tuple[int, int] = (3, 5)
-    """[min, max] number of cylinders per scene, both inclusive."""
+    """[min, max] number of cylinders per scene, both inclusive; 1 <= min <= max <= 10."""
     types: tuple[str, ...] = ("large", "small")
     """Names of ``object_types`` to draw from, uniformly."""
     max_tilt_deg: float = 45.0
-    """Largest allowed tilt of a settled cylinder's axis from vertical, degrees."""
+    """Largest allowed tilt of a settled cylinder's axis from vertical, degrees; above 0, at
+    most 80."""
     pile_radius: float = 0.05
-    """Horizontal spread of drop points around the pile centre, m."""
+    """Horizontal spread of drop points around the pile centre, m; 0 to 0.1 m."""
     centre_jitter: float = 0.02
-    """Std of the pile centre's offset from the look point, m."""
+    """Std of the pile centre's offset from the look point, m; 0 to 0.05 m."""
     max_face_height: float = 0.15
     """Highest a top face's centre may lie above the belt, m: a pile with a higher face is
     redrawn, and the detectors look for faces between this height and the belt (see
-    :func:`stackpick_sim.geometry.face_depth_range`)."""
+    :func:`stackpick_sim.geometry.face_depth_range`); 0.01 to 0.5 m, above the lowest
+    object's height and at least MIN_FACE_CLEARANCE below ``camera.look_height``."""
 
     def __post_init__(self) -> None:
         lo, hi = self.count
@@ -142,24 +158,25 @@ class CameraCfg:
     """The wrist camera."""
 
     width: int = 320
-    """px (the paper's camera: 320x240)"""
+    """px (the paper's camera: 320x240); 16 to 4096"""
     height: int = 240
-    """px"""
+    """px; 16 to 4096"""
     fovy_deg: float = 45.0
-    """Vertical field of view, degrees."""
+    """Vertical field of view, degrees; 10 to 120."""
     look_height: float = 0.30
-    """Camera height above the belt surface at the look pose, m."""
+    """Camera height above the belt surface at the look pose, m; 0.15 to 0.6 m."""
     noise_std: float = 0.0
-    """Std of additive Gaussian pixel noise, grey levels (0-255 scale)."""
+    """Std of additive Gaussian pixel noise, grey levels (0-255 scale); 0 to 50."""
     fps: float = 30.0
-    """Frame rate, Hz."""
+    """Frame rate, Hz; 1 to 240."""
     shadows: bool = False
     """Render shadows (several times slower on a CPU renderer; the ring light casts few)."""
     latency_s: float = 0.010
     """Delay from a frame's capture to its detection being usable, s. Measured: the vision
     pipeline's median ``timings_ms["total"]`` on 320x240 paper-scene frames was 8-9 ms on the
     project's 2-core machine (benchmarks/bench_episodes.py, 2025), rounded up to 10 ms.
-    Modelled as this constant, never the wall clock, so episodes are deterministic."""
+    Modelled as this constant, never the wall clock, so episodes are deterministic. 0 to
+    1 s."""
 
     def __post_init__(self) -> None:
         _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
@@ -181,15 +198,17 @@ class LightsCfg:
     """The paper's ring light (Fig. 3a): lights around the camera, each with its own intensity."""
 
     intensity: float = 1.0
-    """One factor scaling all ring lights; 1.0 nominal."""
+    """One factor scaling all ring lights; 1.0 nominal; 0 to 5."""
     ring: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)
-    """Relative intensity of each ring light; their number is the length of this list."""
+    """Relative intensity of each ring light; their number is the length of this list; 1 to
+    16 lights, each 0 to 5."""
     ring_radius: float = 0.045
-    """Radius of the ring around the optical axis, m."""
+    """Radius of the ring around the optical axis, m; 0.01 to 0.2 m."""
     ambient: float = 0.15
-    """Ambient light of the room, [0, 1]."""
+    """Ambient light of the room, 0 to 1."""
     jitter: float = 0.0
-    """Relative std of a per-frame random scaling of each ring light (illumination jitter)."""
+    """Relative std of a per-frame random scaling of each ring light (illumination jitter);
+    0 to 0.5."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
@@ -208,11 +227,11 @@ class SimCfg:
     """Physics settings."""
 
     timestep: float = 0.002
-    """s"""
+    """s; 1e-4 to 0.01"""
     settle_time: float = 1.5
-    """Longest time one dropped object is simulated to come to rest, s."""
+    """Longest time one dropped object is simulated to come to rest, s; 0.2 to 10 s."""
     max_attempts: int = 200
-    """Rejection-sampling budget per scene."""
+    """Rejection-sampling budget per scene; 1 to 10000."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.timestep) and 1e-4 <= self.timestep <= 0.01, "sim.timestep",
@@ -231,6 +250,25 @@ TrackerFrame = Literal["belt", "image"]
 TRACKER_FRAMES: tuple[str, ...] = typing.get_args(TrackerFrame)
 
 
+#: Allowed (min, max, unit) of EpisodeCfg's numeric settings; the reasons are in the fields'
+#: docstrings.
+EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
+    "standoff": (0.05, 0.5, "m"),
+    "approach_gain": (0.1, 100.0, "1/s"),
+    "servo_lateral_tol": (1e-4, 0.02, "m"),
+    "servo_depth_tol": (1e-4, 0.05, "m"),
+    "servo_tilt_tol_deg": (0.01, 30.0, "degrees"),
+    "descend_speed": (0.01, 2.0, "m/s"),
+    "overtravel": (1e-4, 0.1, "m"),
+    "grasp_dwell": (0.0, 2.0, "s"),
+    "lift_height": (0.005, 0.5, "m"),
+    "lift_speed": (0.01, 2.0, "m/s"),
+    "verify_time": (0.0, 5.0, "s"),
+}
+#: Longest allowed time-out of one episode phase, s (see EpisodeCfg.timeout_look).
+MAX_PHASE_TIMEOUT_S = 10.0
+
+
 @dataclass(frozen=True, kw_only=True)
 class EpisodeCfg:
     """One pick: phase settings and time-outs (stackpick_sim/episodes/).
@@ -244,45 +282,54 @@ class EpisodeCfg:
     tracker_frame: TrackerFrame = "belt"
     """Kalman state frame: ``belt`` (back-projected, metres) or ``image`` (paper, pixels)."""
     control_period: float = 0.01
-    """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``."""
+    """Period of the arm controller (servo law, mink), s; a multiple of ``sim.timestep``;
+    0.001 to 0.1 s."""
     track_frames: int = 3
-    """Detections fused before the approach starts (two initialise the filter)."""
+    """Detections fused before the approach starts (two initialise the filter); 2 to 30."""
     max_retargets: int = 0
     """Times an episode may drop its tracked face for one that later frames voted top
     (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
     every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
-    cost picks (README, "Which face is picked")."""
+    cost picks (README, "Which face is picked"). 0 to 3."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
     centre is 60 mm off the tool axis on the camera mount (at 0.19 m it clears the top edge
-    by ~10 px)."""
+    by ~10 px). 0.05 to 0.5 m (a wrist camera focuses from a few cm; beyond 0.5 m the arm
+    cannot hold the tool above a face on the belt)."""
     approach_gain: float = 8.0
-    """Gain of the approach's mink FrameTask differential IK, 1/s."""
+    """Gain of the approach's mink FrameTask differential IK, 1/s; 0.1 to 100 1/s (below,
+    an approach takes tens of seconds; above, a 10 ms control step overshoots)."""
     servo_lateral_tol: float = 0.0015
-    """Servo converged: face centre within this of the tool axis, m ..."""
+    """Servo converged: face centre within this of the tool axis, m (0.1 mm, under a pixel at
+    the standoff, to 20 mm, beyond which a suction cup misses the smallest face) ..."""
     servo_depth_tol: float = 0.003
-    """... standoff within this, m ..."""
+    """... standoff within this, m (0.1 to 50 mm: the descent absorbs the rest) ..."""
     servo_tilt_tol_deg: float = 1.5
-    """... tool axis within this angle of the face normal, degrees."""
+    """... tool axis within this angle of the face normal, degrees (0.01 to 30: a suction
+    cup's bellows seal up to a few tens of degrees off the face)."""
     descend_speed: float = 0.35
-    """Speed of the descent along the approach axis, m/s."""
+    """Speed of the descent along the approach axis, m/s; 0.01 to 2 m/s (an industrial arm's
+    tool speed near a part)."""
     overtravel: float = 0.006
     """How far past the predicted face the descent goes before calling a miss, m (further
     by as much as the track's lowest monocular face height lies below the predicted one, at
-    most the tallest object's height: :func:`stackpick_sim.episodes.pick.descent_floor`)."""
+    most the tallest object's height: :func:`stackpick_sim.episodes.pick.descent_floor`);
+    0.0001 to 0.1 m (a suction cup's compliance is millimetres to centimetres)."""
     grasp_dwell: float = 0.06
-    """Time the suction is on before lifting, s."""
+    """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
+    few hundred milliseconds)."""
     lift_height: float = 0.10
-    """Lift of the tool after the grasp, straight up, m."""
+    """Lift of the tool after the grasp, straight up, m; 0.005 to 0.5 m (clear of the pile,
+    within the arm's reach)."""
     lift_speed: float = 0.4
-    """Lift speed, m/s."""
+    """Lift speed, m/s; 0.01 to 2 m/s (an industrial arm's tool speed with a load)."""
     lift_retreat: float = 0.0
     """Horizontal travel of the tool towards the robot's base (the J1 axis) during the lift,
     m, in proportion to the rise: a grasp near the edge of the workspace (a fast belt carries
-    the face far out) cannot rise straight up with the arm stretched."""
+    the face far out) cannot rise straight up with the arm stretched. 0 to 0.3 m."""
     verify_time: float = 0.15
-    """Time the lifted object must stay held, s."""
+    """Time the lifted object must stay held, s; 0 to 5 s."""
     timeout_look: float = 0.2
     timeout_detect: float = 0.4
     timeout_track: float = 0.5
@@ -292,7 +339,9 @@ class EpisodeCfg:
     timeout_grasp: float = 0.3
     timeout_lift: float = 0.8
     timeout_verify: float = 0.5
-    """Longest sim time of each phase, s; past it the episode fails with ``timeout``."""
+    """Longest sim time of each phase, s; past it the episode fails with ``timeout``. 0 to
+    10 s each: the defaults are 0.2 to 1.2 s, and a phase that has not ended in ten times the
+    slowest will not (a longer one only makes a failing episode take minutes)."""
 
     def __post_init__(self) -> None:
         _require(self.detector in DETECTORS, "episode.detector", self.detector,
@@ -305,17 +354,14 @@ class EpisodeCfg:
                  "an integer 0-3")
         _require(2 <= self.track_frames <= 30, "episode.track_frames", self.track_frames,
                  "2 to 30 frames")
-        for key in ("standoff", "approach_gain", "servo_lateral_tol", "servo_depth_tol",
-                    "servo_tilt_tol_deg", "descend_speed", "overtravel", "lift_height",
-                    "lift_speed"):
-            _positive(f"episode.{key}", getattr(self, key))
-        for key in ("grasp_dwell", "verify_time"):
-            _non_negative(f"episode.{key}", getattr(self, key))
+        for key, (lo, hi, unit) in EPISODE_RANGES.items():
+            _within(f"episode.{key}", getattr(self, key), lo, hi, unit)
         _require(math.isfinite(self.lift_retreat) and 0 <= self.lift_retreat <= 0.3,
                  "episode.lift_retreat", self.lift_retreat, "0 to 0.3 m")
         for key in ("look", "detect", "track", "approach", "servo", "descend", "grasp", "lift",
                     "verify"):
-            _non_negative(f"episode.timeout_{key}", getattr(self, f"timeout_{key}"))
+            _within(f"episode.timeout_{key}", getattr(self, f"timeout_{key}"), 0.0,
+                    MAX_PHASE_TIMEOUT_S, "s")
 
 
 @dataclass(frozen=True, kw_only=True)

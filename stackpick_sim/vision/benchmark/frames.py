@@ -14,13 +14,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ImageError, SceneGenerationError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
+from stackpick_sim.image_io import read_image
 
 #: A scene's object kinds: (radius m, (r, g, b) 0-1, height m) per kind.
 Kinds = tuple[tuple[float, tuple[float, float, float], float], ...]
@@ -100,11 +100,11 @@ def load_frame(directory: Path, seed: int, belt_top_z: float, max_face_height: f
                ) -> BenchFrame:
     """Read frame ``seed`` of a data set directory; ImageError if its files are missing."""
     stem = directory / f"{seed:06d}"
-    bgr = cv2.imread(f"{stem}.png", cv2.IMREAD_COLOR)
-    if bgr is None or not Path(f"{stem}.json").exists():
+    if not (Path(f"{stem}.png").exists() and Path(f"{stem}.json").exists()):
         raise ImageError(f"frame {seed} missing in {directory} (need {stem}.png and .json)")
+    image = read_image(f"{stem}.png")
     record = json.loads(Path(f"{stem}.json").read_text())
-    rgb = np.ascontiguousarray(bgr[:, :, ::-1], dtype=np.uint8)
+    rgb = image if image.ndim == 3 else np.ascontiguousarray(np.dstack([image] * 3))
     return frame_from_record(seed, rgb, record, belt_top_z, max_face_height, kinds)
 
 
