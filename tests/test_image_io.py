@@ -120,13 +120,13 @@ def test_float_and_16_bit_tiffs_are_scaled_to_8_bits(dtype: str, value: float, e
 def test_overlay_of_a_16_bit_image_is_scaled_not_wrapped() -> None:
     image = np.full((40, 50), 65000, np.uint16)  # 252 on 8 bits; a cast would wrap to 232
     image[1, 1] = 300  # 1 on 8 bits; a cast would give 44
-    out = draw_overlay(image, Detection(reason="test"))
+    out = draw_overlay(image, Detection(reason="test"), None)[:80:2, :100:2]  # drawn at 2x
     assert out.dtype == np.uint8 and out.shape == (40, 50, 3)
     assert out[1, 1].tolist() == [1, 1, 1] and out[5, 5].tolist() == [252, 252, 252]
 
 
 def test_overlay_of_a_float_image_in_0_1_is_scaled() -> None:
-    out = draw_overlay(np.full((40, 50, 3), 0.5), Detection(reason="test"))
+    out = draw_overlay(np.full((40, 50, 3), 0.5), Detection(reason="test"), None)
     assert out[3, 3].tolist() == [128, 128, 128]
 
 
