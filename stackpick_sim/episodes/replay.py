@@ -1,8 +1,9 @@
 """Replay one recorded episode and write a video: wrist camera with detections | overview.
 
-The batch stores the scene and overrides (``run.json``) and the states before and after the
-episode; the replay regenerates the pile from the seed, checks it against the stored start
-state, runs the episode again (deterministic), and compares the end state too.
+A run stores the scene and overrides and the states before and after each episode
+(:func:`stackpick_sim.runs.replay.load_replay_source` reads and checks them into a
+:class:`ReplaySource`); the replay regenerates the pile from the seed, compares it with the
+stored start state, runs the episode again (deterministic), and compares the end state too.
 """
 
 from __future__ import annotations
@@ -14,8 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.loader import load_scene
-from stackpick_sim.episodes.batch import RunSpec, episode_dir
+from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Observation
@@ -33,6 +33,17 @@ VIEW_SIZE = (640, 480)
 MP4V: int = cv2.VideoWriter.fourcc(*"mp4v")
 #: Colour of the tracker's estimate, BGR.
 ESTIMATE_COLOUR = (255, 80, 255)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReplaySource:
+    """A recorded episode to replay: its scene, seed, record and states (qpos, (nq,) each)."""
+
+    cfg: SceneConfig
+    seed: int
+    record: EpisodeRecord
+    initial_qpos: NDArray[np.float64]
+    final_qpos: NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,13 +83,16 @@ def _wrist_view(obs: Observation | None, info: TickInfo) -> NDArray[np.uint8]:
     return out
 
 
-def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
-    """Re-run ``seed`` of the batch in ``out_dir`` and write ``video`` (mp4v)."""
-    spec = RunSpec.from_dir(out_dir)
-    scene = generate_scene(load_scene(spec.scene, spec.overrides), seed)
+def replay_episode(source: ReplaySource, video: Path) -> ReplayResult:
+    """Re-run the episode of ``source`` and write ``video`` (mp4v)."""
+    scene = generate_scene(source.cfg, source.seed)
     cell = scene.cell
-    stored = episode_dir(out_dir, seed)
-    initial_diff = _diff(stored / "initial_qpos.npy", cell.data.qpos)
+    if source.initial_qpos.shape != cell.data.qpos.shape:
+        raise EpisodeError(f"seed {source.seed}: the recorded state has "
+                           f"{source.initial_qpos.size} joint values, the scene "
+                           f"{source.cfg.name!r} has {cell.data.qpos.size}: the run was "
+                           "recorded with another scene or overrides")
+    initial_diff = _diff(source.initial_qpos, cell.data.qpos)
     overview = make_renderer(cell.model, VIEW_SIZE[1], VIEW_SIZE[0])
     writer = cv2.VideoWriter(str(video), MP4V,
                              1.0 / (TICKS_PER_FRAME * cell.cfg.episode.control_period),
@@ -107,11 +121,8 @@ def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
         writer.release()
         overview.close()
     return ReplayResult(record=record, frames=frames[0], initial_diff=initial_diff,
-                        final_diff=_diff(stored / "final_qpos.npy", cell.data.qpos))
+                        final_diff=_diff(source.final_qpos, cell.data.qpos))
 
 
-def _diff(path: Path, qpos: NDArray[np.float64]) -> float:
-    if not path.is_file():
-        return float("nan")
-    saved = np.load(path)
-    return float(np.max(np.abs(saved - qpos))) if saved.shape == qpos.shape else float("inf")
+def _diff(saved: NDArray[np.float64], qpos: NDArray[np.float64]) -> float:
+    return float(np.max(np.abs(saved - qpos)))

@@ -1,8 +1,7 @@
 """Runs at scale: local or Ray workers, a durable journal with resume, a lock per directory,
 parameter sweeps, reports and the CI regression check."""
 
-# The episode modules first: stackpick_sim.episodes imports stackpick_sim.runs.spec.
-import stackpick_sim.episodes  # noqa: F401  isort: skip
+from stackpick_sim.runs.batch import run_batch, run_seed, write_outputs
 from stackpick_sim.runs.journal import Journal, JournalError, read_records
 from stackpick_sim.runs.local import InlineExecutor, LocalExecutor
 from stackpick_sim.runs.lock import LockError, RunLock
@@ -29,6 +28,9 @@ __all__ = [
     "failure_record",
     "make_executor",
     "read_records",
+    "run_batch",
     "run_dirs",
+    "run_seed",
     "run_task",
+    "write_outputs",
 ]

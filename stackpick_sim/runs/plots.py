@@ -1,6 +1,7 @@
 """The report's PNG plots (matplotlib, optional extra ``stackpick-sim[plot]``).
 
-Each function takes records (dicts of ``results.jsonl``) or sweep rows and writes one PNG.
+Each function takes records (:mod:`stackpick_sim.episodes.record`) or sweep rows and writes
+one PNG.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from stackpick_sim.episodes.record import EpisodeRecord, Record, episodes_of
 from stackpick_sim.exceptions import StackpickError
 
 #: Figure resolution, dots per inch.
@@ -87,33 +89,31 @@ def success_vs_param(rows: list[dict[str, Any]], keys: list[str], path: Path) ->
     plt.close(fig)
 
 
-def failure_reasons(records: list[dict[str, Any]], path: Path) -> None:
+def failure_reasons(records: list[Record], path: Path) -> None:
     """Horizontal bars: episodes per failure reason."""
     plt = _pyplot()
-    counts = Counter(r["failure"] for r in records if "error" not in r and r.get("failure"))
+    episodes = episodes_of(records)
+    counts = Counter(r.failure for r in episodes if r.failure)
     fig, ax = plt.subplots(figsize=(6.4, max(2.4, 0.8 + 0.4 * len(counts))))
     reasons = sorted(counts, key=counts.__getitem__)
     ax.barh(reasons or ["(no failures)"], [counts[r] for r in reasons] or [0], color="#c0504d")
     ax.set_xlabel("episodes")
     ax.set_title(f"failure reasons ({sum(counts.values())} of "
-                 f"{sum('error' not in r for r in records)} episodes failed)")
+                 f"{len(episodes)} episodes failed)")
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
-def error_histograms(records: list[dict[str, Any]], path: Path) -> None:
+def error_histograms(episodes: list[EpisodeRecord], path: Path) -> None:
     """2x2 histograms: detection centre, theta_x, theta_y errors; prediction error at pick."""
     plt = _pyplot()
-    eps = [r for r in records if "error" not in r]
+    found = [r.detection for r in episodes if r.detection is not None]
     panels = [
-        ("detection centre error, px",
-         _finite([(r.get("detection") or {}).get("center_error_px") for r in eps])),
-        ("detection theta_x error, deg",
-         _finite([(r.get("detection") or {}).get("theta_x_error_deg") for r in eps])),
-        ("detection theta_y error, deg",
-         _finite([(r.get("detection") or {}).get("theta_y_error_deg") for r in eps])),
-        ("prediction error at pick, mm", _finite([r.get("prediction_error_mm") for r in eps])),
+        ("detection centre error, px", _finite([d.center_error_px for d in found])),
+        ("detection theta_x error, deg", _finite([d.theta_x_error_deg for d in found])),
+        ("detection theta_y error, deg", _finite([d.theta_y_error_deg for d in found])),
+        ("prediction error at pick, mm", _finite([r.prediction_error_mm for r in episodes])),
     ]
     fig, axes = plt.subplots(2, 2, figsize=(8.0, 6.0))
     for ax, (title, values) in zip(axes.flat, panels, strict=True):
@@ -125,11 +125,10 @@ def error_histograms(records: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
-def cycle_times(records: list[dict[str, Any]], path: Path) -> None:
+def cycle_times(episodes: list[EpisodeRecord], path: Path) -> None:
     """Histogram of the cycle time (first image to end of lift) of successful episodes."""
     plt = _pyplot()
-    values = _finite([r.get("cycle_time_s") for r in records
-                      if "error" not in r and r.get("success")])
+    values = _finite([r.cycle_time_s for r in episodes if r.success])
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     _hist(ax, values, "#9bbb59")
     ax.set_xlabel("cycle time, s (sim time, successes)")

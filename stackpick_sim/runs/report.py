@@ -9,8 +9,8 @@ each run directory.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
+from stackpick_sim.episodes.record import Record, episodes_of
 from stackpick_sim.episodes.summary import summarize, summary_markdown
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs import plots
@@ -23,7 +23,7 @@ REPORT_FILE = "report.md"
 MAX_FAILED_LISTED = 20
 
 
-def _records(run_dir: Path) -> list[dict[str, Any]]:
+def _records(run_dir: Path) -> list[Record]:
     path = run_dir / RESULTS_FILE
     if not path.is_file():
         raise StackpickError(f"{run_dir} has no {RESULTS_FILE}; is it the --out of "
@@ -32,14 +32,14 @@ def _records(run_dir: Path) -> list[dict[str, Any]]:
     return [records[s] for s in sorted(records)]
 
 
-def _failed(run_dir: Path, records: list[dict[str, Any]]) -> list[str]:
-    failed = [r for r in records if "error" not in r and not r.get("success")]
+def _failed(run_dir: Path, records: list[Record]) -> list[str]:
+    failed = [r for r in episodes_of(records) if not r.success]
     if not failed:
         return ["No failed episodes."]
     lines = [f"{len(failed)} failed; replay one as a video (wrist camera | outside view):", "",
              "```sh"]
-    lines += [f"stackpick replay {run_dir} {r['seed']} --video {run_dir}/replay_{r['seed']}.mp4"
-              f"   # {r['failure']}: {r.get('failure_detail', '')[:80]}"
+    lines += [f"stackpick replay {run_dir} {r.seed} --video {run_dir}/replay_{r.seed}.mp4"
+              f"   # {r.failure}: {r.failure_detail[:80]}"
               for r in failed[:MAX_FAILED_LISTED]]
     lines.append("```")
     if len(failed) > MAX_FAILED_LISTED:
@@ -65,8 +65,8 @@ def write_report(directory: Path) -> Path:
         per_run = {"run": _records(directory)}
     records = [r for rs in per_run.values() for r in rs]
     plots.failure_reasons(records, directory / "failure_reasons.png")
-    plots.error_histograms(records, directory / "errors.png")
-    plots.cycle_times(records, directory / "cycle_time.png")
+    plots.error_histograms(episodes_of(records), directory / "errors.png")
+    plots.cycle_times(episodes_of(records), directory / "cycle_time.png")
     if not is_sweep:
         s = summarize(records)
         lo, hi = s["success_ci95"]

@@ -10,6 +10,7 @@ leaves every finished record on disk.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.episodes.record import Record, episodes_of
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.local import InlineExecutor, LocalExecutor
 from stackpick_sim.runs.progress import Progress
@@ -88,7 +90,7 @@ class RunStats:
 
 def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False,
              retry_unfinished: bool = False, show_progress: bool = True,
-             on_record: Callable[[dict[str, Any], Progress], None] | None = None) -> RunStats:
+             on_record: Callable[[Record, Progress], None] | None = None) -> RunStats:
     """Run every job through ``executor`` (closed at the end); see the module docstring.
 
     With ``retry_unfinished`` (needs ``resume``), recorded episodes that did not finish
@@ -103,16 +105,18 @@ def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False
             load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
         for job in jobs:
             dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
+            dirs[job.key].refuse_foreign(list(job.seeds))
+            for note in dirs[job.key].drop_notes():
+                print(note, file=sys.stderr)
             if retry_unfinished:
                 dirs[job.key].discard_unfinished(list(job.seeds))
         tasks = [EpisodeTask(spec=job.spec, seed=s, key=job.key)
                  for job in jobs for s in dirs[job.key].missing(list(job.seeds))]
         done = [r for d in dirs.values() for r in d.journal.records.values()]
         total = len(tasks) + len(done)
-        episodes = [r for r in done if "error" not in r]
+        episodes = episodes_of(done)
         progress = Progress(total, done=len(done), episodes=len(episodes),
-                            successes=sum(bool(r.get("success")) for r in episodes),
-                            enabled=show_progress)
+                            successes=sum(r.success for r in episodes), enabled=show_progress)
         for d in dirs.values():
             d.log(f"start: {len(d.journal.records)} recorded, backend "
                   f"{type(executor).__name__}, pid {os.getpid()}")

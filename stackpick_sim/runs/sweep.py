@@ -97,7 +97,7 @@ def sweep_jobs(out: Path, scene: str, overrides: tuple[str, ...], params: list[P
                seeds: list[int], *, resume: bool) -> list[RunJob]:
     """The cells' run jobs; writes (or, resuming, checks) ``out/sweep.json``."""
     cells = grid(params)
-    desc = {"scene": scene, "overrides": list(overrides),
+    desc: dict[str, Any] = {"scene": scene, "overrides": list(overrides),
             "params": {p.key: list(p.values) for p in params}, "seeds": seeds,
             "cells": {c.name: list(c.overrides) for c in cells}}
     path = out / SWEEP_FILE
@@ -115,8 +115,9 @@ def sweep_jobs(out: Path, scene: str, overrides: tuple[str, ...], params: list[P
         desc["seeds"] = sorted(set(old.get("seeds", [])) | set(seeds))
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(desc, indent=1))
+    # Every cell runs the sweep's seeds so far: a resume with new seeds extends the sweep.
     return [RunJob(key=c.name, spec=RunSpec(scene=scene, overrides=(*overrides, *c.overrides)),
-                   seeds=seeds, out=out / "cells" / c.name) for c in cells]
+                   seeds=desc["seeds"], out=out / "cells" / c.name) for c in cells]
 
 
 def load_sweep(out: Path) -> dict[str, Any]:
