@@ -17,7 +17,6 @@ zero (the oracle's detection errors) does not fail on noise.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from scipy.stats import hypergeom
 from stackpick_sim.episodes.summary import summarize
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.journal import RESULTS_FILE, read_records
+from stackpick_sim.runs.jsonfile import read_json
 
 #: Default significance level of the one-sided test.
 DEFAULT_ALPHA = 0.05
@@ -66,13 +66,7 @@ def load_summary(path: Path) -> dict[str, Any]:
         path = path / "summary.json"
     if not path.is_file():
         raise StackpickError(f"{path} is neither a run directory nor a summary.json")
-    try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError:
-        raise StackpickError(f"{path} is not UTF-8 text, so not a summary.json") from None
-    except (ValueError, RecursionError) as exc:
-        raise StackpickError(f"{path} is not JSON ({type(exc).__name__})") from None
-    return check_summary(data, path)
+    return check_summary(read_json(path, "a summary.json"), path)
 
 
 def _count(data: dict[str, Any], key: str, path: Path) -> int:

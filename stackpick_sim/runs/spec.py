@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
 from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.runs.jsonfile import read_json
 
 #: The file of a run directory that names its scene and overrides (what replay re-runs).
 RUN_FILE = "run.json"
@@ -35,11 +35,7 @@ class RunSpec:
         path = out / RUN_FILE
         if not path.is_file():
             raise RunFileError(f"{out} has no {RUN_FILE}; is it the --out of 'stackpick run'?")
-        try:
-            raw = json.loads(path.read_bytes().decode("utf-8"))
-        except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError
-            raise RunFileError(f"{path} is not JSON ({type(exc).__name__}); it should hold "
-                               '{"scene": ..., "overrides": [...]}') from None
+        raw = read_json(path, "a run description", RunFileError)
         if not isinstance(raw, dict) or set(raw) != {f.name for f in fields(cls)}:
             raise RunFileError(f"{path} is not a run description: it should be an object with "
                                '"scene" and "overrides" and nothing else')
