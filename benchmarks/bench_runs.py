@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from stackpick_sim.cli.common import parse_seeds
-from stackpick_sim.episodes.record import WALL_CLOCK_KEYS
+from stackpick_sim.episodes.record import WALL_CLOCK_KEYS, Record
 from stackpick_sim.runs.journal import read_records
 from stackpick_sim.runs.runner import RunJob, make_executor, run_dirs
 from stackpick_sim.runs.spec import RunSpec
@@ -41,8 +41,8 @@ TORN_LINE = b'{"seed": 3, "scene": "pap'
 TARGET_1000_S = 600.0
 
 
-def _strip(rec: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in rec.items() if k not in WALL_CLOCK_KEYS}
+def _strip(rec: Record) -> dict[str, Any]:
+    return {k: v for k, v in rec.as_dict().items() if k not in WALL_CLOCK_KEYS}
 
 
 def throughput(args: argparse.Namespace) -> dict[str, Any]:

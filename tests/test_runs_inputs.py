@@ -137,7 +137,11 @@ def test_replay_without_its_audit_files(tmp_path: Path, capsys: pytest.CaptureFi
     assert name in _one_error_line(capsys)
 
 
-@pytest.mark.parametrize("data", [b"", b"\x93NUMPY garbage", "pickle", "object", "2d"])
+@pytest.mark.parametrize("data", [
+    b"", b"\x93NUMPY garbage", "pickle", "object", "2d",
+    # a header whose text cannot be tokenised (numpy raises tokenize.TokenError)
+    b"\x93NUMPY\x01\x00v\x00{'descr': '<f8', 'fortran_order': False, 'shape': (7,), }" + b" " * 60,
+])
 def test_replay_with_a_corrupt_initial_state(tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str],
                                              data: bytes | str) -> None:
@@ -156,6 +160,18 @@ def test_replay_with_a_corrupt_initial_state(tmp_path: Path,
         path.write_bytes(data)
     assert _replay(out, 1, tmp_path) == 2
     assert "initial_qpos.npy" in _one_error_line(capsys)
+
+
+@pytest.mark.parametrize("text", [
+    "{not json", "[]",
+    # a cell name that would leave the sweep directory
+    json.dumps({"scene": "paper", "overrides": [], "params": {"a": ["1"]}, "seeds": [0],
+                "cells": {"..": ["a=1"]}})])
+def test_report_of_a_sweep_with_a_corrupt_sweep_json(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str) -> None:
+    (tmp_path / "sweep.json").write_text(text)
+    assert main(["report", str(tmp_path)]) == 2
+    assert "sweep.json" in _one_error_line(capsys)
 
 
 @pytest.mark.parametrize("text", ["{not json", "{}", "[1, 2]"])

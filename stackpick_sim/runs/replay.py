@@ -9,6 +9,7 @@ description), the seed (recorded, and an episode rather than a scene error), the
 from __future__ import annotations
 
 from pathlib import Path
+from tokenize import TokenError
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +23,9 @@ from stackpick_sim.runs.spec import RunSpec, episode_dir, seed_ranges
 
 #: The audit states a replay compares against.
 STATE_FILES = ("initial_qpos.npy", "final_qpos.npy")
+#: What np.load raises on a damaged .npy: bad magic, header or data, or a pickle refused
+#: (its header parser raises tokenize's and eval's errors on mangled text).
+NPY_ERRORS = (ValueError, OSError, EOFError, SyntaxError, TypeError, KeyError, TokenError)
 
 
 def _recorded(out_dir: Path, seed: int) -> EpisodeRecord:
@@ -40,14 +44,14 @@ def _recorded(out_dir: Path, seed: int) -> EpisodeRecord:
     return rec
 
 
-def _state(path: Path) -> NDArray[np.float64]:
+def load_state(path: Path) -> NDArray[np.float64]:
     """A stored (nq,) float64 state; never unpickles, never reads more than the file holds."""
     if not path.is_file():
         raise EpisodeError(f"{path} is missing: replay compares the re-run with the "
                            "recorded states")
     try:
         data = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
+    except NPY_ERRORS as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise EpisodeError(f"{path} is not a stored state: {first}") from None
     if (not isinstance(data, np.ndarray) or data.dtype != np.float64 or data.ndim != 1
@@ -69,7 +73,7 @@ def load_replay_source(out_dir: Path, seed: int) -> ReplaySource:
         raise EpisodeError(f"{out_dir}/run.json names scene {cfg.name!r}, but seed {seed} was "
                            f"recorded on scene {record.scene!r}: run.json does not describe "
                            "this run")
-    initial, final = (_state(episode_dir(out_dir, seed) / name) for name in STATE_FILES)
+    initial, final = (load_state(episode_dir(out_dir, seed) / name) for name in STATE_FILES)
     if initial.shape != final.shape:
         raise EpisodeError(f"{episode_dir(out_dir, seed)}: the initial and final states have "
                            f"{initial.size} and {final.size} values; they must match")
