@@ -70,11 +70,13 @@ def _dumps(value: Any) -> bytes:
 
 
 def mutated_json(base: dict[str, Any]) -> st.SearchStrategy[bytes]:
-    """``base`` with one change: a value replaced, a key removed or added, the whole document
-    replaced, cut short, raw bytes, another encoding, or nesting deeper than any parser."""
+    """``base`` itself, or with one change: a value replaced, a key removed or added, the
+    whole document replaced, cut short, raw bytes, another encoding, or nesting deeper than
+    any parser."""
     paths = _paths(base)
     text = _dumps(base)
     return st.one_of(
+        st.just(text),
         st.tuples(st.sampled_from(paths), JSON).map(lambda pv: _dumps(_set(base, *pv))),
         st.sampled_from(paths).map(lambda p: _dumps(_set(base, p, None, delete=True))),
         st.tuples(st.text(max_size=10), JSON).map(lambda kv: _dumps({**base, kv[0]: kv[1]})),
@@ -211,7 +213,9 @@ STATE_BASE = _npy(np.linspace(-1.0, 1.0, 7))
 @st.composite
 def mutated_npy(draw: st.DrawFn) -> bytes:
     """A stored state spliced, cut, of another dtype or shape, pickled, or random bytes."""
-    kind = draw(st.sampled_from(["splice", "cut", "array", "object", "bytes"]))
+    kind = draw(st.sampled_from(["state", "splice", "cut", "array", "object", "bytes"]))
+    if kind == "state":
+        return _npy(np.array(draw(st.lists(st.floats(), min_size=1, max_size=12))))
     if kind == "splice":
         at = draw(st.integers(0, len(STATE_BASE) - 1))
         return STATE_BASE[:at] + draw(st.binary(min_size=1, max_size=16)) + STATE_BASE[at + 4:]

@@ -18,7 +18,7 @@ EXAMPLES = 60
 def test_mutated_run_files_end_in_a_result_or_one_refusal(family: Family) -> None:
     seen: set[str] = set()
 
-    @settings(max_examples=EXAMPLES, deadline=None, database=None,
+    @settings(max_examples=EXAMPLES, deadline=None, database=None, derandomize=True,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
     @given(data=family.strategy)
     def one(data: bytes) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import types
+from collections.abc import Callable
 from dataclasses import MISSING, fields
 from functools import cache
 from typing import Any, Union, get_args, get_origin, get_type_hints
@@ -84,25 +85,92 @@ def record_from_dict(data: object) -> Record:
 def _fields(cls: type, data: dict[str, Any], required: tuple[str, ...]) -> dict[str, Any]:
     """The keyword arguments of ``cls`` from ``data``: every key known, typed, none missing
     unless it has a default (and is not in ``required``)."""
-    hints = _hints(cls)
-    unknown = sorted(set(data) - set(hints))
-    if unknown:
-        raise RecordError(f"unknown field {unknown[0]!r}")
+    plan = _plan(cls)
+    if len(data) > len(plan) or not data.keys() <= plan.keys():
+        raise RecordError(f"unknown field {sorted(data.keys() - plan.keys())[0]!r}")
     out: dict[str, Any] = {}
-    for f in fields(cls):
-        if f.name not in data:
-            if f.name in required or (f.default is MISSING and f.default_factory is MISSING):
-                raise RecordError(f"missing field {f.name!r}")
-            continue
-        out[f.name] = _typed(data[f.name], hints[f.name], f.name)
+    for name, (check, optional) in plan.items():
+        if name in data:
+            out[name] = check(data[name], name)
+        elif name in required or not optional:
+            raise RecordError(f"missing field {name!r}")
     if out["seed"] < 0:
         raise RecordError("field 'seed' is negative")
     return out
 
 
+#: A field's check: (JSON value, field name) -> the typed value, or RecordError.
+Check = Callable[[object, str], Any]
+
+
 @cache
-def _hints(cls: type) -> dict[str, Any]:
-    return get_type_hints(cls)
+def _plan(cls: type) -> dict[str, tuple[Check, bool]]:
+    """Per field of ``cls``: its check (from the annotation) and whether it may be absent."""
+    hints = get_type_hints(cls)
+    return {f.name: (_compile(hints[f.name]),
+                     f.default is not MISSING or f.default_factory is not MISSING)
+            for f in fields(cls)}
+
+
+def _compile(hint: Any) -> Check:
+    """The check of an annotation: bool, int, float, str, PoseErrors, ``X | None`` and
+    list/tuple/dict of those (what the record dataclasses use)."""
+    origin, args = get_origin(hint), get_args(hint)
+    if origin in (Union, types.UnionType):
+        (inner,) = [a for a in args if a is not type(None)]  # X | None only
+        check = _compile(inner)
+        return lambda value, name: None if value is None else check(value, name)
+    if hint is PoseErrors:
+        return _pose
+    if origin is list:
+        return _list_of(_compile(args[0]))
+    if origin is tuple:
+        return _tuple_of(tuple(_compile(a) for a in args))
+    if origin is dict:
+        return _dict_of(_compile(args[1]))
+    return _SCALARS[hint]
+
+
+def _scalar(kinds: tuple[type, ...], what: str) -> Check:
+    def check(value: object, name: str) -> Any:
+        if type(value) not in kinds:  # exact types: a boolean is not an integer here
+            raise RecordError(f"field {name!r} is not {what}")
+        return float(value) if float in kinds else value  # type: ignore[arg-type]
+
+    return check
+
+
+_SCALARS: dict[type, Check] = {bool: _scalar((bool,), "a boolean"),
+                               int: _scalar((int,), "an integer"),
+                               float: _scalar((int, float), "a number"),
+                               str: _scalar((str,), "a string")}
+
+
+def _list_of(item: Check) -> Check:
+    def check(value: object, name: str) -> list[Any]:
+        if type(value) is not list:
+            raise RecordError(f"field {name!r} is not a list")
+        return [item(v, name) for v in value]
+
+    return check
+
+
+def _tuple_of(items: tuple[Check, ...]) -> Check:
+    def check(value: object, name: str) -> tuple[Any, ...]:
+        if type(value) is not list or len(value) != len(items):
+            raise RecordError(f"field {name!r} is not a list of {len(items)}")
+        return tuple(c(v, name) for c, v in zip(items, value, strict=True))
+
+    return check
+
+
+def _dict_of(item: Check) -> Check:
+    def check(value: object, name: str) -> dict[str, Any]:
+        if type(value) is not dict:
+            raise RecordError(f"field {name!r} is not an object")
+        return {k: item(v, name) for k, v in value.items()}
+
+    return check
 
 
 def _check_outcome(record: EpisodeRecord) -> None:
@@ -114,62 +182,19 @@ def _check_outcome(record: EpisodeRecord) -> None:
         raise RecordError("field 'failed_phase' is not a phase")
 
 
-def _typed(value: object, hint: Any, name: str) -> Any:
-    """``value`` checked against the annotation ``hint`` (and converted where JSON cannot
-    say it: tuples, PoseErrors)."""
-    origin = get_origin(hint)
-    if origin in (Union, types.UnionType):
-        options = get_args(hint)
-        if value is None and type(None) in options:
-            return None
-        (inner,) = [o for o in options if o is not type(None)]
-        return _typed(value, inner, name)
-    if hint is PoseErrors:
-        return _pose(value, name)
-    if origin is list and isinstance(value, list):
-        (item,) = get_args(hint)
-        return [_typed(v, item, name) for v in value]
-    if origin is tuple and isinstance(value, list) and len(value) == len(get_args(hint)):
-        return tuple(_typed(v, t, name) for v, t in zip(value, get_args(hint), strict=True))
-    if origin is dict and isinstance(value, dict):
-        _, item = get_args(hint)
-        return {str(k): _typed(v, item, name) for k, v in value.items()}
-    if origin is None and _scalar_ok(value, hint):
-        return float(value) if hint is float else value  # type: ignore[arg-type]
-    raise RecordError(f"field {name!r} is not {_describe(hint)}")
-
-
-def _scalar_ok(value: object, hint: Any) -> bool:
-    if hint is bool:
-        return isinstance(value, bool)
-    if hint is int:
-        return _is_int(value)
-    if hint is float:
-        return _is_int(value) or isinstance(value, float)
-    return hint is str and isinstance(value, str)
-
-
 def _pose(value: object, name: str) -> PoseErrors | None:
     """A serialised PoseErrors; the placeholder with null errors (no detection) is None."""
-    if not isinstance(value, dict) or not set(value) <= POSE_KEYS:
+    if type(value) is not dict or not value.keys() <= POSE_KEYS:
         raise RecordError(f"field {name!r} is not a pose comparison")
     if value.get("estimated") is None and all(v is None for v in value.values()):
         return None
-    pose = _hints(PoseErrors)["estimated"]
-    return PoseErrors(estimated=_typed(value.get("estimated"), pose, name),
-                      actual=_typed(value.get("actual"), pose, name))
+    pose = _plan(PoseErrors)["estimated"][0]
+    return PoseErrors(estimated=pose(value.get("estimated"), name),
+                      actual=pose(value.get("actual"), name))
 
 
 def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _describe(hint: Any) -> str:
-    origin = get_origin(hint)
-    if origin is not None:
-        return {list: "a list", tuple: "a list", dict: "an object"}.get(origin, str(hint))
-    return {bool: "a boolean", int: "an integer", float: "a number",
-            str: "a string"}.get(hint, str(hint))
 
 
 def _kind(value: object) -> str:
