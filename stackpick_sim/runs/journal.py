@@ -76,6 +76,17 @@ def _seed_of(line: bytes) -> int | None:
     return seed if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0 else None
 
 
+def _dropped(path: Path, number: int, line: bytes, exc: RecordError,
+             drop_invalid: bool) -> Dropped:
+    """The line to drop, or JournalError when it may not be dropped."""
+    if not drop_invalid or isinstance(exc, NotJSONError):
+        hint = ("only a torn last line can be repaired" if isinstance(exc, NotJSONError)
+                else "'stackpick run --resume' drops such lines and runs their seeds again")
+        raise JournalError(f"{path}: line {number} is not a record ({exc}); {hint}")
+    return Dropped(line=number, seed=_seed_of(line), reason=str(exc),
+                   text=line.decode("utf-8", "replace"))
+
+
 def scan(path: Path, *, drop_invalid: bool = False) -> Contents:
     """Read ``path`` (missing: empty). A torn last line is left out (see ``torn_note``).
 
@@ -95,25 +106,18 @@ def scan(path: Path, *, drop_invalid: bool = False) -> Contents:
                 raise NotJSONError("no final newline")
             rec = record_from_json(line)
         except NewerSchemaError as exc:
-            raise JournalError(f"{path}: line {i + 1}: {exc}; use that version") from None
+            raise JournalError(f"{path}: line {i + 1}: {exc}; read it with the stackpick-sim "
+                               "that wrote it") from None
         except RecordError as exc:
             if isinstance(exc, NotJSONError) and all(not x.strip(b"\0") for x in lines[i + 1:]):
                 out.torn_note = (f"{path}: dropped a torn last line ({len(data) - out.intact} "
                                  f"bytes, line {i + 1}): {exc}")
                 break
-            if not drop_invalid or isinstance(exc, NotJSONError):
-                hint = ("only a torn last line can be repaired" if isinstance(exc, NotJSONError)
-                        else "'stackpick run --resume' drops such lines and runs their seeds "
-                        "again")
-                raise JournalError(f"{path}: line {i + 1} is not a record ({exc}); "
-                                   f"{hint}") from None
-            out.dropped.append(Dropped(line=i + 1, seed=_seed_of(line), reason=str(exc),
-                                       text=line.decode("utf-8", "replace")))
-            out.intact += len(line) + 1
-            continue
-        if rec.seed in out.records:
-            raise JournalError(f"{path}: seed {rec.seed} is recorded twice (line {i + 1})")
-        out.records[rec.seed] = rec
+            out.dropped.append(_dropped(path, i + 1, line, exc, drop_invalid))
+        else:
+            if rec.seed in out.records:
+                raise JournalError(f"{path}: seed {rec.seed} is recorded twice (line {i + 1})")
+            out.records[rec.seed] = rec
         out.intact += len(line) + 1
     return out
 

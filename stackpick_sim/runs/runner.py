@@ -88,6 +88,29 @@ class RunStats:
         return self.ran / self.wall_s if self.wall_s > 0 else 0.0
 
 
+def _open_dirs(jobs: Sequence[RunJob], dirs: dict[str, RunDir], *, resume: bool,
+               retry_unfinished: bool) -> None:
+    """Open (lock) each job's directory into ``dirs``; on resume, check and clean its records:
+    refuse seeds outside the job's, say what invalid records were dropped, drop the
+    unfinished ones with ``retry_unfinished``."""
+    for job in jobs:
+        load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
+    for job in jobs:
+        d = dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
+        d.refuse_foreign(list(job.seeds))
+        for note in d.drop_notes():
+            print(note, file=sys.stderr)
+        if retry_unfinished:
+            d.discard_unfinished(list(job.seeds))
+
+
+def _progress(dirs: dict[str, RunDir], todo: int, enabled: bool) -> Progress:
+    done = [r for d in dirs.values() for r in d.journal.records.values()]
+    episodes = episodes_of(done)
+    return Progress(todo + len(done), done=len(done), episodes=len(episodes),
+                    successes=sum(r.success for r in episodes), enabled=enabled)
+
+
 def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False,
              retry_unfinished: bool = False, show_progress: bool = True,
              on_record: Callable[[Record, Progress], None] | None = None) -> RunStats:
@@ -101,22 +124,11 @@ def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False
         if retry_unfinished and not resume:
             raise StackpickError("--retry-unfinished needs --resume (it runs again recorded "
                                  "episodes that did not finish)")
-        for job in jobs:
-            load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
-        for job in jobs:
-            dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
-            dirs[job.key].refuse_foreign(list(job.seeds))
-            for note in dirs[job.key].drop_notes():
-                print(note, file=sys.stderr)
-            if retry_unfinished:
-                dirs[job.key].discard_unfinished(list(job.seeds))
+        _open_dirs(jobs, dirs, resume=resume, retry_unfinished=retry_unfinished)
         tasks = [EpisodeTask(spec=job.spec, seed=s, key=job.key)
                  for job in jobs for s in dirs[job.key].missing(list(job.seeds))]
-        done = [r for d in dirs.values() for r in d.journal.records.values()]
-        total = len(tasks) + len(done)
-        episodes = episodes_of(done)
-        progress = Progress(total, done=len(done), episodes=len(episodes),
-                            successes=sum(r.success for r in episodes), enabled=show_progress)
+        skipped = sum(len(d.journal.records) for d in dirs.values())
+        progress = _progress(dirs, len(tasks), show_progress)
         for d in dirs.values():
             d.log(f"start: {len(d.journal.records)} recorded, backend "
                   f"{type(executor).__name__}, pid {os.getpid()}")
@@ -136,7 +148,7 @@ def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False
         for key, d in dirs.items():
             d.log(f"end: ran {ran} episodes in {wall:.1f} s")
             summaries[key] = d.finish()
-        return RunStats(ran=ran, skipped=len(done), wall_s=wall, summaries=summaries)
+        return RunStats(ran=ran, skipped=skipped, wall_s=wall, summaries=summaries)
     finally:
         executor.close()
         for d in dirs.values():
