@@ -1,5 +1,9 @@
-"""Runs at scale: local or Ray workers, a durable journal with resume, a lock per directory,
-parameter sweeps, reports and the CI regression check."""
+"""Runs at scale: batches, local or Ray workers, a durable journal with resume, a lock per
+directory, parameter sweeps, replays, reports and the CI regression check.
+
+This package builds on :mod:`stackpick_sim.episodes` (the episode, its record and summary),
+which never imports it.
+"""
 
 from stackpick_sim.runs.batch import run_batch, run_seed, write_outputs
 from stackpick_sim.runs.journal import Journal, JournalError, read_records
