@@ -37,7 +37,7 @@ RESULTS = Path(__file__).parent / "results"
 STACKPICK = [sys.executable, "-m", "stackpick_sim.cli.main"]
 #: A torn last line, as a power cut in the middle of a write leaves it.
 TORN_LINE = b'{"seed": 3, "scene": "pap'
-#: 1000 episodes (the issue's target size) in at most this long, s.
+#: 1000 episodes (a full evaluation batch) in at most this long, s.
 TARGET_1000_S = 600.0
 
 

@@ -21,7 +21,7 @@ from stackpick_sim.sim.stacks import generate_scene
 #: A seed whose pile settles at the first attempts (keeps the tests fast).
 SEED = 1
 ORACLE = ("episode.detector=oracle",)
-#: The issue's required record fields.
+#: Fields every episode record has.
 REQUIRED = ("seed", "scene", "success", "failure", "picked_object", "top_objects",
             "lift_height_m", "detection", "prediction_error_px", "prediction_error_mm",
             "cycle_time_s", "phases", "wall_s")

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-#: Phases in the order an episode goes through them (the issue's phase machine).
+#: Phases in the order an episode goes through them.
 PHASES: tuple[str, ...] = ("look", "detect", "track", "approach", "servo", "descend", "grasp",
                            "lift", "verify")
 
@@ -32,7 +32,7 @@ RUNNER_FAILURES: tuple[str, ...] = (ERROR_REASON,)
 #: later comes with a default, so that older records still read.
 SCHEMA_VERSION = 1
 
-#: The picked object must rest in the cup at least this far above its start, m (the issue).
+#: The picked object must rest in the cup at least this far above its start, m.
 MIN_LIFT_M = 0.05
 
 
@@ -142,7 +142,7 @@ class EpisodeRecord:
         return self.failure in (ERROR_REASON, "timeout") and self.failed_phase is None
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict; ``detection`` carries the issue's three error fields."""
+        """JSON-friendly dict; ``detection`` carries the three error fields even when null."""
         out = asdict(self)
         det = self.detection.as_dict() if self.detection is not None else None
         out["detection"] = det or {"center_error_px": None, "theta_x_error_deg": None,

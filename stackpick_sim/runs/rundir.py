@@ -78,6 +78,7 @@ class RunDir:
                 f"{self.journal.path} holds records of seeds outside --seeds: "
                 f"{seed_ranges(foreign)}; resume with --seeds covering every recorded seed "
                 f"({seed_ranges(sorted(self.journal.records))}), or choose another --out")
+
     def _check_spec(self, resume: bool) -> None:
         path = self.path / RUN_FILE
         if not (resume and path.is_file()):
