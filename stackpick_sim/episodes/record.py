@@ -136,10 +136,11 @@ class EpisodeRecord:
 
     @property
     def unfinished(self) -> bool:
-        """Whether the episode did not finish (a worker crash or the wall-clock limit), as
-        opposed to one that failed a phase: those name the phase (an episode's own
-        ``timeout`` is a phase that ran past its sim-time limit)."""
-        return self.failure in (ERROR_REASON, "timeout") and self.failed_phase is None
+        """Whether the episode reached no outcome: ``error`` (an exception or a dead worker)
+        or the wall-clock limit (``timeout`` with no phase; a phase's own ``timeout`` is a
+        phase that ran past its sim-time limit, an outcome)."""
+        return self.failure == ERROR_REASON or (self.failure == "timeout"
+                                                and self.failed_phase is None)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly dict; ``detection`` carries the three error fields even when null."""
