@@ -15,5 +15,8 @@ def read_json(path: Path, what: str, error: type[StackpickError] = StackpickErro
         return json.loads(path.read_bytes().decode("utf-8"))
     except UnicodeDecodeError:
         raise error(f"{path} is not UTF-8 text, so not {what}") from None
-    except (ValueError, RecursionError) as exc:  # JSONDecodeError and deep nesting
-        raise error(f"{path} is not JSON ({type(exc).__name__}), so not {what}") from None
+    except RecursionError:
+        raise error(f"{path} nests arrays or objects too deeply to read, so is not {what}"
+                    ) from None
+    except ValueError as exc:  # JSONDecodeError
+        raise error(f"{path} is not JSON ({exc}), so not {what}") from None
