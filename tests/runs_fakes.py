@@ -15,11 +15,11 @@ CRASH_SEED, HANG_SEED, RAISE_SEED = 13, 14, 15
 FAKE_EPISODE_S = 0.05
 
 
-def fake_record(seed: int) -> dict:
+def fake_record(seed: int) -> EpisodeRecord:
     """A complete record whose outcome is a function of the seed."""
     return EpisodeRecord(seed=seed, scene="paper", detector="oracle", tracker_frame="belt",
                          belt_speed=0.1, success=seed % 3 != 0,
-                         failure=None if seed % 3 else "missed_grasp").as_dict()
+                         failure=None if seed % 3 else "missed_grasp")
 
 
 def fake_task(task: EpisodeTask) -> TaskResult:

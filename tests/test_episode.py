@@ -13,9 +13,9 @@ import pytest
 from stackpick_sim.cli.main import main
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes import FAILURES, PHASES, EpisodeHooks, TickInfo, run_episode
-from stackpick_sim.episodes.batch import RunSpec, run_batch
 from stackpick_sim.episodes.record import WALL_CLOCK_KEYS
 from stackpick_sim.episodes.summary import wilson_interval
+from stackpick_sim.runs import RunSpec, run_batch
 from stackpick_sim.sim.stacks import generate_scene
 
 #: A seed whose pile settles at the first attempts (keeps the tests fast).
@@ -117,8 +117,8 @@ def test_records_do_not_depend_on_workers(tmp_path: Path) -> None:
     spec = RunSpec(scene="paper", overrides=ORACLE)
     one = run_batch(spec, [3, SEED], workers=1)
     two = run_batch(spec, [SEED, 3], workers=2)
-    assert [r["seed"] for r in one] == [SEED, 3]
-    assert [_strip(r) for r in one] == [_strip(r) for r in two]
+    assert [r.seed for r in one] == [SEED, 3]
+    assert [_strip(r.as_dict()) for r in one] == [_strip(r.as_dict()) for r in two]
 
 
 def test_cli_run_writes_results_and_replay_writes_video(tmp_path: Path, capsys) -> None:

@@ -23,10 +23,15 @@ def test_run_resume_adds_only_missing_seeds_and_refuses_to_overwrite(
     out = tmp_path / "run"
     assert main(["run", *ORACLE, "--seeds", "3", "--out", str(out)]) == 0
     first = (out / "results.jsonl").read_text()
+    (out / "results.jsonl").write_text('{"seed": 1}\n' + first)  # a stub is not a record
     assert main(["run", *ORACLE, "--seeds", "1,3", "--out", str(out), "--resume"]) == 0
     assert _seeds(out) == [1, 3]
     assert first.strip() in (out / "results.jsonl").read_text()  # seed 3 was not re-run
-    assert "ran 1 episodes (1 already recorded)" in capsys.readouterr().out
+    io = capsys.readouterr()
+    assert "ran 1 episodes (1 already recorded)" in io.out
+    assert "dropped 1 record (seed 1): missing field 'scene'" in io.err
+    assert main(["run", *ORACLE, "--seeds", "1", "--out", str(out), "--resume"]) == 2
+    assert "seeds outside --seeds: 3" in capsys.readouterr().err
     assert main(["run", *ORACLE, "--seeds", "1", "--out", str(out)]) == 2
     assert "pass --resume" in capsys.readouterr().err
     assert main(["run", *ORACLE, "--seeds", "1", "--out", str(out), "--resume",

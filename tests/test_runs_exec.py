@@ -10,15 +10,15 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from runs_fakes import CRASH_SEED, HANG_SEED, RAISE_SEED, fake_record, fake_task
 
-from stackpick_sim.episodes.batch import RunSpec, run_batch
-from stackpick_sim.episodes.record import WALL_CLOCK_KEYS
+from stackpick_sim.episodes.record import WALL_CLOCK_KEYS, Record
 from stackpick_sim.exceptions import StackpickError
-from stackpick_sim.runs import LocalExecutor, RunJob, read_records, run_dirs
+from stackpick_sim.runs import LocalExecutor, RunJob, RunSpec, read_records, run_batch, run_dirs
 from stackpick_sim.runs.local import InlineExecutor
 from stackpick_sim.runs.tasks import EpisodeTask, TaskResult
 
@@ -31,8 +31,8 @@ KILL_SEEDS = list(range(20, 60))
 KILL_TRIALS = 3
 
 
-def _strip(rec: dict) -> dict:
-    return {k: v for k, v in rec.items() if k not in WALL_CLOCK_KEYS}
+def _strip(rec: Record) -> dict:
+    return {k: v for k, v in rec.as_dict().items() if k not in WALL_CLOCK_KEYS}
 
 
 def test_crash_hang_and_exception_are_failed_records_and_the_run_goes_on(tmp_path: Path) -> None:
@@ -42,10 +42,10 @@ def test_crash_hang_and_exception_are_failed_records_and_the_run_goes_on(tmp_pat
     stats = run_dirs([job], ex, show_progress=False)
     records, _, _ = read_records(tmp_path / "results.jsonl")
     assert sorted(records) == seeds and stats.ran == len(seeds)
-    assert records[CRASH_SEED]["failure"] == "error"
-    assert "SIGKILL" in records[CRASH_SEED]["failure_detail"]
-    assert records[HANG_SEED]["failure"] == "timeout"
-    assert records[RAISE_SEED]["failure"] == "error"
+    assert records[CRASH_SEED].failure == "error"
+    assert "SIGKILL" in records[CRASH_SEED].failure_detail
+    assert records[HANG_SEED].failure == "timeout"
+    assert records[RAISE_SEED].failure == "error"
     for s in (1, 2, 16, 17):
         assert records[s] == fake_record(s)
     log = (tmp_path / "run.log").read_text()
@@ -59,7 +59,7 @@ def test_records_identical_across_workers_and_inline() -> None:
     inline = run_batch(SPEC, [1, 3], backend="inline")
     one = run_batch(SPEC, [3, 1], workers=1)
     two = run_batch(SPEC, [1, 3], workers=2)
-    assert [r["seed"] for r in inline] == [1, 3]
+    assert [r.seed for r in inline] == [1, 3]
     assert [_strip(r) for r in inline] == [_strip(r) for r in one] == [_strip(r) for r in two]
 
 
@@ -108,8 +108,8 @@ def _flaky_then_fixed(broken: bool):
         if task.seed == RAISE_SEED and broken:
             raise RuntimeError("scripted failure")
         if task.seed == PHASE_TIMEOUT_SEED:
-            rec = fake_record(task.seed)
-            rec.update(success=False, failure="timeout", failed_phase="descend")
+            rec = replace(fake_record(task.seed), success=False, failure="timeout",
+                          failed_phase="descend")
             return TaskResult(task=task, record=rec)
         return TaskResult(task=task, record=fake_record(task.seed))
     return task_fn
@@ -120,7 +120,7 @@ def test_retry_unfinished_runs_only_crashed_episodes_again(tmp_path: Path) -> No
     job = RunJob(key="k", spec=SPEC, seeds=seeds, out=tmp_path)
     run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(True)), show_progress=False)
     first, _, _ = read_records(tmp_path / "results.jsonl")
-    assert first[RAISE_SEED]["failure"] == "error"
+    assert first[RAISE_SEED].failure == "error"
     # a plain resume keeps the error record ...
     stats = run_dirs([job], InlineExecutor(task_fn=_flaky_then_fixed(False)), resume=True,
                      show_progress=False)
@@ -132,7 +132,7 @@ def test_retry_unfinished_runs_only_crashed_episodes_again(tmp_path: Path) -> No
     assert stats.ran == 1 and stats.skipped == 3
     assert sorted(records) == seeds
     assert records[RAISE_SEED] == fake_record(RAISE_SEED)
-    assert records[PHASE_TIMEOUT_SEED]["failure"] == "timeout"
+    assert records[PHASE_TIMEOUT_SEED].failure == "timeout"
     assert {s: records[s] for s in (1, 3)} == {s: first[s] for s in (1, 3)}
     assert f"retry: dropped 1 unfinished episodes to run again: seeds {RAISE_SEED}" in \
         (tmp_path / "run.log").read_text()

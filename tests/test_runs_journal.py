@@ -52,7 +52,7 @@ def test_torn_last_line_is_repaired_on_resume(tmp_path: Path, tail: bytes) -> No
 def test_corrupt_line_in_the_middle_is_an_error_not_a_silent_drop(tmp_path: Path) -> None:
     path = _journal_with(tmp_path, [1])
     with path.open("a") as fh:
-        fh.write("garbage\n" + json.dumps(fake_record(2)) + "\n")
+        fh.write("garbage\n" + json.dumps(fake_record(2).as_dict()) + "\n")
     with pytest.raises(JournalError, match="line 2 is not a record"):
         Journal(tmp_path, resume=True)
 

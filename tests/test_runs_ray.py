@@ -11,9 +11,8 @@ import pytest
 import ray
 from runs_fakes import CRASH_SEED, RAISE_SEED, fake_record, fake_task
 
-from stackpick_sim.episodes.batch import RunSpec, run_batch
-from stackpick_sim.episodes.record import WALL_CLOCK_KEYS
-from stackpick_sim.runs import RunJob, read_records, run_dirs
+from stackpick_sim.episodes.record import WALL_CLOCK_KEYS, Record
+from stackpick_sim.runs import RunJob, RunSpec, read_records, run_batch, run_dirs
 from stackpick_sim.runs.ray_backend import RayExecutor
 
 SPEC = RunSpec(scene="paper", overrides=("episode.detector=oracle",))
@@ -31,14 +30,14 @@ def local_ray() -> Iterator[None]:
     ray.shutdown()
 
 
-def _strip(rec: dict) -> dict:
-    return {k: v for k, v in rec.items() if k not in WALL_CLOCK_KEYS}
+def _strip(rec: Record) -> dict:
+    return {k: v for k, v in rec.as_dict().items() if k not in WALL_CLOCK_KEYS}
 
 
 def test_ray_records_equal_local_records(local_ray: None) -> None:
     on_ray = run_batch(SPEC, [1, 3], backend="ray")
     local = run_batch(SPEC, [1, 3], workers=2)
-    assert [r["seed"] for r in on_ray] == [1, 3]
+    assert [r.seed for r in on_ray] == [1, 3]
     assert [_strip(r) for r in on_ray] == [_strip(r) for r in local]
 
 
@@ -48,7 +47,7 @@ def test_ray_crash_and_exception_are_failed_records(local_ray: None, tmp_path: P
     run_dirs([job], RayExecutor(task_fn=fake_task), show_progress=False)
     records, _, _ = read_records(tmp_path / "results.jsonl")
     assert sorted(records) == sorted(seeds)
-    assert records[CRASH_SEED]["failure"] == "error"
-    assert records[RAISE_SEED]["failure"] == "error"
+    assert records[CRASH_SEED].failure == "error"
+    assert records[RAISE_SEED].failure == "error"
     assert records[1] == fake_record(1) and records[2] == fake_record(2)
     assert "scripted failure" in (tmp_path / "run.log").read_text()

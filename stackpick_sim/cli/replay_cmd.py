@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from stackpick_sim.cli.common import seed_arg
-from stackpick_sim.episodes.replay import replay_episode
+from stackpick_sim.runs.replay import replay_run
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay and report."""
-    result = replay_episode(args.dir, args.seed, args.video, show_truth=args.truth)
+    result = replay_run(args.dir, args.seed, args.video, show_truth=args.truth)
     rec = result.record
     outcome = "success" if rec.success else f"failure {rec.failure} ({rec.failure_detail})"
     print(f"seed {args.seed}: {outcome}; {result.frames} video frames -> {args.video}")

@@ -14,6 +14,7 @@ from stackpick_sim.cli.common import (
     positive_int,
 )
 from stackpick_sim.config.scene_config import DETECTORS, TRACKER_FRAMES
+from stackpick_sim.episodes.record import Record, SceneErrorRecord
 from stackpick_sim.episodes.summary import summary_markdown
 from stackpick_sim.runs.progress import Progress
 from stackpick_sim.runs.runner import RunJob, default_workers, make_executor, run_dirs
@@ -94,14 +95,14 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
     return RunSpec(scene=args.scene, overrides=tuple(overrides))
 
 
-def episode_line(rec: dict[str, Any]) -> str:
+def episode_line(rec: Record) -> str:
     """One line about a finished episode (--verbose)."""
-    if "error" in rec:
-        return f"seed {rec['seed']}: scene error: {rec['error']}"
-    outcome = "ok" if rec["success"] else f"FAIL {rec['failure']}"
-    return (f"seed {rec['seed']:5d}: {outcome:22s} cycle {rec['cycle_time_s'] or 0:.2f} s  "
-            f"pred {rec['prediction_error_mm'] or float('nan'):.2f} mm  "
-            f"wall {rec['wall_s']:.2f} s")
+    if isinstance(rec, SceneErrorRecord):
+        return f"seed {rec.seed}: scene error: {rec.error}"
+    outcome = "ok" if rec.success else f"FAIL {rec.failure}"
+    return (f"seed {rec.seed:5d}: {outcome:22s} cycle {rec.cycle_time_s or 0:.2f} s  "
+            f"pred {rec.prediction_error_mm or float('nan'):.2f} mm  "
+            f"wall {rec.wall_s:.2f} s")
 
 
 def executor_from_args(args: argparse.Namespace) -> Any:
@@ -114,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the batch, write the files, print the summary."""
     seeds = parse_seeds(args.seeds)
 
-    def on_record(rec: dict[str, Any], bar: Progress) -> None:
+    def on_record(rec: Record, bar: Progress) -> None:
         if args.verbose:
             bar.write(episode_line(rec))
 

@@ -12,7 +12,13 @@ from stackpick_sim.config.scene_config import DETECTORS
 from stackpick_sim.files import write_text
 from stackpick_sim.runs.lock import RunLock
 from stackpick_sim.runs.runner import run_dirs
-from stackpick_sim.runs.sweep import cell_rows, parse_param, sweep_jobs, sweep_markdown
+from stackpick_sim.runs.sweep import (
+    cell_rows,
+    load_sweep,
+    parse_param,
+    sweep_jobs,
+    sweep_markdown,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
                           resume=args.resume)
         stats = run_dirs(jobs, executor_from_args(args), resume=args.resume,
                          retry_unfinished=args.retry_unfinished, show_progress=not args.quiet)
-        desc = json.loads((args.out / "sweep.json").read_text())
+        desc = load_sweep(args.out)
         rows = cell_rows(desc, stats.summaries)
         write_text(args.out / "sweep_summary.json", json.dumps(rows, indent=1))
         text = sweep_markdown(desc, rows)

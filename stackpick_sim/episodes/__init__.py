@@ -1,9 +1,21 @@
-"""Pick episodes: the phase machine, its records, batches, summaries and replays."""
+"""Pick episodes: the phase machine, its records, summaries and replays.
 
-from stackpick_sim.episodes.batch import RunSpec, run_batch, write_outputs
+Running many episodes (batches, run directories, workers) is :mod:`stackpick_sim.runs`,
+which depends on this package and never the reverse.
+"""
+
 from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
-from stackpick_sim.episodes.record import FAILURES, MIN_LIFT_M, PHASES, EpisodeRecord
-from stackpick_sim.episodes.replay import ReplayResult, replay_episode
+from stackpick_sim.episodes.record import (
+    FAILURES,
+    MIN_LIFT_M,
+    PHASES,
+    SCHEMA_VERSION,
+    EpisodeRecord,
+    Record,
+    SceneErrorRecord,
+)
+from stackpick_sim.episodes.replay import ReplayResult, ReplaySource, replay_episode
+from stackpick_sim.episodes.schema import RecordError, record_from_json, record_to_json
 from stackpick_sim.episodes.summary import summarize, summary_markdown, wilson_interval
 from stackpick_sim.exceptions import EpisodeError
 
@@ -11,17 +23,21 @@ __all__ = [
     "FAILURES",
     "MIN_LIFT_M",
     "PHASES",
+    "SCHEMA_VERSION",
     "EpisodeError",
     "EpisodeHooks",
     "EpisodeRecord",
+    "Record",
+    "RecordError",
     "ReplayResult",
-    "RunSpec",
+    "ReplaySource",
+    "SceneErrorRecord",
     "TickInfo",
+    "record_from_json",
+    "record_to_json",
     "replay_episode",
-    "run_batch",
     "run_episode",
     "summarize",
     "summary_markdown",
     "wilson_interval",
-    "write_outputs",
 ]

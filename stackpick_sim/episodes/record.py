@@ -1,16 +1,19 @@
 """What one episode leaves behind: its phases, failure reason and measurements.
 
-The JSON schema of ``results.jsonl`` is :meth:`EpisodeRecord.as_dict`; every field below is
-documented with its unit and frame. "Look view" pixels are those of the wrist camera at the
-look pose (0.30 m above the belt, looking straight down): the paper's reference image.
+A line of ``results.jsonl`` is :meth:`EpisodeRecord.as_dict` (an episode) or
+:meth:`SceneErrorRecord.as_dict` (a seed whose pile could not be built); both carry
+``schema_version``. :mod:`stackpick_sim.episodes.schema` reads and writes them; docs/records.md
+lists every field with its unit. "Look view" pixels are those of the wrist camera at the look
+pose (0.30 m above the belt, looking straight down): the paper's reference image.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-#: Phases in the order an episode goes through them (the issue's phase machine).
+#: Phases in the order an episode goes through them.
 PHASES: tuple[str, ...] = ("look", "detect", "track", "approach", "servo", "descend", "grasp",
                            "lift", "verify")
 
@@ -19,8 +22,17 @@ PHASES: tuple[str, ...] = ("look", "detect", "track", "approach", "servo", "desc
 FAILURES: tuple[str, ...] = ("no_detection", "wrong_object", "lost_track", "servo_diverged",
                              "missed_grasp", "dropped", "joint_limit", "timeout",
                              "unstable_sim")
+#: Failure reason of an episode that did not reach an outcome: an exception (in a plug-in or in
+#: our code) or a worker that died. Not a result of the pick: a bug or a crash to look into.
+ERROR_REASON = "error"
+#: Reasons a record may give besides :data:`FAILURES`.
+RUNNER_FAILURES: tuple[str, ...] = (ERROR_REASON,)
 
-#: The picked object must rest in the cup at least this far above its start, m (the issue).
+#: Version of the record layout; every record in ``results.jsonl`` carries it. A field added
+#: later comes with a default, so that older records still read.
+SCHEMA_VERSION = 1
+
+#: The picked object must rest in the cup at least this far above its start, m.
 MIN_LIFT_M = 0.05
 
 
@@ -37,12 +49,22 @@ class PoseErrors:
         return float(((self.estimated[0] - self.actual[0]) ** 2
                       + (self.estimated[1] - self.actual[1]) ** 2) ** 0.5)
 
+    @property
+    def theta_x_error_deg(self) -> float:
+        """|estimated - actual| tilt about x, deg."""
+        return abs(self.estimated[2] - self.actual[2])
+
+    @property
+    def theta_y_error_deg(self) -> float:
+        """|estimated - actual| tilt about y, deg."""
+        return abs(self.estimated[3] - self.actual[3])
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly: both poses and the three errors."""
         return {"estimated": list(self.estimated), "actual": list(self.actual),
                 "center_error_px": self.center_error_px,
-                "theta_x_error_deg": abs(self.estimated[2] - self.actual[2]),
-                "theta_y_error_deg": abs(self.estimated[3] - self.actual[3])}
+                "theta_x_error_deg": self.theta_x_error_deg,
+                "theta_y_error_deg": self.theta_y_error_deg}
 
 
 @dataclass(kw_only=True)
@@ -109,9 +131,19 @@ class EpisodeRecord:
     """Wall time of the episode proper (after the pile exists), s."""
     wall_breakdown_s: dict[str, float] = field(default_factory=dict)
     """Wall time by activity: physics, render, vision, control, truth, s."""
+    schema_version: int = SCHEMA_VERSION
+    """Version of the record layout (:data:`SCHEMA_VERSION` when written by this package)."""
+
+    @property
+    def unfinished(self) -> bool:
+        """Whether the episode reached no outcome: ``error`` (an exception or a dead worker)
+        or the wall-clock limit (``timeout`` with no phase; a phase's own ``timeout`` is a
+        phase that ran past its sim-time limit, an outcome)."""
+        return self.failure == ERROR_REASON or (self.failure == "timeout"
+                                                and self.failed_phase is None)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict; ``detection`` carries the issue's three error fields."""
+        """JSON-friendly dict; ``detection`` carries the three error fields even when null."""
         out = asdict(self)
         det = self.detection.as_dict() if self.detection is not None else None
         out["detection"] = det or {"center_error_px": None, "theta_x_error_deg": None,
@@ -119,6 +151,30 @@ class EpisodeRecord:
         out["pick_estimate"] = (self.pick_estimate.as_dict()
                                 if self.pick_estimate is not None else None)
         return out
+
+
+@dataclass(kw_only=True)
+class SceneErrorRecord:
+    """A seed whose pile could not be generated: no episode ran, so no rate counts it."""
+
+    seed: int
+    scene: str
+    error: str
+    """Why the pile could not be built."""
+    schema_version: int = SCHEMA_VERSION
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return asdict(self)
+
+
+#: One line of ``results.jsonl``.
+Record = EpisodeRecord | SceneErrorRecord
+
+
+def episodes_of(records: Iterable[Record]) -> list[EpisodeRecord]:
+    """The records of episodes (scene errors left out), in the given order."""
+    return [r for r in records if isinstance(r, EpisodeRecord)]
 
 
 #: Keys that differ between two runs of one seed only through the wall clock.

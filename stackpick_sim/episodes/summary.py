@@ -1,6 +1,7 @@
 """Batch statistics: success rate with a Wilson interval, failures, the paper's tables.
 
-Input: the records of ``results.jsonl`` (dicts of :meth:`EpisodeRecord.as_dict`), seed order.
+Input: the records of ``results.jsonl`` (:data:`~stackpick_sim.episodes.record.Record`), seed
+order.
 Table 1 (paper): the detected pose vs. the true pose of the first three episodes; Table 2:
 the Kalman estimate at the pick moment vs. the true pose. Poses are the paper's
 (x px, y px, theta_x deg, theta_y deg) in the look view.
@@ -15,15 +16,18 @@ from typing import Any
 
 import numpy as np
 
-from stackpick_sim.episodes.record import FAILURES
+from stackpick_sim.episodes.record import (
+    FAILURES,
+    RUNNER_FAILURES,
+    Record,
+    SceneErrorRecord,
+    episodes_of,
+)
 
 #: Two-sided 95 % normal quantile for the Wilson score interval.
 Z_95 = 1.959963984540054
 #: Rows of the paper's tables.
 TABLE_ROWS = 3
-#: Failure reasons the runner adds to the episode's own (stackpick_sim.runs.tasks): the
-#: worker raised or died. (A worker past --episode-timeout is recorded as ``timeout``.)
-RUNNER_FAILURES: tuple[str, ...] = ("error",)
 
 
 def wilson_interval(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
@@ -45,42 +49,43 @@ def _stats(values: Sequence[float | None]) -> dict[str, float | int | None]:
             "p95": float(np.percentile(v, 95)), "max": float(v.max())}
 
 
-def summarize(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+def summarize(records: Sequence[Record]) -> dict[str, Any]:
     """The summary as a JSON-friendly dict (the content of ``summary.json``)."""
-    episodes = [r for r in records if "error" not in r]
+    episodes = episodes_of(records)
     n = len(episodes)
-    wins = sum(1 for r in episodes if r["success"])
+    wins = sum(1 for r in episodes if r.success)
     lo, hi = wilson_interval(wins, n)
-    failures = Counter(r["failure"] for r in episodes if r["failure"])
-    ok = [r for r in episodes if r["success"]]
-    breakdown_keys = sorted({k for r in episodes for k in r.get("wall_breakdown_s") or {}})
-    first = [r for r in episodes if r.get("detection", {}).get("estimated") is not None]
-    picks = [r for r in episodes if r.get("pick_estimate")]
+    failures = Counter(r.failure for r in episodes if r.failure)
+    ok = [r for r in episodes if r.success]
+    breakdown_keys = sorted({k for r in episodes for k in r.wall_breakdown_s})
+    detections = [r.detection for r in episodes]
     return {
         "episodes": n,
-        "scene_errors": [{"seed": r["seed"], "error": r["error"]} for r in records
-                         if "error" in r],
-        "scenes": sorted({r["scene"] for r in episodes}),
-        "detector": sorted({r["detector"] for r in episodes}),
-        "tracker_frame": sorted({r["tracker_frame"] for r in episodes}),
-        "belt_speed": sorted({r["belt_speed"] for r in episodes}),
+        "scene_errors": [{"seed": r.seed, "error": r.error} for r in records
+                         if isinstance(r, SceneErrorRecord)],
+        "scenes": sorted({r.scene for r in episodes}),
+        "detector": sorted({r.detector for r in episodes}),
+        "tracker_frame": sorted({r.tracker_frame for r in episodes}),
+        "belt_speed": sorted({r.belt_speed for r in episodes}),
         "successes": wins,
         "success_rate": wins / n if n else None,
         "success_ci95": [lo, hi],
         "failures": {reason: failures.get(reason, 0)
                      for reason in (*FAILURES, *RUNNER_FAILURES)},
-        "detection": {key: _stats([r["detection"][key] for r in episodes])
+        "detection": {key: _stats([getattr(d, key) if d is not None else None
+                                   for d in detections])
                       for key in ("center_error_px", "theta_x_error_deg", "theta_y_error_deg")},
-        "prediction_error_px": _stats([r["prediction_error_px"] for r in episodes]),
-        "prediction_error_mm": _stats([r["prediction_error_mm"] for r in episodes]),
-        "cycle_time_s": _stats([r["cycle_time_s"] for r in ok]),
-        "wall_s": _stats([r["wall_s"] for r in episodes]),
-        "scene_build_wall_s": _stats([r["scene_build_wall_s"] for r in episodes]),
-        "wall_breakdown_s": {k: _stats([(r.get("wall_breakdown_s") or {}).get(k)
-                                        for r in episodes])
+        "prediction_error_px": _stats([r.prediction_error_px for r in episodes]),
+        "prediction_error_mm": _stats([r.prediction_error_mm for r in episodes]),
+        "cycle_time_s": _stats([r.cycle_time_s for r in ok]),
+        "wall_s": _stats([r.wall_s for r in episodes]),
+        "scene_build_wall_s": _stats([r.scene_build_wall_s for r in episodes]),
+        "wall_breakdown_s": {k: _stats([r.wall_breakdown_s.get(k) for r in episodes])
                              for k in breakdown_keys},
-        "table1": [{"seed": r["seed"], **r["detection"]} for r in first[:TABLE_ROWS]],
-        "table2": [{"seed": r["seed"], **r["pick_estimate"]} for r in picks[:TABLE_ROWS]],
+        "table1": [{"seed": r.seed, **r.detection.as_dict()} for r in episodes
+                   if r.detection is not None][:TABLE_ROWS],
+        "table2": [{"seed": r.seed, **r.pick_estimate.as_dict()} for r in episodes
+                   if r.pick_estimate is not None][:TABLE_ROWS],
     }
 
 

@@ -156,7 +156,7 @@ class ReplayFilm:
     """
 
     def __init__(self, cell: Cell, writer: H264Writer, *, seed: int,
-                 recorded: dict[str, Any] | None, show_truth: bool = False) -> None:
+                 recorded: EpisodeRecord | dict[str, Any] | None, show_truth: bool = False) -> None:
         self._cell = cell
         self._writer = writer
         self._seed = seed

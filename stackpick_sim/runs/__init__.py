@@ -1,8 +1,11 @@
-"""Runs at scale: local or Ray workers, a durable journal with resume, a lock per directory,
-parameter sweeps, reports and the CI regression check."""
+"""Runs at scale: batches, local or Ray workers, a durable journal with resume, a lock per
+directory, parameter sweeps, replays, reports and the CI regression check.
 
-# The episode modules first: stackpick_sim.episodes imports stackpick_sim.runs.spec.
-import stackpick_sim.episodes  # noqa: F401  isort: skip
+This package builds on :mod:`stackpick_sim.episodes` (the episode, its record and summary),
+which never imports it.
+"""
+
+from stackpick_sim.runs.batch import run_batch, run_seed, write_outputs
 from stackpick_sim.runs.journal import Journal, JournalError, read_records
 from stackpick_sim.runs.local import InlineExecutor, LocalExecutor
 from stackpick_sim.runs.lock import LockError, RunLock
@@ -29,6 +32,9 @@ __all__ = [
     "failure_record",
     "make_executor",
     "read_records",
+    "run_batch",
     "run_dirs",
+    "run_seed",
     "run_task",
+    "write_outputs",
 ]

@@ -21,6 +21,7 @@ from urllib.parse import quote
 import cv2
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.episodes.record import EpisodeRecord, SceneErrorRecord
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.journal import RESULTS_FILE
 from stackpick_sim.runs.report import (
@@ -120,10 +121,10 @@ def _link(page_dir: Path, target: Path) -> str:
     return "/".join(quote(p) for p in Path(os.path.relpath(target, page_dir)).parts)
 
 
-def _number(record: dict[str, Any], keys: tuple[str, ...]) -> float | None:
+def _number(record: EpisodeRecord, keys: tuple[str, ...]) -> float | None:
     node: Any = record
     for key in keys:
-        node = node.get(key) if isinstance(node, dict) else None
+        node = getattr(node, key, None)
     return None if node is None else float(node)
 
 
@@ -151,7 +152,7 @@ def _failure_cards(data: ReportData, run: RunData, frames: FrameSource,
     frames the page shows."""
     cards = []
     for r in run.failed()[:MAX_FAILED_LISTED]:
-        seed = int(r["seed"])
+        seed = r.seed
         png = frames(run.path, seed) if budget[0] > 0 else None
         budget[0] -= 1
         thumb = (f'<img alt="seed {seed}, look-pose frame" src="{_data_uri(png)}">' if png
@@ -162,8 +163,8 @@ def _failure_cards(data: ReportData, run: RunData, frames: FrameSource,
                 else f"<code>{_e(replay_command(run.path, seed))}</code>")
         cell = f"cell {_e(run.name)}, " if data.is_sweep else ""
         cards.append(f'<div class="failure" id="seed-{_e(run.name)}-{seed}">{thumb}'
-                     f'<p><b>{cell}seed {seed}</b>: <span class="bad">{_e(r.get("failure"))}'
-                     f'</span><br>{_e(r.get("failure_detail", ""))}</p><p>{play}</p></div>')
+                     f'<p><b>{cell}seed {seed}</b>: <span class="bad">{_e(r.failure)}'
+                     f'</span><br>{_e(r.failure_detail)}</p><p>{play}</p></div>')
     return cards
 
 
@@ -171,14 +172,13 @@ def _episode_rows(data: ReportData) -> list[str]:
     rows = []
     for run in data.runs:
         for r in run.records:
-            seed = r["seed"]
-            if "error" in r:
-                outcome, reason, detail = "no scene", "scene_error", r["error"]
-            elif r.get("success"):
+            seed = r.seed
+            if isinstance(r, SceneErrorRecord):
+                outcome, reason, detail = "no scene", "scene_error", r.error
+            elif r.success:
                 outcome, reason, detail = "success", "", ""
             else:
-                outcome, reason = "failure", r.get("failure", "")
-                detail = r.get("failure_detail", "")
+                outcome, reason, detail = "failure", r.failure or "", r.failure_detail
             cls = "ok" if outcome == "success" else "bad"
             cells = [f'<td class="num" data-v="{seed}">{seed}</td>']
             if data.is_sweep:
@@ -186,7 +186,7 @@ def _episode_rows(data: ReportData) -> list[str]:
             cells += [f'<td class="{cls}">{outcome}</td>', f"<td>{_e(reason)}</td>",
                       f"<td>{_e(detail)}</td>"]
             for _, keys in _NUMBERS:
-                v = _number(r, keys)
+                v = _number(r, keys) if isinstance(r, EpisodeRecord) else None
                 cells.append(f'<td class="num" data-v="{"" if v is None else v}">'
                              f'{"" if v is None else f"{v:.3g}"}</td>')
             video = video_path(run.path, int(seed))

@@ -13,9 +13,18 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
+from stackpick_sim.episodes.record import Record
+from stackpick_sim.episodes.schema import (
+    NewerSchemaError,
+    NotJSONError,
+    RecordError,
+    record_from_json,
+    record_to_json,
+)
 from stackpick_sim.exceptions import StackpickError
 
 #: The journal's file name inside a run directory.
@@ -34,15 +43,59 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def read_records(path: Path) -> tuple[dict[int, dict[str, Any]], int, str | None]:
-    """Records by seed, the byte length of the intact part, and a note if the tail was torn.
+@dataclass(frozen=True, kw_only=True)
+class Dropped:
+    """A line of results.jsonl that is JSON but not a record of the schema."""
 
-    Raises JournalError for an unparsable line that is not the last one, or a seed twice.
+    line: int
+    """1-based line number."""
+    seed: int | None
+    """Its seed if it names a valid one (that seed runs again), else None."""
+    reason: str
+    """The class of problem (:class:`~stackpick_sim.episodes.schema.RecordError`)."""
+    text: str
+
+
+@dataclass(kw_only=True)
+class Contents:
+    """What a results.jsonl holds."""
+
+    records: dict[int, Record] = field(default_factory=dict)
+    intact: int = 0
+    """Byte length of the part to keep (up to the last complete line)."""
+    torn_note: str | None = None
+    """What was cut off the end, if anything."""
+    dropped: list[Dropped] = field(default_factory=list)
+
+
+def _seed_of(line: bytes) -> int | None:
+    try:
+        seed = json.loads(line).get("seed")
+    except (ValueError, RecursionError, AttributeError):
+        return None
+    return seed if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0 else None
+
+
+def _dropped(path: Path, number: int, line: bytes, exc: RecordError,
+             drop_invalid: bool) -> Dropped:
+    """The line to drop, or JournalError when it may not be dropped."""
+    if not drop_invalid or isinstance(exc, NotJSONError):
+        hint = ("only a torn last line can be repaired" if isinstance(exc, NotJSONError)
+                else "'stackpick run --resume' drops such lines and runs their seeds again")
+        raise JournalError(f"{path}: line {number} is not a record ({exc}); {hint}")
+    return Dropped(line=number, seed=_seed_of(line), reason=str(exc),
+                   text=line.decode("utf-8", "replace"))
+
+
+def scan(path: Path, *, drop_invalid: bool = False) -> Contents:
+    """Read ``path`` (missing: empty). A torn last line is left out (see ``torn_note``).
+
+    Raises JournalError for a line that is not JSON and is not the last one, a seed twice,
+    a record of a newer schema, and (unless ``drop_invalid``) a JSON line that breaks the
+    record schema; with ``drop_invalid`` those are listed in ``dropped``.
     """
     data = path.read_bytes() if path.exists() else b""
-    records: dict[int, dict[str, Any]] = {}
-    good = 0
-    note = None
+    out = Contents()
     lines = data.split(b"\n")
     for i, line in enumerate(lines):
         last = i == len(lines) - 1
@@ -50,23 +103,32 @@ def read_records(path: Path) -> tuple[dict[int, dict[str, Any]], int, str | None
             break  # the file ends with a newline
         try:
             if last:
-                raise ValueError("no final newline")
-            rec = json.loads(line)
-            seed = int(rec["seed"])
-        except (ValueError, KeyError, TypeError) as exc:
-            tail = all(not x.strip(b"\0") for x in lines[i + 1:])
-            if not tail:
-                raise JournalError(
-                    f"{path}: line {i + 1} is not a record ({exc}) and more records follow "
-                    "it; only a torn last line can be repaired") from None
-            note = (f"{path}: dropped a torn last line ({len(data) - good} bytes, "
-                    f"line {i + 1}): {exc}")
-            break
-        if seed in records:
-            raise JournalError(f"{path}: seed {seed} is recorded twice (line {i + 1})")
-        records[seed] = rec
-        good += len(line) + 1
-    return records, good, note
+                raise NotJSONError("no final newline")
+            rec = record_from_json(line)
+        except NewerSchemaError as exc:
+            raise JournalError(f"{path}: line {i + 1}: {exc}; read it with the stackpick-sim "
+                               "that wrote it") from None
+        except RecordError as exc:
+            if isinstance(exc, NotJSONError) and all(not x.strip(b"\0") for x in lines[i + 1:]):
+                out.torn_note = (f"{path}: dropped a torn last line ({len(data) - out.intact} "
+                                 f"bytes, line {i + 1}): {exc}")
+                break
+            out.dropped.append(_dropped(path, i + 1, line, exc, drop_invalid))
+        else:
+            if rec.seed in out.records:
+                raise JournalError(f"{path}: seed {rec.seed} is recorded twice (line {i + 1})")
+            out.records[rec.seed] = rec
+        out.intact += len(line) + 1
+    return out
+
+
+def read_records(path: Path) -> tuple[dict[int, Record], int, str | None]:
+    """Records by seed, the byte length of the intact part, and a note if the tail was torn.
+
+    Raises JournalError for a line that is not a record, unless it is a torn last line.
+    """
+    contents = scan(path)
+    return contents.records, contents.intact, contents.torn_note
 
 
 class Journal:
@@ -74,8 +136,12 @@ class Journal:
 
     def __init__(self, directory: Path, *, resume: bool) -> None:
         self.path = directory / RESULTS_FILE
-        self.records, good, self.repair_note = read_records(self.path)
-        if self.records and not resume:
+        contents = scan(self.path, drop_invalid=resume)
+        self.records, good, self.repair_note = (contents.records, contents.intact,
+                                                contents.torn_note)
+        self.dropped = contents.dropped
+        """Lines that broke the record schema, dropped on resume (the file is rewritten)."""
+        if (self.records or self.dropped) and not resume:
             raise JournalError(f"{directory} already holds {len(self.records)} records in "
                                f"{RESULTS_FILE}; pass --resume to add the missing seeds, or "
                                "choose another --out")
@@ -84,26 +150,28 @@ class Journal:
                 raise JournalError(f"{self.path} ends with a torn line; pass --resume to "
                                    "repair it and continue")
             os.truncate(self.path, good)
-        self._fh: IO[str] | None = self.path.open("a", encoding="utf-8")
+        self._fh: IO[str] | None = None
+        if self.dropped:
+            self.compact()
+        self._fh = self.path.open("a", encoding="utf-8")
         os.fsync(self._fh.fileno())
         _fsync_dir(directory)
 
     def __contains__(self, seed: int) -> bool:
         return seed in self.records
 
-    def append(self, record: dict[str, Any]) -> None:
+    def append(self, record: Record) -> None:
         """Write ``record`` as one line and make it durable before returning."""
         if self._fh is None:
             raise JournalError(f"{self.path} is closed")
-        seed = int(record["seed"])
-        if seed in self.records:
-            raise JournalError(f"{self.path}: seed {seed} is already recorded")
-        self._fh.write(json.dumps(record, sort_keys=True) + "\n")
+        if record.seed in self.records:
+            raise JournalError(f"{self.path}: seed {record.seed} is already recorded")
+        self._fh.write(record_to_json(record) + "\n")
         self._fh.flush()
         os.fsync(self._fh.fileno())
-        self.records[seed] = record
+        self.records[record.seed] = record
 
-    def ordered(self) -> list[dict[str, Any]]:
+    def ordered(self) -> list[Record]:
         """The records in seed order."""
         return [self.records[s] for s in sorted(self.records)]
 
@@ -123,7 +191,7 @@ class Journal:
         tmp = self.path.with_suffix(".jsonl.tmp")
         with tmp.open("w", encoding="utf-8") as fh:
             for rec in self.ordered():
-                fh.write(json.dumps(rec, sort_keys=True) + "\n")
+                fh.write(record_to_json(rec) + "\n")
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, self.path)

@@ -1,6 +1,6 @@
 """The report's PNG plots (matplotlib, optional extra ``stackpick-sim[plot]``).
 
-Each ``*_figure`` function takes episode records (dicts of ``results.jsonl``) grouped by run
+Each ``*_figure`` function takes records (:mod:`stackpick_sim.episodes.record`) grouped by run
 (one group for a run, one per cell for a sweep) or sweep rows, and returns a matplotlib
 Figure; :func:`save` writes it as a PNG and closes it. Successes and failures are drawn in
 their own colours everywhere, and a sweep's cells are never pooled.
@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from stackpick_sim.episodes.record import EpisodeRecord, Record, episodes_of
 from stackpick_sim.exceptions import StackpickError
 
 #: Figure resolution, dots per inch.
@@ -40,7 +41,7 @@ ERROR_PANELS: tuple[tuple[tuple[str, ...], str, float | None], ...] = (
     (("prediction_error_mm",), "prediction error at the pick, mm", 1.0),
 )
 
-Records = Sequence[Mapping[str, Any]]
+Records = Sequence[Record]
 
 
 def _pyplot() -> Any:
@@ -63,19 +64,19 @@ def save(fig: Any, path: Path) -> None:
     plt.close(fig)
 
 
-def _value(record: Mapping[str, Any], keys: tuple[str, ...]) -> float | None:
+def _value(record: EpisodeRecord, keys: tuple[str, ...]) -> float | None:
     node: Any = record
     for key in keys:
-        node = node.get(key) if isinstance(node, Mapping) else None
+        node = getattr(node, key, None)
     if node is None:
         return None
     value = float(node)
     return value if math.isfinite(value) else None
 
 
-def _episodes(records: Records) -> list[Mapping[str, Any]]:
+def _episodes(records: Records) -> list[EpisodeRecord]:
     """The records of episodes that ran (not the scene-generation errors)."""
-    return [r for r in records if "error" not in r]
+    return episodes_of(records)
 
 
 def _split(records: Records, keys: tuple[str, ...]) -> tuple[list[float], list[float]]:
@@ -85,7 +86,7 @@ def _split(records: Records, keys: tuple[str, ...]) -> tuple[list[float], list[f
     for r in _episodes(records):
         v = _value(r, keys)
         if v is not None:
-            (ok if r.get("success") else bad).append(v)
+            (ok if r.success else bad).append(v)
     return ok, bad
 
 
@@ -206,8 +207,8 @@ def failure_reasons_figure(groups: Mapping[str, Records]) -> Any:
     plt = _pyplot()
     bars: list[tuple[str, int]] = []
     for name, records in groups.items():
-        counts = Counter(str(r["failure"]) for r in _episodes(records)
-                         if not r.get("success") and r.get("failure"))
+        counts = Counter(str(r.failure) for r in _episodes(records)
+                         if not r.success and r.failure)
         prefix = f"{name}: " if len(groups) > 1 else ""
         bars += [(prefix + reason, n) for reason, n in sorted(counts.items(),
                                                               key=lambda kv: kv[1])]
@@ -257,7 +258,7 @@ def cycle_time_figure(groups: Mapping[str, Records]) -> Any:
         _hist_panel(ax, ok, [], label, None, failures=False)
         ax.set_title(f"cycle time of successful picks (n={len(ok)})")
     else:
-        only_ok = {name: [r for r in rs if r.get("success")] for name, rs in groups.items()}
+        only_ok = {name: [r for r in _episodes(rs) if r.success] for name, rs in groups.items()}
         _strip_panel(ax, only_ok, keys, label, None)
         ax.set_title("cycle time of successful picks, per cell")
     return fig

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any
 
 from tqdm import tqdm
+
+from stackpick_sim.episodes.record import EpisodeRecord, Record
 
 
 class Progress:
@@ -21,12 +22,12 @@ class Progress:
         self._bar = tqdm(total=total, initial=done, desc=desc, unit="ep", file=sys.stderr,
                          disable=not enabled, dynamic_ncols=True, smoothing=0.05)
 
-    def update(self, record: dict[str, Any]) -> None:
+    def update(self, record: Record) -> None:
         """Count ``record`` and refresh the bar."""
         self._ran += 1
-        if "error" not in record:  # scene generation failures are not episodes
+        if isinstance(record, EpisodeRecord):  # scene generation failures are not episodes
             self.episodes += 1
-            self.successes += bool(record.get("success"))
+            self.successes += record.success
         # tqdm shows s/ep below one episode per second: episodes/s is stated here too.
         rate = self._ran / max(time.monotonic() - self._start, 1e-9)
         share = (f", success {100 * self.successes / self.episodes:.1f} % of {self.episodes}"

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from stackpick_sim.episodes.record import EpisodeRecord, Record, episodes_of
 from stackpick_sim.episodes.summary import summarize, summary_markdown
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs import plots
@@ -37,12 +38,12 @@ class RunData:
 
     name: str
     path: Path
-    records: list[dict[str, Any]]
+    records: list[Record]
     summary: dict[str, Any]
 
-    def failed(self) -> list[dict[str, Any]]:
+    def failed(self) -> list[EpisodeRecord]:
         """Records of the episodes that ran and failed, in seed order."""
-        return [r for r in self.records if "error" not in r and not r.get("success")]
+        return [r for r in episodes_of(self.records) if not r.success]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -61,7 +62,7 @@ class ReportData:
         return self.sweep is not None
 
 
-def _records(run_dir: Path) -> list[dict[str, Any]]:
+def _records(run_dir: Path) -> list[Record]:
     path = run_dir / RESULTS_FILE
     if not path.is_file():
         raise StackpickError(f"{run_dir} has no {RESULTS_FILE}; is it the --out of "
@@ -110,8 +111,8 @@ def _failed_lines(run: RunData) -> list[str]:
         return [f"No failed episodes ({len(run.records)} recorded)."]
     lines = [f"{len(failed)} failed; replay one as a video (wrist camera | outside view) "
              "with its command.", "", "| seed | reason | detail | replay |", "|---|---|---|---|"]
-    lines += [f"| {r['seed']} | {_cell(r.get('failure', ''))} | "
-              f"{_cell(r.get('failure_detail', ''))} | `{replay_command(run.path, r['seed'])}` |"
+    lines += [f"| {r.seed} | {_cell(r.failure or '')} | "
+              f"{_cell(r.failure_detail)} | `{replay_command(run.path, r.seed)}` |"
               for r in failed[:MAX_FAILED_LISTED]]
     if len(failed) > MAX_FAILED_LISTED:
         lines += ["", f"... and {len(failed) - MAX_FAILED_LISTED} more (see "

@@ -3,7 +3,7 @@
 Layout::
 
     DIR/run.json                 scene name/path and overrides (what resume and replay use)
-    DIR/results.jsonl            one EpisodeRecord.as_dict() per line (the journal)
+    DIR/results.jsonl            one record per line (the journal; docs/records.md)
     DIR/run.log                  run starts and ends, repairs, tracebacks of failed workers
     DIR/summary.json, summary.md (stackpick_sim.episodes.summary), written at the end
     DIR/episodes/<seed>/scene.xml, initial_qpos.npy, final_qpos.npy (audit, replay)
@@ -16,18 +16,19 @@ import time
 from pathlib import Path
 from typing import Any
 
+from stackpick_sim.episodes.record import EpisodeRecord, Record
 from stackpick_sim.episodes.summary import summarize, summary_markdown
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.journal import Journal
 from stackpick_sim.runs.lock import RunLock
-from stackpick_sim.runs.spec import RUN_FILE, RunSpec, episode_dir
-from stackpick_sim.runs.tasks import TaskResult, harness_failure
+from stackpick_sim.runs.spec import RUN_FILE, RunSpec, episode_dir, seed_ranges
+from stackpick_sim.runs.tasks import TaskResult
 
 #: The log file of a run directory.
 LOG_FILE = "run.log"
 
 
-def write_summaries(out: Path, records: list[dict[str, Any]]) -> dict[str, Any]:
+def write_summaries(out: Path, records: list[Record]) -> dict[str, Any]:
     """Write summary.json and summary.md for ``records``; returns the summary."""
     summary = summarize(records)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -51,6 +52,32 @@ class RunDir:
         (path / RUN_FILE).write_text(json.dumps(spec.as_dict(), indent=1))
         if self.journal.repair_note:
             self.log(f"repaired: {self.journal.repair_note}")
+        for d in self.journal.dropped:
+            self.log(f"dropped line {d.line} of {self.journal.path.name} ({d.reason}): "
+                     f"{d.text}")
+
+    def drop_notes(self) -> list[str]:
+        """One line per class of record dropped on resume: what, how many, which seeds."""
+        by_reason: dict[str, list[int | None]] = {}
+        for d in self.journal.dropped:
+            by_reason.setdefault(d.reason, []).append(d.seed)
+        notes = []
+        for reason, seeds in by_reason.items():
+            known = sorted(s for s in seeds if s is not None)
+            which = f"seed {seed_ranges(known)}" if known else "no valid seed"
+            notes.append(f"{self.journal.path}: dropped {len(seeds)} record"
+                         f"{'s' if len(seeds) > 1 else ''} ({which}): {reason}; kept in "
+                         f"{LOG_FILE}, missing seeds run again")
+        return notes
+
+    def refuse_foreign(self, seeds: list[int]) -> None:
+        """Refuse records of seeds outside ``seeds``: the summary would count them."""
+        foreign = sorted(set(self.journal.records) - set(seeds))
+        if foreign:
+            raise StackpickError(
+                f"{self.journal.path} holds records of seeds outside --seeds: "
+                f"{seed_ranges(foreign)}; resume with --seeds covering every recorded seed "
+                f"({seed_ranges(sorted(self.journal.records))}), or choose another --out")
 
     def _check_spec(self, resume: bool) -> None:
         path = self.path / RUN_FILE
@@ -68,7 +95,7 @@ class RunDir:
         wall-clock limit), so that they run again; returns those seeds."""
         wanted = set(seeds)
         redo = sorted(s for s, r in self.journal.records.items()
-                      if s in wanted and harness_failure(r))
+                      if s in wanted and isinstance(r, EpisodeRecord) and r.unfinished)
         if redo:
             self.journal.discard(set(redo))
             self.log(f"retry: dropped {len(redo)} unfinished episodes to run again: "

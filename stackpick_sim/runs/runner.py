@@ -10,6 +10,7 @@ leaves every finished record on disk.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.episodes.record import Record, episodes_of
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.runs.local import InlineExecutor, LocalExecutor
 from stackpick_sim.runs.progress import Progress
@@ -86,9 +88,32 @@ class RunStats:
         return self.ran / self.wall_s if self.wall_s > 0 else 0.0
 
 
+def _open_dirs(jobs: Sequence[RunJob], dirs: dict[str, RunDir], *, resume: bool,
+               retry_unfinished: bool) -> None:
+    """Open (lock) each job's directory into ``dirs``; on resume, check and clean its records:
+    refuse seeds outside the job's, say what invalid records were dropped, drop the
+    unfinished ones with ``retry_unfinished``."""
+    for job in jobs:
+        load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
+    for job in jobs:
+        d = dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
+        d.refuse_foreign(list(job.seeds))
+        for note in d.drop_notes():
+            print(note, file=sys.stderr)
+        if retry_unfinished:
+            d.discard_unfinished(list(job.seeds))
+
+
+def _progress(dirs: dict[str, RunDir], todo: int, enabled: bool) -> Progress:
+    done = [r for d in dirs.values() for r in d.journal.records.values()]
+    episodes = episodes_of(done)
+    return Progress(todo + len(done), done=len(done), episodes=len(episodes),
+                    successes=sum(r.success for r in episodes), enabled=enabled)
+
+
 def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False,
              retry_unfinished: bool = False, show_progress: bool = True,
-             on_record: Callable[[dict[str, Any], Progress], None] | None = None) -> RunStats:
+             on_record: Callable[[Record, Progress], None] | None = None) -> RunStats:
     """Run every job through ``executor`` (closed at the end); see the module docstring.
 
     With ``retry_unfinished`` (needs ``resume``), recorded episodes that did not finish
@@ -99,20 +124,11 @@ def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False
         if retry_unfinished and not resume:
             raise StackpickError("--retry-unfinished needs --resume (it runs again recorded "
                                  "episodes that did not finish)")
-        for job in jobs:
-            load_scene(job.spec.scene, job.spec.overrides)  # fail early, here, on bad config
-        for job in jobs:
-            dirs[job.key] = RunDir(job.out, job.spec, resume=resume)
-            if retry_unfinished:
-                dirs[job.key].discard_unfinished(list(job.seeds))
+        _open_dirs(jobs, dirs, resume=resume, retry_unfinished=retry_unfinished)
         tasks = [EpisodeTask(spec=job.spec, seed=s, key=job.key)
                  for job in jobs for s in dirs[job.key].missing(list(job.seeds))]
-        done = [r for d in dirs.values() for r in d.journal.records.values()]
-        total = len(tasks) + len(done)
-        episodes = [r for r in done if "error" not in r]
-        progress = Progress(total, done=len(done), episodes=len(episodes),
-                            successes=sum(bool(r.get("success")) for r in episodes),
-                            enabled=show_progress)
+        skipped = sum(len(d.journal.records) for d in dirs.values())
+        progress = _progress(dirs, len(tasks), show_progress)
         for d in dirs.values():
             d.log(f"start: {len(d.journal.records)} recorded, backend "
                   f"{type(executor).__name__}, pid {os.getpid()}")
@@ -132,7 +148,7 @@ def run_dirs(jobs: Sequence[RunJob], executor: Executor, *, resume: bool = False
         for key, d in dirs.items():
             d.log(f"end: ran {ran} episodes in {wall:.1f} s")
             summaries[key] = d.finish()
-        return RunStats(ran=ran, skipped=len(done), wall_s=wall, summaries=summaries)
+        return RunStats(ran=ran, skipped=skipped, wall_s=wall, summaries=summaries)
     finally:
         executor.close()
         for d in dirs.values():

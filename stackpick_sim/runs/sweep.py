@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from stackpick_sim.exceptions import ConfigError, StackpickError
+from stackpick_sim.runs.jsonfile import read_json
 from stackpick_sim.runs.runner import RunJob
 from stackpick_sim.runs.spec import RunSpec
 
@@ -97,12 +98,13 @@ def sweep_jobs(out: Path, scene: str, overrides: tuple[str, ...], params: list[P
                seeds: list[int], *, resume: bool) -> list[RunJob]:
     """The cells' run jobs; writes (or, resuming, checks) ``out/sweep.json``."""
     cells = grid(params)
-    desc = {"scene": scene, "overrides": list(overrides),
-            "params": {p.key: list(p.values) for p in params}, "seeds": seeds,
-            "cells": {c.name: list(c.overrides) for c in cells}}
+    desc: dict[str, Any] = {
+        "scene": scene, "overrides": list(overrides),
+        "params": {p.key: list(p.values) for p in params}, "seeds": seeds,
+        "cells": {c.name: list(c.overrides) for c in cells}}
     path = out / SWEEP_FILE
     if path.is_file():
-        old = json.loads(path.read_text())
+        old = load_sweep(out)
         same = {k: old.get(k) for k in ("scene", "overrides", "params")} == {
             k: desc[k] for k in ("scene", "overrides", "params")}
         if not resume:
@@ -112,11 +114,12 @@ def sweep_jobs(out: Path, scene: str, overrides: tuple[str, ...], params: list[P
             raise StackpickError(f"{out} holds a sweep of scene {old.get('scene')!r}, "
                                  f"overrides {old.get('overrides')}, params "
                                  f"{old.get('params')}; --resume must use the same")
-        desc["seeds"] = sorted(set(old.get("seeds", [])) | set(seeds))
+        desc["seeds"] = sorted(set(old["seeds"]) | set(seeds))
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(desc, indent=1))
+    # Every cell runs the sweep's seeds so far: a resume with new seeds extends the sweep.
     return [RunJob(key=c.name, spec=RunSpec(scene=scene, overrides=(*overrides, *c.overrides)),
-                   seeds=seeds, out=out / "cells" / c.name) for c in cells]
+                   seeds=desc["seeds"], out=out / "cells" / c.name) for c in cells]
 
 
 def load_sweep(out: Path) -> dict[str, Any]:
@@ -124,7 +127,39 @@ def load_sweep(out: Path) -> dict[str, Any]:
     path = out / SWEEP_FILE
     if not path.is_file():
         raise StackpickError(f"{out} has no {SWEEP_FILE}; is it the --out of 'stackpick sweep'?")
-    data: dict[str, Any] = json.loads(path.read_text())
+    return _check_sweep(read_json(path, "a sweep description"), path)
+
+
+def _strings(value: object) -> bool:
+    return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+
+def _cells_ok(cells: object, keys: list[str]) -> bool:
+    """Cell names that are plain directory names, each with one KEY=VALUE per swept key."""
+    return isinstance(cells, dict) and all(
+        not _UNSAFE.search(name) and name not in ("", ".", "..") and _strings(settings)
+        and [o.partition("=")[0] for o in settings] == keys
+        for name, settings in cells.items())
+
+
+def _check_sweep(data: object, path: Path) -> dict[str, Any]:
+    """``data`` if it is what :func:`sweep_jobs` writes, else StackpickError naming ``path``."""
+    if not isinstance(data, dict) or set(data) != {"scene", "overrides", "params", "seeds",
+                                                   "cells"}:
+        raise StackpickError(f"{path} is not a sweep description (an object with scene, "
+                             "overrides, params, seeds and cells)")
+    params = data["params"]
+    seeds = data["seeds"]
+    ok = (isinstance(data["scene"], str) and _strings(data["overrides"])
+          and isinstance(params, dict) and all(_strings(v) for v in params.values())
+          and isinstance(seeds, list)
+          and all(type(s) is int and s >= 0 for s in seeds)
+          and _cells_ok(data["cells"], list(params) if isinstance(params, dict) else []))
+    if not ok:
+        raise StackpickError(f"{path}: a field does not hold what 'stackpick sweep' writes "
+                             "(scene: a string; overrides: strings; params: key -> value "
+                             "strings; seeds: integers >= 0; cells: directory name -> "
+                             "KEY=VALUE per param)")
     return data
 
 

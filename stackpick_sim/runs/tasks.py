@@ -16,30 +16,19 @@ import os
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.episode import run_episode
-from stackpick_sim.episodes.record import EpisodeRecord
+from stackpick_sim.episodes.record import ERROR_REASON, EpisodeRecord, Record, SceneErrorRecord
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.runs.spec import RunSpec
 from stackpick_sim.sim.renderer_pool import enable_renderer_reuse
 from stackpick_sim.sim.stacks import generate_scene
 
-#: Failure reason of an episode whose worker raised or died.
-ERROR_REASON = "error"
 #: Failure reason of an episode that exceeded the wall-clock limit.
 TIMEOUT_REASON = "timeout"
-
-
-def harness_failure(record: dict[str, Any]) -> bool:
-    """Whether ``record`` says its episode did not finish (worker crash or wall-clock limit),
-    as opposed to a finished episode that failed: those have the phase they failed in (an
-    episode's own ``timeout`` is a phase that ran past its sim-time limit)."""
-    return (record.get("failure") in (ERROR_REASON, TIMEOUT_REASON)
-            and record.get("failed_phase") is None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,7 +45,7 @@ class TaskResult:
     """A finished task: its record, audit files (name -> bytes) and log text."""
 
     task: EpisodeTask
-    record: dict[str, Any]
+    record: Record
     audit: dict[str, bytes] = field(default_factory=dict)
     log: str = ""
     worker: str = ""
@@ -83,16 +72,16 @@ def run_task(task: EpisodeTask) -> TaskResult:
     try:
         scene = generate_scene(cfg, task.seed)
     except SceneGenerationError as exc:
-        return TaskResult(task=task, record={"seed": task.seed, "scene": cfg.name,
-                                             "error": str(exc)})
+        return TaskResult(task=task, record=SceneErrorRecord(seed=task.seed, scene=cfg.name,
+                                                             error=str(exc)))
     initial = scene.cell.data.qpos.copy()
     record = run_episode(scene)
     audit = {"scene.xml": scene.cell.spec_xml.encode(), "initial_qpos.npy": _npy(initial),
              "final_qpos.npy": _npy(scene.cell.data.qpos.copy())}
-    return TaskResult(task=task, record=record.as_dict(), audit=audit)
+    return TaskResult(task=task, record=record, audit=audit)
 
 
-def failure_record(task: EpisodeTask, reason: str, detail: str) -> dict[str, Any]:
+def failure_record(task: EpisodeTask, reason: str, detail: str) -> EpisodeRecord:
     """A complete record (the EpisodeRecord schema) of an episode that did not finish."""
     try:
         cfg = load_scene(task.spec.scene, task.spec.overrides)
@@ -104,7 +93,7 @@ def failure_record(task: EpisodeTask, reason: str, detail: str) -> dict[str, Any
                             tracker_frame="", belt_speed=0.0)
     rec.failure = reason
     rec.failure_detail = detail
-    return rec.as_dict()
+    return rec
 
 
 def worker_name() -> str:
