@@ -34,7 +34,13 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, kw_only=True)
 class CameraIntrinsics:
-    """Pinhole intrinsics in pixels (no distortion: MuJoCo renders an ideal pinhole)."""
+    """Pinhole intrinsics in pixels, with the lens's Brown-Conrady distortion.
+
+    :meth:`project` and :meth:`normalized` are the pinhole model: they map to and from
+    *undistorted* pixels (what MuJoCo renders; ground-truth ellipses are exact there).
+    ``dist`` says how the camera's image is distorted from them
+    (:mod:`stackpick_sim.vision.undistort` undoes it).
+    """
 
     fx: float
     fy: float
@@ -42,13 +48,22 @@ class CameraIntrinsics:
     cy: float
     width: int
     height: int
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    """(k1, k2, p1, p2, k3), OpenCV's order; all 0: an ideal pinhole."""
 
     @classmethod
-    def from_fovy(cls, fovy_deg: float, width: int, height: int) -> CameraIntrinsics:
+    def from_fovy(cls, fovy_deg: float, width: int, height: int,
+                  dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+                  ) -> CameraIntrinsics:
         """Intrinsics of a MuJoCo camera of vertical field of view ``fovy_deg``, square pixels."""
         f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
         return cls(fx=f, fy=f, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0,
-                   width=width, height=height)
+                   width=width, height=height, dist=dist)
+
+    @property
+    def distorted(self) -> bool:
+        """Whether the lens distorts (any coefficient non-zero)."""
+        return any(c != 0.0 for c in self.dist)
 
     @property
     def K(self) -> FloatArray:

@@ -22,6 +22,7 @@ from stackpick_sim.exceptions import ModelError
 from stackpick_sim.geometry import MJ_CAM_TO_CV, CameraIntrinsics
 from stackpick_sim.sim import robot
 from stackpick_sim.sim.ik import look_pose_q
+from stackpick_sim.sim.lens import render_padding
 
 #: Belt box thickness, m (visual only: the top surface is what matters).
 BELT_THICKNESS = 0.04
@@ -55,8 +56,6 @@ RING_TOTAL_DIFFUSE = 0.5
 #: A face nearer the camera is brighter (~8% per 3 cm), which is how a real ring light
 #: separates stacked faces of one colour, without the top of a tall stack saturating.
 RING_LIGHT_NOMINAL_DISTANCE = 0.30
-#: Specular reflectance and shininess of the cylinders: matte plastic, no blinding highlight.
-OBJECT_SPECULAR = (0.15, 0.3)
 #: Spot cutoff of the ring lights, degrees: wide enough to light the whole view.
 RING_LIGHT_CUTOFF_DEG = 60.0
 #: The external camera ``overview``: where it stands and what it looks at, world frame, m.
@@ -81,6 +80,12 @@ class ObjectInfo:
     """Start of its 7 free-joint qpos entries (x, y, z, qw, qx, qy, qz)."""
     dof_adr: int
     """Start of its 6 free-joint dofs."""
+
+
+def camera_intrinsics(cfg: SceneConfig) -> CameraIntrinsics:
+    """The wrist camera's intrinsics and lens distortion."""
+    cam = cfg.camera
+    return CameraIntrinsics.from_fovy(cam.fovy_deg, cam.width, cam.height, cam.distortion)
 
 
 def look_point(cfg: SceneConfig) -> NDArray[np.float64]:
@@ -108,6 +113,9 @@ class Cell:
     look_q: NDArray[np.float64]
     """Arm joint angles of the look pose, rad."""
     intrinsics: CameraIntrinsics
+    belt_skin_mocap: int | None = None
+    """Mocap index of the belt's textured skin (``conveyor.texture``), which moves with the
+    belt surface; None: a plain belt."""
 
     @property
     def look_point(self) -> NDArray[np.float64]:
@@ -213,7 +221,8 @@ def _add_overview_camera(spec: mujoco.MjSpec) -> None:
 def _add_objects(spec: mujoco.MjSpec, cfg: SceneConfig, type_names: Sequence[str]) -> None:
     for tname in sorted(set(type_names)):
         spec.add_material(name=f"{tname}_mat", rgba=list(cfg.object_types[tname].rgba),
-                          specular=OBJECT_SPECULAR[0], shininess=OBJECT_SPECULAR[1])
+                          specular=cfg.object_types[tname].specular,
+                          shininess=cfg.object_types[tname].shininess)
     for i, tname in enumerate(type_names):
         t = cfg.object_types[tname]
         body = spec.worldbody.add_body(name=f"obj{i}",
@@ -236,8 +245,10 @@ def compose_spec(cfg: SceneConfig, type_names: Sequence[str]) -> mujoco.MjSpec:
     spec.option.impratio = FRICTION_IMPRATIO
     spec.visual.quality.numslices = CYLINDER_SLICES
     spec.visual.quality.shadowsize = SHADOW_MAP_SIZE
-    spec.visual.global_.offwidth = max(cfg.camera.width, 640)
-    spec.visual.global_.offheight = max(cfg.camera.height, 480)
+    # The wrist camera renders a wider pinhole image when its lens distorts (sim/lens.py).
+    pad = 2 * render_padding(camera_intrinsics(cfg))
+    spec.visual.global_.offwidth = max(cfg.camera.width + pad, 640)
+    spec.visual.global_.offheight = max(cfg.camera.height + pad, 480)
     cam = spec.camera(robot.CAMERA)
     if cam is not None:
         cam.fovy = cfg.camera.fovy_deg
@@ -292,8 +303,7 @@ def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
         ring_light_ids=np.array([model.light(f"ring_light_{i}").id
                                  for i in range(len(cfg.lights.ring))]),
         look_q=look_q,
-        intrinsics=CameraIntrinsics.from_fovy(cfg.camera.fovy_deg, cfg.camera.width,
-                                              cfg.camera.height),
+        intrinsics=camera_intrinsics(cfg),
     )
     cell.set_belt_speed(0.0)
     cell.set_arm(look_q)

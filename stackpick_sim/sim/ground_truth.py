@@ -100,6 +100,9 @@ class FrameTruth:
             "time": self.time,
             "width": k.width, "height": k.height,
             "intrinsics": {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy},
+            # Brown-Conrady (k1, k2, p1, p2, k3) of the image; ellipses and pixel positions
+            # here are exact in undistorted pixels (cv2.undistortPoints with P = K).
+            "distortion": list(k.dist),
             "world_T_cam": self.world_T_cam.tolist(),
             "objects": [o.as_dict() for o in self.objects],
             "top_objects": self.top_objects,

@@ -17,6 +17,7 @@ from stackpick_sim.overlay import (
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
 from stackpick_sim.sim.stacks import Scene, generate_scene
+from stackpick_sim.vision.undistort import undistort
 
 #: Second entry of the seed sequence of the look frame's pixel noise and light jitter, so that
 #: they never share draws with the pile generator seeded by the scene seed alone.
@@ -45,9 +46,13 @@ def seeded_look_frame(cfg: SceneConfig,
 
 
 def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth) -> NDArray[np.uint8]:
-    """BGR picture: ground-truth face ellipses (green: top objects), face centres, names."""
+    """BGR picture: ground-truth face ellipses (green: top objects), face centres, names.
+
+    A distorted frame is drawn undistorted: the ellipses are exact in pinhole pixels.
+    """
     k = OVERLAY_SCALE
-    out = upscale(np.ascontiguousarray(image_rgb[..., ::-1]), k)  # RGB -> BGR
+    pinhole = undistort(image_rgb, truth.intrinsics)
+    out = upscale(np.ascontiguousarray(pinhole[..., ::-1]), k)  # RGB -> BGR
     for obj in truth.objects:
         if obj.ellipse is None:
             continue
