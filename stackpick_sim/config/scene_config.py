@@ -56,6 +56,9 @@ class ConveyorCfg:
     """Belt length along y, m, centred on y = 0; objects past its ends are out of the cell."""
     friction: float = 1.0
     """Sliding friction of the belt surface (it carries objects by friction)."""
+    texture: bool = False
+    """Draw the belt as worn rubber (grain, lengthwise wear streaks, scuffs; seeded by the
+    scene seed) moving with the belt surface, instead of one flat dark colour."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and 0 <= self.speed <= 1.0, "conveyor.speed",
@@ -103,6 +106,8 @@ class ObjectTypeCfg:
     shininess: float = 0.3
     """Shininess (tightness of the highlight), [0, 1] (MuJoCo material): plastic 0.3,
     tinplate about 0.8."""
+    print_seed: int = 0
+    """Seed of a printed lid's artwork (word, logo, stripe colour), ``kind = "printed"``."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.radius) and 0.01 <= self.radius <= 0.06,
@@ -284,6 +289,11 @@ class LightsCfg:
     """Ambient light of the room, [0, 1]."""
     jitter: float = 0.0
     """Relative std of a per-frame random scaling of each ring light (illumination jitter)."""
+    shadow_lamps: int = 0
+    """How many ring lamps cast shadows when ``camera.shadows`` is on (the first ones); 0:
+    all of them."""
+    shadow_map_px: int = 1024
+    """Side of each casting lamp's shadow map, px (cost grows with it and with the lamps)."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
@@ -295,6 +305,10 @@ class LightsCfg:
         _require(0 <= self.ambient <= 1, "lights.ambient", self.ambient, "0 to 1")
         _require(math.isfinite(self.jitter) and 0 <= self.jitter <= 0.5, "lights.jitter",
                  self.jitter, "0 to 0.5")
+        _require(0 <= self.shadow_lamps <= len(self.ring), "lights.shadow_lamps",
+                 self.shadow_lamps, f"0 (all) to {len(self.ring)} (the ring's lamps)")
+        _require(64 <= self.shadow_map_px <= 8192, "lights.shadow_map_px", self.shadow_map_px,
+                 "64 to 8192 px")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -400,7 +400,7 @@ def generate_scene(cfg: SceneConfig, seed: int) -> Scene:
     lo, hi = cfg.objects.count
     count = int(rng.integers(lo, hi + 1))
     kinds = [cfg.objects.types[int(k)] for k in rng.integers(len(cfg.objects.types), size=count)]
-    cell = build_cell(cfg, kinds)
+    cell = build_cell(cfg, kinds, seed)
     problems: Counter[str] = Counter()
     retries: Counter[str] = Counter()
     belt_rng = np.random.default_rng([seed, RUNNING_CHECK_STREAM])
