@@ -463,8 +463,34 @@ class SceneConfig:
     sim: SimCfg = field(default_factory=SimCfg)
     suction: SuctionCfg = field(default_factory=SuctionCfg)
     episode: EpisodeCfg = field(default_factory=EpisodeCfg)
+    randomize: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Domain randomisation: dotted scene key (``.N`` for a list's N-th element) -> [low,
+    high], drawn per seed (stackpick_sim/sim/randomize.py); empty: nothing drawn."""
+
+    def value_at(self, key: str) -> object:
+        """The value of a dotted key (``.N`` indexes a list), or ConfigError naming it."""
+        node: object = self
+        for part in key.split("."):
+            if isinstance(node, tuple) and part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+            elif isinstance(node, dict) and part in node:
+                node = node[part]
+            elif hasattr(node, "__dataclass_fields__") and part in node.__dataclass_fields__:
+                node = getattr(node, part)
+            else:
+                raise ConfigError(f"randomize names {key!r}, which is not a scene key")
+        return node
+
+    def _check_randomize(self) -> None:
+        for key, (lo, hi) in self.randomize.items():
+            value = self.value_at(key)
+            _require(isinstance(value, int | float) and not isinstance(value, bool),
+                     f"randomize.{key}", value, "a number-valued scene key")
+            _require(math.isfinite(lo) and math.isfinite(hi) and lo <= hi,
+                     f"randomize.{key}", [lo, hi], "[low, high] with low <= high")
 
     def __post_init__(self) -> None:
+        self._check_randomize()
         unknown = [t for t in self.objects.types if t not in self.object_types]
         if unknown:
             raise ConfigError(f"objects.types names unknown type(s) {unknown}; "
