@@ -64,7 +64,7 @@ def moved(cell: Cell) -> Iterator[Callable[[float], None]]:
 
 
 def image_shift(cell: Cell, exposure_s: float) -> NDArray[np.float64]:
-    """(2,) image motion (u, v px) across the exposure of the objects' mean face centre."""
+    """(2,) mean image motion (u, v px) across the exposure of the face centres in view."""
     k = cell.intrinsics
     ends = []
     with moved(cell) as at:
@@ -73,9 +73,14 @@ def image_shift(cell: Cell, exposure_s: float) -> NDArray[np.float64]:
             world_T_cam = cell.world_T_cam()
             r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
             centres = np.array([r.T @ (top_face(cell, o, p)[0] - p) for o in cell.objects])
-            seen = centres[centres[:, 2] > 1e-3]
-            ends.append(k.project(seen).mean(axis=0) if len(seen) else np.zeros(2))
-    return np.asarray(ends[1] - ends[0], dtype=np.float64)
+            ends.append(k.project(centres) if len(centres) else np.zeros((0, 2)))
+    # Faces in front of the camera and in its view at the exposure's start.
+    front = np.array([c[2] > 1e-3 for c in centres]) if len(centres) else np.zeros(0, bool)
+    u, v = ends[0][:, 0], ends[0][:, 1]
+    seen = front & (u >= 0) & (u <= k.width - 1) & (v >= 0) & (v <= k.height - 1)
+    if not seen.any():
+        return np.zeros(2)
+    return np.asarray((ends[1][seen] - ends[0][seen]).mean(axis=0), dtype=np.float64)
 
 
 def smear(image: NDArray[np.float32], shift: NDArray[np.float64]) -> NDArray[np.float32]:
