@@ -59,6 +59,10 @@ class ConveyorCfg:
     texture: bool = False
     """Draw the belt as worn rubber (grain, lengthwise wear streaks, scuffs; seeded by the
     scene seed) moving with the belt surface, instead of one flat dark colour."""
+    clutter: int = 0
+    """Loose items (boxes, tins) lying beside the belt, just past its side rails: seeded by the
+    scene seed, visual only (they never touch the pile); 0: none, at most 12. The look view
+    (0.25 m across the belt) sees them on belts narrower than about 0.2 m."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and 0 <= self.speed <= 1.0, "conveyor.speed",
@@ -67,6 +71,7 @@ class ConveyorCfg:
         _positive("conveyor.jitter_period", self.jitter_period)
         for key in ("width", "length", "friction"):
             _positive(f"conveyor.{key}", getattr(self, key))
+        _require(0 <= self.clutter <= 12, "conveyor.clutter", self.clutter, "0 to 12 items")
         _require(math.isfinite(self.top_z) and 0.02 <= self.top_z <= 0.5, "conveyor.top_z",
                  self.top_z, "0.02 to 0.5 m")
         _require(math.isfinite(self.x) and 0.3 <= self.x <= 0.6, "conveyor.x", self.x,

@@ -57,6 +57,14 @@ RING_LIGHT_NOMINAL_DISTANCE = 0.30
 RING_LIGHT_CUTOFF_DEG = 60.0
 #: Seed-sequence stream of the belt's wear marks (``[seed, BELT_TEXTURE_STREAM]``).
 BELT_TEXTURE_STREAM = 6
+#: Seed-sequence stream of the clutter beside the belt (``[seed, CLUTTER_STREAM]``).
+CLUTTER_STREAM = 8
+#: Clutter lies this far beyond the belt's edge, m (from, to): just past the side rails. The
+#: look-pose view (0.25 m across the belt) sees it on belts narrower than about 0.2 m; the
+#: camera sees it on wider ones when the arm moves off the belt's centre line.
+CLUTTER_BAND = (0.025, 0.08)
+#: ... and this far along the belt from the look point, m.
+CLUTTER_SPAN = 0.15
 #: The external camera ``overview``: where it stands and what it looks at, world frame, m.
 OVERVIEW_EYE = (1.25, -0.95, 0.85)
 OVERVIEW_TARGET = (0.35, 0.0, 0.2)
@@ -293,6 +301,25 @@ def _add_belt_skin(spec: mujoco.MjSpec, cfg: SceneConfig, seed: int) -> None:
                   material="belt_skin_mat", contype=0, conaffinity=0, group=0)
 
 
+def _add_clutter(spec: mujoco.MjSpec, cfg: SceneConfig, rng: np.random.Generator) -> None:
+    """``conveyor.clutter`` loose items beside the belt: boxes and tins, visual only."""
+    belt = cfg.conveyor
+    for i in range(belt.clutter):
+        side = 1.0 if rng.random() < 0.5 else -1.0
+        x = belt.x + side * (belt.width / 2 + rng.uniform(*CLUTTER_BAND))
+        y = rng.uniform(-CLUTTER_SPAN, CLUTTER_SPAN)
+        size = rng.uniform(0.01, 0.025, 3)
+        rgba = [*rng.uniform(0.15, 0.9, 3), 1.0]
+        yaw = rng.uniform(0, math.pi)
+        box = rng.random() < 0.6
+        geom_type = mujoco.mjtGeom.mjGEOM_BOX if box else mujoco.mjtGeom.mjGEOM_CYLINDER
+        half_h = size[2] if box else size[1]
+        spec.worldbody.add_geom(
+            name=f"clutter{i}", type=geom_type, size=list(size),
+            pos=[x, y, belt.top_z + half_h], quat=[math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)],
+            rgba=rgba, contype=0, conaffinity=0, group=0)
+
+
 def compose_spec(cfg: SceneConfig, type_names: Sequence[str], seed: int = 0) -> mujoco.MjSpec:
     """The uncompiled cell for a pile of cylinders of kinds ``type_names``; ``seed`` draws
     the belt's wear marks (``conveyor.texture``)."""
@@ -325,6 +352,8 @@ def compose_spec(cfg: SceneConfig, type_names: Sequence[str], seed: int = 0) -> 
     _add_objects(spec, cfg, type_names)
     if cfg.conveyor.texture:
         _add_belt_skin(spec, cfg, seed)
+    if cfg.conveyor.clutter:
+        _add_clutter(spec, cfg, np.random.default_rng([seed, CLUTTER_STREAM]))
     return spec
 
 
