@@ -43,6 +43,8 @@ FEATURES: dict[str, list[str]] = {
     "JPEG 90": ["camera.jpeg_quality=90"],
     "shadows, 1 lamp 512 px": ["camera.shadows=true", "lights.shadow_lamps=1",
                                "lights.shadow_map_px=512"],
+    "shadows, 1 lamp 256 px": ["camera.shadows=true", "lights.shadow_lamps=1",
+                               "lights.shadow_map_px=256"],
     "shadows, 4 lamps 1024 px": ["camera.shadows=true"],
     "textured belt": ["conveyor.texture=true"],
 }
@@ -90,7 +92,7 @@ def blur_errors(cfg: SceneConfig, seed: int, speed: float,
     cell = scene.cell
 
     def frame(**kw: object) -> np.ndarray:
-        cell.cfg = replace(cfg, camera=replace(cfg.camera, exposure_s=exposure_s, **kw))
+        cell.cfg = replace(cfg, camera=replace(cfg.camera, **{"exposure_s": exposure_s, **kw}))
         camera = WristCamera(cell)
         try:
             return camera.render().astype(float)

@@ -18,6 +18,9 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import CameraCfg
 
+#: Mean electron counts below which photon noise is drawn from the Poisson law itself.
+POISSON_EXACT_BELOW = 50.0
+
 
 @lru_cache(maxsize=8)
 def _vignette(height: int, width: int, strength: float) -> NDArray[np.float32]:
@@ -40,7 +43,12 @@ def expose(image: NDArray[np.float32], cam: CameraCfg,
     """Photon and read noise with gain on a mean image (grey levels), unclipped (see module)."""
     per_grey = cam.full_well / 255.0 / cam.gain  # electrons per grey level at this gain
     electrons = np.clip(image, 0.0, None) * np.float32(per_grey)
-    counted = rng.poisson(electrons).astype(np.float32)
+    # Poisson counts; above POISSON_EXACT_BELOW electrons the normal law of the same mean and
+    # variance (its skew is then below 0.15; drawing it is several times faster).
+    counted = electrons + np.sqrt(electrons) * rng.standard_normal(image.shape, dtype=np.float32)
+    dim = electrons < POISSON_EXACT_BELOW
+    if dim.any():
+        counted[dim] = rng.poisson(electrons[dim]).astype(np.float32)
     if cam.read_noise > 0:
         counted += np.float32(cam.read_noise) * rng.standard_normal(image.shape,
                                                                    dtype=np.float32)
