@@ -6,8 +6,8 @@ Writes benchmarks/results/camera.md and camera.json:
 
 - **Frame cost**: ms per wrist-camera frame (render, exposure, lens, sensor; what an episode
   pays per frame) of the paper scene, of ``realistic``, and of the paper scene with one
-  realism feature switched on at a time, all measured in this one run on the same seed; the
-  ratio is to the paper scene's frame.
+  realism feature switched on at a time, all measured in this one run on the same seed,
+  taking frames in turns; the ratio is to the paper scene's frame.
 - **Motion blur**: on a pile moving with the belt (every object given the belt's velocity;
   the belt's textured skin moves with it), the mean and 99th-percentile grey-level error of
   no blur, of ``blur = "subframes"`` with n renders and of ``blur = "shift"`` against 64
@@ -50,21 +50,24 @@ FEATURES: dict[str, list[str]] = {
 }
 
 
-def ms_per_frame(scene: Scene, frames: int) -> float:
-    """Median ms of one ``render(rng)`` over ``frames`` frames after two warm-up frames."""
-    camera = WristCamera(scene.cell)
+def ms_per_frame(scenes: dict[str, Scene], rounds: int) -> dict[str, float]:
+    """Median ms of one ``render(rng)`` of each scene's camera. Frames are taken in turns,
+    one of each scene per round (after two warm-up rounds), so that the load of a shared
+    machine weighs on every scene alike."""
+    cameras = {name: WristCamera(scene.cell) for name, scene in scenes.items()}
     rng = np.random.default_rng(0)
+    times: dict[str, list[float]] = {name: [] for name in scenes}
     try:
-        for _ in range(2):
-            camera.render(rng)
-        times = []
-        for _ in range(frames):
-            t0 = time.perf_counter()
-            camera.render(rng)
-            times.append(time.perf_counter() - t0)
+        for r in range(rounds + 2):
+            for name, camera in cameras.items():
+                t0 = time.perf_counter()
+                camera.render(rng)
+                if r >= 2:
+                    times[name].append(time.perf_counter() - t0)
     finally:
-        camera.close()
-    return 1e3 * statistics.median(times)
+        for camera in cameras.values():
+            camera.close()
+    return {name: 1e3 * statistics.median(t) for name, t in times.items()}
 
 
 def _moving(scene: Scene, speed: float) -> None:
@@ -127,13 +130,13 @@ def main() -> int:
     p.add_argument("--frames", type=int, default=40)
     p.add_argument("--out", type=Path, default=RESULTS)
     args = p.parse_args()
-    costs: dict[str, float] = {}
     configs = {"paper": load_scene("paper"), "realistic": load_scene("realistic")}
     configs.update({f"paper + {name}": load_scene("paper", sets)
                     for name, sets in FEATURES.items()})
-    for name, cfg in configs.items():
-        costs[name] = ms_per_frame(generate_scene(cfg, args.seed), args.frames)
-        print(f"{name}: {costs[name]:.1f} ms/frame", flush=True)
+    costs = ms_per_frame({name: generate_scene(cfg, args.seed)
+                          for name, cfg in configs.items()}, args.frames)
+    for name, ms in costs.items():
+        print(f"{name}: {ms:.1f} ms/frame", flush=True)
     blur_cfg = load_scene("paper", ["conveyor.texture=true"])
     blur = {f"{v} m/s, {1e3 * e:g} ms": blur_errors(blur_cfg, args.seed, v, e)
             for v, e in ((0.1, 0.004), (0.3, 0.004), (0.3, 0.02))}
@@ -144,8 +147,8 @@ def main() -> int:
     base = costs["paper"]
     lines = ["# Camera model: cost per frame and motion-blur error", "",
              f"`python benchmarks/bench_camera.py --seed {args.seed} --frames {args.frames}` "
-             "(one run, one seed's pile per scene, median of the frames; 2-core machine "
-             "shared with other jobs).", "",
+             "(one run, one seed's pile per scene, frames taken in turns, median over the "
+             "rounds; a 2-core machine shared with other jobs).", "",
              "| frame | ms/frame | x paper |", "|---|---|---|"]
     lines += [f"| {name} | {ms:.1f} | {ms / base:.2f} |" for name, ms in costs.items()]
     lines += ["", "Blur error against 64 sub-frames, grey levels (0-255, the largest of the "
