@@ -4,7 +4,7 @@
 
 Writes benchmarks/results/camera.md and camera.json:
 
-- **Frame cost**: ms per wrist-camera frame (render, exposure, lens, sensor; what an episode
+- **Frame cost**: CPU ms per wrist-camera frame (render, exposure, lens, sensor; what an episode
   pays per frame) of the paper scene, of ``realistic``, and of the paper scene with one
   realism feature switched on at a time, all measured in this one run on the same seed,
   taking frames in turns; the ratio is to the paper scene's frame.
@@ -51,19 +51,20 @@ FEATURES: dict[str, list[str]] = {
 
 
 def ms_per_frame(scenes: dict[str, Scene], rounds: int) -> dict[str, float]:
-    """Median ms of one ``render(rng)`` of each scene's camera. Frames are taken in turns,
-    one of each scene per round (after two warm-up rounds), so that the load of a shared
-    machine weighs on every scene alike."""
+    """Median CPU ms (this process, all its threads: Mesa's renderer runs several) of one
+    ``render(rng)`` of each scene's camera. Frames are taken in turns, one of each scene per
+    round after two warm-up rounds; CPU time rather than wall time, since on a shared
+    machine the wall time of a frame swings with the others' load."""
     cameras = {name: WristCamera(scene.cell) for name, scene in scenes.items()}
     rng = np.random.default_rng(0)
     times: dict[str, list[float]] = {name: [] for name in scenes}
     try:
         for r in range(rounds + 2):
             for name, camera in cameras.items():
-                t0 = time.perf_counter()
+                t0 = time.process_time()
                 camera.render(rng)
                 if r >= 2:
-                    times[name].append(time.perf_counter() - t0)
+                    times[name].append(time.process_time() - t0)
     finally:
         for camera in cameras.values():
             camera.close()
@@ -136,7 +137,7 @@ def main() -> int:
     costs = ms_per_frame({name: generate_scene(cfg, args.seed)
                           for name, cfg in configs.items()}, args.frames)
     for name, ms in costs.items():
-        print(f"{name}: {ms:.1f} ms/frame", flush=True)
+        print(f"{name}: {ms:.1f} CPU ms/frame", flush=True)
     blur_cfg = load_scene("paper", ["conveyor.texture=true"])
     blur = {f"{v} m/s, {1e3 * e:g} ms": blur_errors(blur_cfg, args.seed, v, e)
             for v, e in ((0.1, 0.004), (0.3, 0.004), (0.3, 0.02))}
@@ -147,9 +148,9 @@ def main() -> int:
     base = costs["paper"]
     lines = ["# Camera model: cost per frame and motion-blur error", "",
              f"`python benchmarks/bench_camera.py --seed {args.seed} --frames {args.frames}` "
-             "(one run, one seed's pile per scene, frames taken in turns, median over the "
-             "rounds; a 2-core machine shared with other jobs).", "",
-             "| frame | ms/frame | x paper |", "|---|---|---|"]
+             "(one run, one seed's pile per scene, frames taken in turns, median CPU time of "
+             "this process over the rounds; a 2-core machine shared with other jobs).", "",
+             "| frame | CPU ms/frame | x paper |", "|---|---|---|"]
     lines += [f"| {name} | {ms:.1f} | {ms / base:.2f} |" for name, ms in costs.items()]
     lines += ["", "Blur error against 64 sub-frames, grey levels (0-255, the largest of the "
               "three channels), on every pixel the blur changes (belt texture included) and "
