@@ -107,3 +107,17 @@ def test_the_belt_skin_moves_with_the_belt() -> None:
         conveyor.update()
     moved = float(cell.data.mocap_pos[cell.belt_skin_mocap, 1]) - before
     assert moved == pytest.approx(11 * conveyor.speed * cell.model.opt.timestep, rel=1e-6)
+
+
+def test_clutter_is_seeded_and_beside_the_belt() -> None:
+    cfg = load_scene("paper", ["conveyor.clutter=6"])
+
+    def clutter(seed: int) -> np.ndarray:
+        cell = build_cell(cfg, ["large"], seed)
+        ids = [cell.model.geom(f"clutter{i}").id for i in range(6)]
+        return cell.model.geom_pos[ids].copy()
+
+    a, again, b = clutter(1), clutter(1), clutter(2)
+    assert np.array_equal(a, again) and not np.array_equal(a, b)
+    beyond = np.abs(a[:, 0] - cfg.conveyor.x) - cfg.conveyor.width / 2
+    assert np.all(beyond > 0.02)  # off the belt: never under the pile
