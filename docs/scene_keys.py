@@ -89,8 +89,8 @@ def _walk(cls: type, obj: Any, prefix: str, docs: dict[tuple[str, str], str]
         value = getattr(obj, f.name)
         if dataclasses.is_dataclass(value):
             rows += _walk(type(value), value, key + ".", docs)
-        elif isinstance(value, dict) and all(dataclasses.is_dataclass(v) for v in value.values()):
-            kind = typing.get_args(hints[f.name])[1]
+        elif isinstance(value, dict) and dataclasses.is_dataclass(
+                kind := typing.get_args(hints[f.name])[1]):
             defaults = {n: v for n, v in value.items()}
             for sub in dataclasses.fields(kind):
                 doc = docs.get((kind.__name__, sub.name), "")
@@ -101,7 +101,8 @@ def _walk(cls: type, obj: Any, prefix: str, docs: dict[tuple[str, str], str]
                 rows.append((f"{key}.NAME.{sub.name}", unit, shown, meaning))
         else:
             doc = docs.get((cls.__name__, f.name), "")
-            rows.append((key, unit_of(key, doc, value), _default(value), doc))
+            name = f"{key}.KEY" if isinstance(value, dict) else key  # a table of dotted keys
+            rows.append((name, unit_of(key, doc, value), _default(value), doc))
     return rows
 
 

@@ -48,10 +48,14 @@ def check_fovy(fovy_deg: float) -> None:
 
 @dataclass(frozen=True, kw_only=True)
 class CameraIntrinsics:
-    """Pinhole intrinsics in pixels (no distortion: MuJoCo renders an ideal pinhole).
+    """Pinhole intrinsics in pixels, with the lens's Brown-Conrady distortion.
 
     ``fx``, ``fy``: focal lengths, px, finite and > 0; ``cx``, ``cy``: principal point, px,
     finite; ``width``, ``height``: image size, px, >= 1. Anything else raises ConfigError.
+    :meth:`project` and :meth:`normalized` are the pinhole model: they map to and from
+    *undistorted* pixels (what MuJoCo renders; ground-truth ellipses are exact there).
+    ``dist`` says how the camera's image is distorted from them
+    (:mod:`stackpick_sim.vision.undistort` undoes it).
     """
 
     fx: float
@@ -60,6 +64,8 @@ class CameraIntrinsics:
     cy: float
     width: int
     height: int
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    """(k1, k2, p1, p2, k3), OpenCV's order; all 0: an ideal pinhole."""
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
@@ -78,7 +84,9 @@ class CameraIntrinsics:
                                   "size of at least 1 px")
 
     @classmethod
-    def from_fovy(cls, fovy_deg: float, width: int, height: int) -> CameraIntrinsics:
+    def from_fovy(cls, fovy_deg: float, width: int, height: int,
+                  dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+                  ) -> CameraIntrinsics:
         """Intrinsics of a MuJoCo camera of vertical field of view ``fovy_deg``, square pixels.
 
         ``fovy_deg`` must lie in FOVY_RANGE_DEG (ConfigError otherwise).
@@ -86,7 +94,12 @@ class CameraIntrinsics:
         check_fovy(fovy_deg)
         f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
         return cls(fx=f, fy=f, cx=(width - 1) / 2.0, cy=(height - 1) / 2.0,
-                   width=width, height=height)
+                   width=width, height=height, dist=dist)
+
+    @property
+    def distorted(self) -> bool:
+        """Whether the lens distorts (any coefficient non-zero)."""
+        return any(c != 0.0 for c in self.dist)
 
     @property
     def K(self) -> FloatArray:

@@ -130,9 +130,11 @@ def known_keys(cls: type = SceneConfig, prefix: str = "") -> list[str]:
         hint = hints[f.name]
         if dataclasses.is_dataclass(hint):
             keys += known_keys(typing.cast(type, hint), f"{prefix}{f.name}.")
+        elif typing.get_origin(hint) is dict and dataclasses.is_dataclass(
+                typing.get_args(hint)[1]):
+            keys += known_keys(typing.get_args(hint)[1], f"{prefix}{f.name}.*.")
         elif typing.get_origin(hint) is dict:
-            value_cls = typing.get_args(hint)[1]
-            keys += known_keys(value_cls, f"{prefix}{f.name}.*.")
+            keys.append(f"{prefix}{f.name}.*")
         else:
             keys.append(f"{prefix}{f.name}")
     return keys

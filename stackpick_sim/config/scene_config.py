@@ -69,6 +69,13 @@ class ConveyorCfg:
     """Sliding friction of the belt surface (it carries objects by friction); 0.05 to 5
     (from a slick PTFE belt to a grippy rubber one; above that MuJoCo's contact sticks the
     same)."""
+    texture: bool = False
+    """Draw the belt as worn rubber (grain, lengthwise wear streaks, scuffs; seeded by the
+    scene seed) moving with the belt surface, instead of one flat dark colour."""
+    clutter: int = 0
+    """Loose items (boxes, tins) lying beside the belt, just past its side rails: seeded by the
+    scene seed, visual only (they never touch the pile); 0: none, at most 12. The look view
+    (0.25 m across the belt) sees them on belts narrower than about 0.2 m."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and 0 <= self.speed <= 1.0, "conveyor.speed",
@@ -78,10 +85,16 @@ class ConveyorCfg:
         _within("conveyor.width", self.width, 0.05, 2.0, "m")
         _within("conveyor.length", self.length, 0.2, 10.0, "m")
         _within("conveyor.friction", self.friction, 0.05, 5.0, "")
+        _require(0 <= self.clutter <= 12, "conveyor.clutter", self.clutter, "0 to 12 items")
         _require(math.isfinite(self.top_z) and 0.02 <= self.top_z <= 0.5, "conveyor.top_z",
                  self.top_z, "0.02 to 0.5 m")
         _require(math.isfinite(self.x) and 0.3 <= self.x <= 0.6, "conveyor.x", self.x,
                  "0.3 to 0.6 m (the arm's pick zone)")
+
+
+#: Kinds of object (``object_types.*.kind``): what their caps look like and how a cup seals.
+ObjectKind = Literal["cylinder", "can", "printed", "tape"]
+OBJECT_KINDS: tuple[str, ...] = typing.get_args(ObjectKind)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -95,7 +108,25 @@ class ObjectTypeCfg:
     mass: float
     """kg; 0.01 to 0.6 (what the suction cup holds)"""
     rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
-    """Colour, components in [0, 1]."""
+    """Colour, components in [0, 1] (a printed lid's background, a can's body and lid)."""
+    kind: ObjectKind = "cylinder"
+    """``cylinder`` (one flat colour), ``can`` (a metal lid: raised rim round a recessed
+    panel, specular), ``printed`` (a lid printed with text and a logo, seeded) or ``tape``
+    (a roll: a ring face round a core hole)."""
+    hole_radius: float = 0.0
+    """Radius of a tape roll's core hole, m (``kind = "tape"`` only; 0 < hole < radius)."""
+    rim_width: float = 0.004
+    """Width of a can lid's raised rim, m (``kind = "can"``)."""
+    rim_height: float = 0.002
+    """Height of a can lid's rim above its panel, m (``kind = "can"``)."""
+    specular: float = 0.15
+    """Specular reflectance of the surface, [0, 1] (MuJoCo material): matte plastic 0.15, no
+    blinding highlight; tinplate about 0.8."""
+    shininess: float = 0.3
+    """Shininess (tightness of the highlight), [0, 1] (MuJoCo material): plastic 0.3,
+    tinplate about 0.8."""
+    print_seed: int = 0
+    """Seed of a printed lid's artwork (word, logo, stripe colour), ``kind = "printed"``."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.radius) and 0.01 <= self.radius <= 0.06,
@@ -106,6 +137,20 @@ class ObjectTypeCfg:
                  "object_types.*.mass", self.mass, "0.01 to 0.6 kg (what the suction cup holds)")
         _require(all(0.0 <= c <= 1.0 for c in self.rgba), "object_types.*.rgba", self.rgba,
                  "four components in [0, 1]")
+        _require(self.kind in OBJECT_KINDS, "object_types.*.kind", self.kind,
+                 ", ".join(OBJECT_KINDS))
+        if self.kind == "tape":
+            _require(math.isfinite(self.hole_radius) and 0.005 <= self.hole_radius
+                     <= self.radius - 0.005, "object_types.*.hole_radius", self.hole_radius,
+                     "0.005 m to radius - 0.005 m")
+        _require(math.isfinite(self.rim_width) and 0.001 <= self.rim_width <= self.radius / 3,
+                 "object_types.*.rim_width", self.rim_width, "0.001 m to radius / 3")
+        _require(math.isfinite(self.rim_height) and 0 <= self.rim_height <= 0.01,
+                 "object_types.*.rim_height", self.rim_height, "0 to 0.01 m")
+        for key in ("specular", "shininess"):
+            value = getattr(self, key)
+            _require(math.isfinite(value) and 0 <= value <= 1, f"object_types.*.{key}", value,
+                     "0 to 1")
 
 
 def _default_types() -> dict[str, ObjectTypeCfg]:
@@ -153,6 +198,11 @@ class ObjectsCfg:
                  "objects.max_face_height", self.max_face_height, "0.01 to 0.5 m")
 
 
+#: How motion blur is rendered (``camera.blur``).
+BlurMode = Literal["subframes", "shift"]
+BLUR_MODES: tuple[str, ...] = typing.get_args(BlurMode)
+
+
 @dataclass(frozen=True, kw_only=True)
 class CameraCfg:
     """The wrist camera."""
@@ -178,6 +228,37 @@ class CameraCfg:
     Modelled as this constant, never the wall clock, so episodes are deterministic. 0 to
     1 s."""
 
+    exposure_s: float = 0.0
+    """Exposure time, s (industrial cameras: 0.1-10 ms); 0: an instantaneous image. The
+    exposure is centred on the frame's time stamp: the ground truth is the state at its
+    middle. Motion during it blurs the image (``blur``)."""
+    blur: BlurMode = "subframes"
+    """How motion blur is rendered when ``exposure_s > 0``: ``subframes`` averages
+    ``blur_subframes`` renders with the belt, the objects and the arm moved along their
+    velocities across the exposure (faithful, one render each); ``shift`` averages shifted
+    copies of one render along the pile's image motion (one render; benchmarks/bench_camera.py
+    measures its error against ``subframes``)."""
+    blur_subframes: int = 8
+    """Renders averaged across the exposure with ``blur = "subframes"``."""
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    """Brown-Conrady lens distortion (k1, k2, p1, p2, k3), OpenCV's model and order, applied
+    to the rendered pinhole image; all 0: none. Machine-vision lenses of 4-8 mm on small
+    sensors: k1 about -0.05 to -0.3 (barrel)."""
+    full_well: float = 0.0
+    """Electrons that fill a pixel (saturation at grey 255 and gain 1); > 0 turns on the
+    sensor model: photon (Poisson) noise, read noise, gain and 8-bit quantisation (Foi et al.
+    2008, "Practical Poissonian-Gaussian noise modeling"). Typical 5000-20000 e-. 0: off."""
+    read_noise: float = 0.0
+    """Read noise, electrons rms (typical 2-10 e-); with ``full_well > 0``."""
+    gain: float = 1.0
+    """Analogue gain: grey levels per electron relative to gain 1 (fewer electrons make the
+    same grey level, so relatively more photon noise); with ``full_well > 0``."""
+    vignetting: float = 0.0
+    """Relative brightness lost at the image corners (cos^4-like radial fall-off, quadratic
+    in the radius), [0, 0.8]; 0: none."""
+    jpeg_quality: int = 0
+    """JPEG-compress every frame at this quality (1-100, OpenCV's scale); 0: no JPEG."""
+
     def __post_init__(self) -> None:
         _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
         _require(16 <= self.height <= 4096, "camera.height", self.height, "16 to 4096 px")
@@ -191,6 +272,29 @@ class CameraCfg:
                  "1 to 240 Hz")
         _require(math.isfinite(self.latency_s) and 0 <= self.latency_s <= 1.0,
                  "camera.latency_s", self.latency_s, "0 to 1 s")
+        _require(math.isfinite(self.exposure_s) and 0 <= self.exposure_s <= 0.05,
+                 "camera.exposure_s", self.exposure_s, "0 to 0.05 s")
+        _require(self.blur in BLUR_MODES, "camera.blur", self.blur, ", ".join(BLUR_MODES))
+        _require(2 <= self.blur_subframes <= 64, "camera.blur_subframes",
+                 self.blur_subframes, "2 to 64")
+        _require(all(math.isfinite(c) and abs(c) <= 1.0 for c in self.distortion),
+                 "camera.distortion", list(self.distortion), "five coefficients in [-1, 1]")
+        _require(self.full_well == 0 or (math.isfinite(self.full_well)
+                                         and 100 <= self.full_well <= 1e6),
+                 "camera.full_well", self.full_well, "0 (off) or 100 to 1e6 electrons")
+        _require(math.isfinite(self.read_noise) and 0 <= self.read_noise <= 100,
+                 "camera.read_noise", self.read_noise, "0 to 100 electrons")
+        _require(math.isfinite(self.gain) and 1 <= self.gain <= 64, "camera.gain", self.gain,
+                 "1 to 64")
+        _require(math.isfinite(self.vignetting) and 0 <= self.vignetting <= 0.8,
+                 "camera.vignetting", self.vignetting, "0 to 0.8")
+        _require(0 <= self.jpeg_quality <= 100, "camera.jpeg_quality", self.jpeg_quality,
+                 "0 (off) or 1 to 100")
+
+    @property
+    def distorted(self) -> bool:
+        """Whether the lens distorts (any coefficient non-zero)."""
+        return any(c != 0.0 for c in self.distortion)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -209,6 +313,11 @@ class LightsCfg:
     jitter: float = 0.0
     """Relative std of a per-frame random scaling of each ring light (illumination jitter);
     0 to 0.5."""
+    shadow_lamps: int = 0
+    """How many ring lamps cast shadows when ``camera.shadows`` is on (the first ones); 0:
+    all of them."""
+    shadow_map_px: int = 1024
+    """Side of each casting lamp's shadow map, px (cost grows with it and with the lamps)."""
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
@@ -220,6 +329,33 @@ class LightsCfg:
         _require(0 <= self.ambient <= 1, "lights.ambient", self.ambient, "0 to 1")
         _require(math.isfinite(self.jitter) and 0 <= self.jitter <= 0.5, "lights.jitter",
                  self.jitter, "0 to 0.5")
+        _require(0 <= self.shadow_lamps <= len(self.ring), "lights.shadow_lamps",
+                 self.shadow_lamps, f"0 (all) to {len(self.ring)} (the ring's lamps)")
+        _require(64 <= self.shadow_map_px <= 8192, "lights.shadow_map_px", self.shadow_map_px,
+                 "64 to 8192 px")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SuctionCfg:
+    """When the suction cup seals on a face (stackpick_sim/sim/suction.py)."""
+
+    seal: bool = True
+    """Model the seal: a pick holds only where the cup's lip lies wholly on flat sealing
+    surface of the face, with the cup axis within ``compliance_deg`` of its normal; off, the
+    cup lifts whatever its lip touches."""
+    compliance_deg: float = 20.0
+    """Largest angle between the cup axis and the face normal that the bellows take up,
+    degrees (bellows cups of 1.5-2.5 folds: about 15-30 deg in Schmalz's and Piab's
+    catalogues; flat cups a few degrees)."""
+    flatness_tol: float = 0.001
+    """Largest height difference of the surface under the lip that still seals, m (a lip
+    across a can's raised rim leaks)."""
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.compliance_deg) and 0 <= self.compliance_deg <= 45,
+                 "suction.compliance_deg", self.compliance_deg, "0 to 45 degrees")
+        _require(math.isfinite(self.flatness_tol) and 0 <= self.flatness_tol <= 0.01,
+                 "suction.flatness_tol", self.flatness_tol, "0 to 0.01 m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -369,16 +505,45 @@ class SceneConfig:
     """A whole scene: what ``scenes/<name>.toml`` describes."""
 
     name: str = "paper"
+    """The scene's name (records and summaries carry it); a file's name without ``.toml``."""
     description: str = ""
+    """One line saying what the scene is for."""
     conveyor: ConveyorCfg = field(default_factory=ConveyorCfg)
     objects: ObjectsCfg = field(default_factory=ObjectsCfg)
     object_types: dict[str, ObjectTypeCfg] = field(default_factory=_default_types)
     camera: CameraCfg = field(default_factory=CameraCfg)
     lights: LightsCfg = field(default_factory=LightsCfg)
     sim: SimCfg = field(default_factory=SimCfg)
+    suction: SuctionCfg = field(default_factory=SuctionCfg)
     episode: EpisodeCfg = field(default_factory=EpisodeCfg)
+    randomize: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Domain randomisation: dotted scene key (``.N`` for a list's N-th element) -> [low,
+    high], drawn per seed (stackpick_sim/sim/randomize.py); empty: nothing drawn."""
+
+    def value_at(self, key: str) -> object:
+        """The value of a dotted key (``.N`` indexes a list), or ConfigError naming it."""
+        node: object = self
+        for part in key.split("."):
+            if isinstance(node, tuple) and part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+            elif isinstance(node, dict) and part in node:
+                node = node[part]
+            elif hasattr(node, "__dataclass_fields__") and part in node.__dataclass_fields__:
+                node = getattr(node, part)
+            else:
+                raise ConfigError(f"randomize names {key!r}, which is not a scene key")
+        return node
+
+    def _check_randomize(self) -> None:
+        for key, (lo, hi) in self.randomize.items():
+            value = self.value_at(key)
+            _require(isinstance(value, int | float) and not isinstance(value, bool),
+                     f"randomize.{key}", value, "a number-valued scene key")
+            _require(math.isfinite(lo) and math.isfinite(hi) and lo <= hi,
+                     f"randomize.{key}", [lo, hi], "[low, high] with low <= high")
 
     def __post_init__(self) -> None:
+        self._check_randomize()
         unknown = [t for t in self.objects.types if t not in self.object_types]
         if unknown:
             raise ConfigError(f"objects.types names unknown type(s) {unknown}; "

@@ -12,7 +12,9 @@ non-finite state) ends it as ``unstable_sim``, never as an exception.
 Random streams (``np.random.default_rng([seed, k])``): the pile uses ``seed`` alone, its
 running-belt check ``k = 4`` (``stacks.RUNNING_CHECK_STREAM``) and the look snapshot
 ``k = 1``; here the camera noise is ``k = CAMERA_STREAM`` and the belt speed noise
-``k = BELT_STREAM``.
+``k = BELT_STREAM``. The scene's own draws: the belt's wear marks ``k = 6``
+(``cell.BELT_TEXTURE_STREAM``), randomised keys ``k = 7`` (``randomize.RANDOMIZE_STREAM``),
+clutter ``k = 8`` (``cell.CLUTTER_STREAM``).
 """
 
 from __future__ import annotations

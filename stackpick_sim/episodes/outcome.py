@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 from stackpick_sim.geometry import CameraIntrinsics, tilt_angles
 from stackpick_sim.sim.cell import Cell, ObjectInfo
 from stackpick_sim.sim.ground_truth import FrameTruth, top_face
-from stackpick_sim.sim.robot import CUP_BODY
+from stackpick_sim.sim.robot import CUP_BODY, TOOL_SITE
+from stackpick_sim.sim.suction import face_profile, lip_radius, seal_leak
 
 FloatArray = NDArray[np.float64]
 
@@ -48,6 +49,31 @@ def touching(cell: Cell, lips: frozenset[int]) -> list[ObjectInfo]:
         elif g1 in lips and g0 in by_geom:
             found[by_geom[g0].name] = by_geom[g0]
     return sorted(found.values(), key=lambda o: o.name)
+
+
+def no_seal(cell: Cell, touched: list[ObjectInfo]) -> str | None:
+    """Why the cup's lip leaks on every face it touches (one line), or None once one seals.
+
+    The seal model of :mod:`stackpick_sim.sim.suction` (``suction.seal``; off: always None),
+    on the face of each touched object that faces the cup, with the cup's current pose.
+    """
+    cfg = cell.cfg.suction
+    if not cfg.seal or not touched:
+        return None
+    model, data = cell.model, cell.data
+    site = model.site(TOOL_SITE).id
+    cup_pos = data.site_xpos[site].copy()
+    cup_axis = data.site_xmat[site].reshape(3, 3)[:, 2].copy()
+    lip = lip_radius(model, model.body(CUP_BODY).id)
+    leaks = []
+    for obj in touched:
+        centre, normal = top_face(cell, obj, cup_pos)
+        profile = face_profile(cell.cfg.object_types[obj.type_name])
+        leak = seal_leak(cup_pos, cup_axis, centre, normal, profile, lip, cfg)
+        if leak is None:
+            return None
+        leaks.append(f"{obj.name}: {leak}")
+    return "; ".join(leaks)
 
 
 def unstable(cell: Cell) -> str | None:

@@ -28,7 +28,7 @@ from stackpick_sim.control.reach import (
     tool_pose_on_axis,
 )
 from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
-from stackpick_sim.episodes.outcome import face_in_view, touching, view_pose
+from stackpick_sim.episodes.outcome import face_in_view, no_seal, touching, view_pose
 from stackpick_sim.episodes.record import PoseErrors
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.episodes.target import TargetState
@@ -241,6 +241,10 @@ class ArmPhases:
         touched = touching(ep.scene.cell, ep.lips)
         if touched:
             self._pick_moment(t)
+            leak = no_seal(ep.scene.cell, touched)
+            if leak is not None:  # the vacuum leaks: no lift (sim/suction.py)
+                self.fail("missed_grasp", f"no seal: {leak}")
+                return None
             ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
             self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
             self._enter("grasp", t)

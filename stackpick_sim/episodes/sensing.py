@@ -33,6 +33,7 @@ from stackpick_sim.vision import Detection, DetectorConfig, circle_poses, detect
 from stackpick_sim.vision.detector import object_kinds
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.pose import CirclePose
+from stackpick_sim.vision.undistort import undistort
 
 FloatArray = NDArray[np.float64]
 
@@ -233,7 +234,8 @@ class Sensor:
             if (d is not None and math.hypot(d.cx - e.cx, d.cy - e.cy) < TRACKED_SEARCH_PX
                     and abs(d.a - e.a) < TRACKED_SEARCH_PX):
                 return None  # the detector found it: its fit is the better one
-        gray = np.asarray(cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+        pinhole = undistort(image, self._cell.intrinsics)  # the predicted ellipse's pixels
+        gray = np.asarray(cv2.GaussianBlur(cv2.cvtColor(pinhole, cv2.COLOR_RGB2GRAY)
                                            .astype(np.float32), (3, 3), 0), dtype=np.float32)
         fit = track_outline(gray, e, TRACKED_SEARCH_PX)
         if fit is None:

@@ -17,11 +17,12 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.config.scene_config import ObjectTypeCfg, SceneConfig
 from stackpick_sim.exceptions import ModelError
 from stackpick_sim.geometry import MJ_CAM_TO_CV, CameraIntrinsics
-from stackpick_sim.sim import robot
+from stackpick_sim.sim import appearance, robot
 from stackpick_sim.sim.ik import look_pose_q
+from stackpick_sim.sim.lens import render_padding
 
 #: Belt box thickness, m (visual only: the top surface is what matters).
 BELT_THICKNESS = 0.04
@@ -38,9 +39,6 @@ PARK_SPACING = 0.2
 #: radius, so that a dropped cylinder stops spinning or rolling within a fraction of a second
 #: as real ones on a rubber belt do (placeholders, not identified on a real cell).
 OBJECT_FRICTION = (0.8, 0.01, 0.001)
-#: Shadow map size, px: MuJoCo's default 4096 renders at ~1.5 frames/s on a CPU with four
-#: shadow-casting ring lights; 1024 is ample for a 320x240 view and ~6x faster.
-SHADOW_MAP_SIZE = 1024
 #: Impedance ratio of frictional to normal contact forces (see compose_spec).
 FRICTION_IMPRATIO = 10.0
 #: Slices of a rendered cylinder: 64 keeps the polygonal rim within 0.12% of the true circle
@@ -55,10 +53,18 @@ RING_TOTAL_DIFFUSE = 0.5
 #: A face nearer the camera is brighter (~8% per 3 cm), which is how a real ring light
 #: separates stacked faces of one colour, without the top of a tall stack saturating.
 RING_LIGHT_NOMINAL_DISTANCE = 0.30
-#: Specular reflectance and shininess of the cylinders: matte plastic, no blinding highlight.
-OBJECT_SPECULAR = (0.15, 0.3)
 #: Spot cutoff of the ring lights, degrees: wide enough to light the whole view.
 RING_LIGHT_CUTOFF_DEG = 60.0
+#: Seed-sequence stream of the belt's wear marks (``[seed, BELT_TEXTURE_STREAM]``).
+BELT_TEXTURE_STREAM = 6
+#: Seed-sequence stream of the clutter beside the belt (``[seed, CLUTTER_STREAM]``).
+CLUTTER_STREAM = 8
+#: Clutter lies this far beyond the belt's edge, m (from, to): just past the side rails. The
+#: look-pose view (0.25 m across the belt) sees it on belts narrower than about 0.2 m; the
+#: camera sees it on wider ones when the arm moves off the belt's centre line.
+CLUTTER_BAND = (0.025, 0.08)
+#: ... and this far along the belt from the look point, m.
+CLUTTER_SPAN = 0.15
 #: The external camera ``overview``: where it stands and what it looks at, world frame, m.
 OVERVIEW_EYE = (1.25, -0.95, 0.85)
 OVERVIEW_TARGET = (0.35, 0.0, 0.2)
@@ -81,6 +87,14 @@ class ObjectInfo:
     """Start of its 7 free-joint qpos entries (x, y, z, qw, qx, qy, qz)."""
     dof_adr: int
     """Start of its 6 free-joint dofs."""
+    visual_geom_ids: tuple[int, ...] = ()
+    """Every geom drawn for it (its collision cylinder unless hidden, decals, a tube)."""
+
+
+def camera_intrinsics(cfg: SceneConfig) -> CameraIntrinsics:
+    """The wrist camera's intrinsics and lens distortion."""
+    cam = cfg.camera
+    return CameraIntrinsics.from_fovy(cam.fovy_deg, cam.width, cam.height, cam.distortion)
 
 
 def look_point(cfg: SceneConfig) -> NDArray[np.float64]:
@@ -108,6 +122,9 @@ class Cell:
     look_q: NDArray[np.float64]
     """Arm joint angles of the look pose, rad."""
     intrinsics: CameraIntrinsics
+    belt_skin_mocap: int | None = None
+    """Mocap index of the belt's textured skin (``conveyor.texture``), which moves with the
+    belt surface; None: a plain belt."""
 
     @property
     def look_point(self) -> NDArray[np.float64]:
@@ -191,7 +208,9 @@ def _add_lights(spec: mujoco.MjSpec, cfg: SceneConfig) -> None:
         body.add_light(name=f"ring_light_{i}", pos=list(np.asarray(cam.pos) + offset),
                        dir=list(cam_rot @ np.array([0.0, 0.0, -1.0])),
                        diffuse=[diffuse] * 3, specular=[0.3 * diffuse] * 3,
-                       castshadow=cfg.camera.shadows, cutoff=RING_LIGHT_CUTOFF_DEG,
+                       castshadow=cfg.camera.shadows and (lights.shadow_lamps == 0
+                                                          or i < lights.shadow_lamps),
+                       cutoff=RING_LIGHT_CUTOFF_DEG,
                        exponent=2.0,
                        attenuation=[0.5, 0.0, 0.5 / RING_LIGHT_NOMINAL_DISTANCE**2])
 
@@ -210,22 +229,100 @@ def _add_overview_camera(spec: mujoco.MjSpec) -> None:
     cam.quat = quat
 
 
+def _add_kind_assets(spec: mujoco.MjSpec, tname: str, t: ObjectTypeCfg) -> None:
+    spec.add_material(name=f"{tname}_mat", rgba=list(t.rgba), specular=t.specular,
+                      shininess=t.shininess)
+    if t.kind in ("printed", "can"):
+        art = (appearance.printed_texture(t, appearance.kind_rng(tname, t))
+               if t.kind == "printed" else appearance.can_texture(t))
+        appearance.add_texture(spec, f"{tname}_art", art)
+        spec.add_material(name=f"{tname}_decal", textures=["", f"{tname}_art"],
+                          specular=t.specular, shininess=t.shininess)
+        appearance.add_mesh(spec, f"{tname}_decal",
+                            appearance.annulus(0.0, t.radius, appearance.DECAL_LIFT))
+    elif t.kind == "tape":
+        appearance.add_mesh(spec, f"{tname}_tube",
+                            appearance.tube(t.hole_radius, t.radius, t.height))
+
+
+def _add_kind_visuals(body: mujoco.MjsBody, i: int, tname: str, t: ObjectTypeCfg,
+                      geom: mujoco.MjsGeom) -> None:
+    """Decals on both caps (a printed lid, a can), or a tube drawn instead of the cylinder."""
+    if t.kind == "cylinder":
+        return
+    # Visual geoms add no mass: the body keeps the solid cylinder's inertia.
+    body.explicitinertial = True
+    body.mass = t.mass
+    body.ipos = [0.0, 0.0, 0.0]
+    body.iquat = [1.0, 0.0, 0.0, 0.0]
+    body.inertia = [t.mass * (3 * t.radius**2 + t.height**2) / 12] * 2 + [t.mass * t.radius**2 / 2]
+    visual = {"contype": 0, "conaffinity": 0, "group": 0, "type": mujoco.mjtGeom.mjGEOM_MESH}
+    if t.kind == "tape":
+        geom.group = 3  # collision only: the tube with its hole is what the cameras see
+        body.add_geom(name=f"obj{i}_tube", meshname=f"{tname}_tube", material=f"{tname}_mat",
+                      **visual)
+        return
+    for side, quat in (("top", [1.0, 0.0, 0.0, 0.0]), ("bottom", [0.0, 1.0, 0.0, 0.0])):
+        body.add_geom(name=f"obj{i}_{side}", meshname=f"{tname}_decal",
+                      material=f"{tname}_decal", pos=[0.0, 0.0, 0.0], quat=quat,
+                      **visual).pos = [0.0, 0.0, (t.height / 2) * (1 if side == "top" else -1)]
+
+
 def _add_objects(spec: mujoco.MjSpec, cfg: SceneConfig, type_names: Sequence[str]) -> None:
     for tname in sorted(set(type_names)):
-        spec.add_material(name=f"{tname}_mat", rgba=list(cfg.object_types[tname].rgba),
-                          specular=OBJECT_SPECULAR[0], shininess=OBJECT_SPECULAR[1])
+        _add_kind_assets(spec, tname, cfg.object_types[tname])
     for i, tname in enumerate(type_names):
         t = cfg.object_types[tname]
         body = spec.worldbody.add_body(name=f"obj{i}",
                                        pos=[PARK_X, PARK_SPACING * i, t.height / 2])
         body.add_freejoint(name=f"obj{i}_joint")
-        body.add_geom(name=f"obj{i}_geom", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-                      size=[t.radius, t.height / 2, 0.0], mass=t.mass, material=f"{tname}_mat",
-                      friction=list(OBJECT_FRICTION), condim=4)
+        geom = body.add_geom(name=f"obj{i}_geom", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                             size=[t.radius, t.height / 2, 0.0], mass=t.mass,
+                             material=f"{tname}_mat", friction=list(OBJECT_FRICTION), condim=4)
+        _add_kind_visuals(body, i, tname, t, geom)
 
 
-def compose_spec(cfg: SceneConfig, type_names: Sequence[str]) -> mujoco.MjSpec:
-    """The uncompiled cell for a pile of cylinders of kinds ``type_names``."""
+def _add_belt_skin(spec: mujoco.MjSpec, cfg: SceneConfig, seed: int) -> None:
+    """The belt's worn rubber: a textured plate on a mocap body that the conveyor moves."""
+    belt = cfg.conveyor
+    rgb = appearance.belt_texture(np.random.default_rng([seed, BELT_TEXTURE_STREAM]), belt.width)
+    appearance.add_texture(spec, "belt_wear", rgb)
+    spec.add_material(name="belt_skin_mat", textures=["", "belt_wear"], specular=0.05,
+                      shininess=0.1)
+    w, half = belt.width / 2, belt.length / 2
+    repeats = belt.length / appearance.BELT_TEXTURE_PERIOD
+    verts = np.array([[-w, -half, 0.0], [w, -half, 0.0], [w, half, 0.0], [-w, half, 0.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32)
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, repeats], [0.0, repeats]])
+    appearance.add_mesh(spec, "belt_skin", (verts, faces, uv))
+    body = spec.worldbody.add_body(name="belt_skin", mocap=True,
+                                   pos=[belt.x, 0.0, belt.top_z + appearance.DECAL_LIFT])
+    body.add_geom(name="belt_skin", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="belt_skin",
+                  material="belt_skin_mat", contype=0, conaffinity=0, group=0)
+
+
+def _add_clutter(spec: mujoco.MjSpec, cfg: SceneConfig, rng: np.random.Generator) -> None:
+    """``conveyor.clutter`` loose items beside the belt: boxes and tins, visual only."""
+    belt = cfg.conveyor
+    for i in range(belt.clutter):
+        side = 1.0 if rng.random() < 0.5 else -1.0
+        x = belt.x + side * (belt.width / 2 + rng.uniform(*CLUTTER_BAND))
+        y = rng.uniform(-CLUTTER_SPAN, CLUTTER_SPAN)
+        size = rng.uniform(0.01, 0.025, 3)
+        rgba = [*rng.uniform(0.15, 0.9, 3), 1.0]
+        yaw = rng.uniform(0, math.pi)
+        box = rng.random() < 0.6
+        geom_type = mujoco.mjtGeom.mjGEOM_BOX if box else mujoco.mjtGeom.mjGEOM_CYLINDER
+        half_h = size[2] if box else size[1]
+        spec.worldbody.add_geom(
+            name=f"clutter{i}", type=geom_type, size=list(size),
+            pos=[x, y, belt.top_z + half_h], quat=[math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)],
+            rgba=rgba, contype=0, conaffinity=0, group=0)
+
+
+def compose_spec(cfg: SceneConfig, type_names: Sequence[str], seed: int = 0) -> mujoco.MjSpec:
+    """The uncompiled cell for a pile of cylinders of kinds ``type_names``; ``seed`` draws
+    the belt's wear marks (``conveyor.texture``)."""
     spec = robot.robot_spec()
     spec.modelname = f"stackpick_{cfg.name}"
     spec.option.timestep = cfg.sim.timestep
@@ -235,9 +332,11 @@ def compose_spec(cfg: SceneConfig, type_names: Sequence[str]) -> mujoco.MjSpec:
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.option.impratio = FRICTION_IMPRATIO
     spec.visual.quality.numslices = CYLINDER_SLICES
-    spec.visual.quality.shadowsize = SHADOW_MAP_SIZE
-    spec.visual.global_.offwidth = max(cfg.camera.width, 640)
-    spec.visual.global_.offheight = max(cfg.camera.height, 480)
+    spec.visual.quality.shadowsize = cfg.lights.shadow_map_px
+    # The wrist camera renders a wider pinhole image when its lens distorts (sim/lens.py).
+    pad = 2 * render_padding(camera_intrinsics(cfg))
+    spec.visual.global_.offwidth = max(cfg.camera.width + pad, 640)
+    spec.visual.global_.offheight = max(cfg.camera.height + pad, 480)
     cam = spec.camera(robot.CAMERA)
     if cam is not None:
         cam.fovy = cfg.camera.fovy_deg
@@ -251,7 +350,24 @@ def compose_spec(cfg: SceneConfig, type_names: Sequence[str]) -> mujoco.MjSpec:
     _add_lights(spec, cfg)
     _add_overview_camera(spec)
     _add_objects(spec, cfg, type_names)
+    if cfg.conveyor.texture:
+        _add_belt_skin(spec, cfg, seed)
+    if cfg.conveyor.clutter:
+        _add_clutter(spec, cfg, np.random.default_rng([seed, CLUTTER_STREAM]))
     return spec
+
+
+def _audit_xml(spec: mujoco.MjSpec) -> str:
+    """The compiled spec as MJCF. MJCF cannot hold a generated texture's pixels: each is
+    written as a flat texture of its mean colour (the XML is for audit; episodes rebuild
+    their cells, textures included, from the scene and seed)."""
+    for tex in spec.textures:
+        if len(tex.data):
+            rgb = np.frombuffer(bytes(tex.data), dtype=np.uint8).reshape(-1, tex.nchannel)
+            tex.data = b""
+            tex.builtin = mujoco.mjtBuiltin.mjBUILTIN_FLAT
+            tex.rgb1 = list(rgb[:, :3].mean(axis=0) / 255.0)
+    return str(spec.to_xml())
 
 
 @lru_cache(maxsize=16)
@@ -260,24 +376,26 @@ def _look_q_cached(xml: str, look: tuple[float, float, float], height: float) ->
     return tuple(look_pose_q(model, np.array(look), height))
 
 
-def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
+def build_cell(cfg: SceneConfig, type_names: Sequence[str], seed: int = 0) -> Cell:
     """Compose, compile and index the cell; the arm is put at the look pose, the belt stopped."""
-    spec = compose_spec(cfg, type_names)
+    spec = compose_spec(cfg, type_names, seed)
     try:
         model = spec.compile()
     except ValueError as exc:
         raise ModelError(f"the composed cell failed to compile: {exc}") from None
-    xml = spec.to_xml()
+    xml = _audit_xml(spec)
     data = mujoco.MjData(model)
     objects = []
     for i, tname in enumerate(type_names):
         t = cfg.object_types[tname]
         body_id = model.body(f"obj{i}").id
         jnt = model.body_jntadr[body_id]
+        shown = tuple(g for g in range(model.ngeom) if model.geom_bodyid[g] == body_id
+                      and model.geom_group[g] < 3)
         objects.append(ObjectInfo(
             name=f"obj{i}", type_name=tname, radius=t.radius, height=t.height, body_id=body_id,
             geom_id=model.geom(f"obj{i}_geom").id, qpos_adr=int(model.jnt_qposadr[jnt]),
-            dof_adr=int(model.jnt_dofadr[jnt])))
+            dof_adr=int(model.jnt_dofadr[jnt]), visual_geom_ids=shown))
     arm_joints = [model.joint(name) for name in robot.ARM_JOINTS]
     look = tuple(float(v) for v in look_point(cfg))
     # The look pose depends only on the robot and the look geometry, not on the objects.
@@ -292,8 +410,9 @@ def build_cell(cfg: SceneConfig, type_names: Sequence[str]) -> Cell:
         ring_light_ids=np.array([model.light(f"ring_light_{i}").id
                                  for i in range(len(cfg.lights.ring))]),
         look_q=look_q,
-        intrinsics=CameraIntrinsics.from_fovy(cfg.camera.fovy_deg, cfg.camera.width,
-                                              cfg.camera.height),
+        belt_skin_mocap=(int(model.body_mocapid[model.body("belt_skin").id])
+                         if cfg.conveyor.texture else None),
+        intrinsics=camera_intrinsics(cfg),
     )
     cell.set_belt_speed(0.0)
     cell.set_arm(look_q)

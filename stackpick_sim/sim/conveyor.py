@@ -11,11 +11,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from stackpick_sim.sim.appearance import BELT_TEXTURE_PERIOD
 from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell
 
 
 class Conveyor:
-    """Drives the belt of a cell; call :meth:`update` once per control step."""
+    """Drives the belt of a cell; call :meth:`update` once per physics step."""
 
     def __init__(self, cell: Cell, rng: np.random.Generator) -> None:
         self._cell = cell
@@ -52,7 +53,17 @@ class Conveyor:
             self.speed = max(0.0, cfg.speed + noise)
             self._cell.set_belt_speed(self.speed)
             self._next_redraw = now + cfg.jitter_period
+        self._move_skin()
         self._remove_departed()
+
+    def _move_skin(self) -> None:
+        """Carry the belt's textured skin along with the surface for one physics step (it
+        wraps back by whole texture periods, which look the same)."""
+        skin = self._cell.belt_skin_mocap
+        if skin is None:
+            return
+        pos = self._cell.data.mocap_pos[skin]
+        pos[1] = (pos[1] + self.speed * self._cell.model.opt.timestep) % BELT_TEXTURE_PERIOD
 
     def _remove_departed(self) -> None:
         cell = self._cell

@@ -100,6 +100,9 @@ class FrameTruth:
             "time": self.time,
             "width": k.width, "height": k.height,
             "intrinsics": {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy},
+            # Brown-Conrady (k1, k2, p1, p2, k3) of the image; ellipses and pixel positions
+            # here are exact in undistorted pixels (cv2.undistortPoints with P = K).
+            "distortion": list(k.dist),
             "world_T_cam": self.world_T_cam.tolist(),
             "objects": [o.as_dict() for o in self.objects],
             "top_objects": self.top_objects,
@@ -134,9 +137,16 @@ def resting_on(cell: Cell) -> dict[int, set[int]]:
     return out
 
 
-def _visible_fraction(ellipse: Ellipse, obj: ObjectInfo, seg: NDArray[np.int32]) -> float:
-    inner = Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=max(ellipse.a - VISIBILITY_INSET_PX, 0.5),
-                    b=max(ellipse.b - VISIBILITY_INSET_PX, 0.5), angle_deg=ellipse.angle_deg)
+def _inset(ellipse: Ellipse, px: float) -> Ellipse:
+    return Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=max(ellipse.a - px, 0.5),
+                   b=max(ellipse.b - px, 0.5), angle_deg=ellipse.angle_deg)
+
+
+def _visible_fraction(ellipse: Ellipse, obj: ObjectInfo, seg: NDArray[np.int32],
+                      hole: Ellipse | None = None) -> float:
+    """Share of the face (inside ``ellipse``, outside a tape roll's ``hole``) that the
+    segmentation shows as one of ``obj``'s geoms."""
+    inner = _inset(ellipse, VISIBILITY_INSET_PX)
     # Count the inset face on a canvas that holds all of it, so off-image pixels count as unseen.
     u0, v0, u1, v1 = inner.bounds()
     pad_u, pad_v = max(0, -math.floor(u0)), max(0, -math.floor(v0))
@@ -145,11 +155,27 @@ def _visible_fraction(ellipse: Ellipse, obj: ObjectInfo, seg: NDArray[np.int32])
     shifted = Ellipse(cx=inner.cx + pad_u, cy=inner.cy + pad_v, a=inner.a, b=inner.b,
                       angle_deg=inner.angle_deg)
     full = shifted.mask((h, w))
+    if hole is not None:
+        full &= ~Ellipse(cx=hole.cx + pad_u, cy=hole.cy + pad_v, a=hole.a + VISIBILITY_INSET_PX,
+                         b=hole.b + VISIBILITY_INSET_PX, angle_deg=hole.angle_deg).mask((h, w))
     total = int(np.count_nonzero(full))
     if total == 0:
         return 0.0
     in_image = full[pad_v:pad_v + seg.shape[0], pad_u:pad_u + seg.shape[1]]
-    return float(np.count_nonzero(in_image & (seg == obj.geom_id))) / total
+    ids = obj.visual_geom_ids or (obj.geom_id,)
+    return float(np.count_nonzero(in_image & np.isin(seg, ids))) / total
+
+
+def _hole(cell: Cell, obj: ObjectInfo, centre_c: NDArray[np.float64],
+          inward_c: NDArray[np.float64]) -> Ellipse | None:
+    """Image of a tape roll's core hole on its face (None for other kinds)."""
+    kind = cell.cfg.object_types[obj.type_name]
+    if kind.kind != "tape":
+        return None
+    try:
+        return project_circle(centre_c, inward_c, kind.hole_radius, cell.intrinsics)
+    except ValueError:
+        return None
 
 
 def frame_truth(cell: Cell, segmentation: NDArray[np.int32]) -> FrameTruth:
@@ -168,7 +194,9 @@ def frame_truth(cell: Cell, segmentation: NDArray[np.int32]) -> FrameTruth:
             ellipse: Ellipse | None = project_circle(centre_c, inward_c, obj.radius, k)
         except ValueError:
             ellipse = None
-        visible = _visible_fraction(ellipse, obj, segmentation) if ellipse is not None else 0.0
+        visible = (_visible_fraction(ellipse, obj, segmentation,
+                                     _hole(cell, obj, centre_c, inward_c))
+                   if ellipse is not None else 0.0)
         on_belt = (not cell.fell_off_belt(obj)
                    and bool(abs(cell.data.xpos[obj.body_id][1]) <= belt.length / 2))
         u, v = k.project(centre_c)[0]

@@ -10,6 +10,7 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
 from stackpick_sim.sim.stacks import Scene, generate_scene
+from stackpick_sim.vision.undistort import undistort
 
 #: Second entry of the seed sequence of the look frame's pixel noise and light jitter, so that
 #: they never share draws with the pile generator seeded by the scene seed alone.
@@ -38,5 +39,8 @@ def seeded_look_frame(cfg: SceneConfig,
 
 
 def truth_overlay(image_rgb: NDArray[np.uint8], truth: FrameTruth) -> NDArray[np.uint8]:
-    """BGR picture: ground-truth face ellipses (green: top objects), face centres, labels."""
-    return overlay.truth_overlay(image_rgb, truth, OVERLAY_SCALE)
+    """BGR picture: ground-truth face ellipses (green: top objects), face centres, labels.
+
+    A distorted frame is drawn undistorted: the ellipses are exact in pinhole pixels.
+    """
+    return overlay.truth_overlay(undistort(image_rgb, truth.intrinsics), truth, OVERLAY_SCALE)

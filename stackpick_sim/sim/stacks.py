@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.geometry import plane_basis, project_circle
+from stackpick_sim.sim import randomize
 from stackpick_sim.sim.cell import PARK_SPACING, PARK_X, Cell, build_cell
 from stackpick_sim.sim.conveyor import Conveyor
 from stackpick_sim.sim.ground_truth import top_face
@@ -396,11 +397,12 @@ def settle_pile(cell: Cell, rng: np.random.Generator,
 def generate_scene(cfg: SceneConfig, seed: int) -> Scene:
     """The settled scene of ``cfg`` and ``seed`` (deterministic), or SceneGenerationError."""
     start = time.perf_counter()
+    cfg = randomize.draw(cfg, seed)  # the scene's own draw of any [randomize] keys
     rng = np.random.default_rng(seed)
     lo, hi = cfg.objects.count
     count = int(rng.integers(lo, hi + 1))
     kinds = [cfg.objects.types[int(k)] for k in rng.integers(len(cfg.objects.types), size=count)]
-    cell = build_cell(cfg, kinds)
+    cell = build_cell(cfg, kinds, seed)
     problems: Counter[str] = Counter()
     retries: Counter[str] = Counter()
     belt_rng = np.random.default_rng([seed, RUNNING_CHECK_STREAM])

@@ -90,6 +90,7 @@ from stackpick_sim.vision.regroup import (
 )
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
+from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
@@ -218,7 +219,7 @@ class TopObjectDetector:
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
         t0 = time.perf_counter()
-        img = as_rgb_or_gray(image)
+        img = undistort(as_rgb_or_gray(image), self.config.intrinsics)
         shape = (int(img.shape[0]), int(img.shape[1]))
         if min(shape) < MIN_SIDE_PX:
             return Detection(reason=f"image {shape[1]}x{shape[0]} smaller than "

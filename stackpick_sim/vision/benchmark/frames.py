@@ -74,7 +74,8 @@ def frame_from_record(seed: int, image_rgb: NDArray[np.uint8], record: dict[str,
     above the belt (``belt_top_z``, m) and the scene's ``max_face_height`` (m)."""
     k = record["intrinsics"]
     intr = CameraIntrinsics(fx=k["fx"], fy=k["fy"], cx=k["cx"], cy=k["cy"],
-                            width=int(record["width"]), height=int(record["height"]))
+                            width=int(record["width"]), height=int(record["height"]),
+                            dist=tuple(record.get("distortion", (0.0,) * 5)))
     faces = []
     for o in record["objects"]:
         e = o["ellipse"]
