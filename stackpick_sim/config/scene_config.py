@@ -224,7 +224,7 @@ class CameraCfg:
     latency_s: float = 0.010
     """Delay from a frame's capture to its detection being usable, s. Measured: the vision
     pipeline's median ``timings_ms["total"]`` on 320x240 paper-scene frames was 8-9 ms on the
-    project's 2-core machine (benchmarks/bench_episodes.py, 2025), rounded up to 10 ms.
+    project's 2-core machine (benchmarks/bench_episodes.py), rounded up to 10 ms.
     Modelled as this constant, never the wall clock, so episodes are deterministic. 0 to
     1 s."""
 
@@ -426,7 +426,7 @@ class EpisodeCfg:
     """Times an episode may drop its tracked face for one that later frames voted top
     (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
     every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
-    cost picks (README, "Which face is picked"). 0 to 3."""
+    cost picks (docs/detector.md, "Which face is picked"). 0 to 3."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose

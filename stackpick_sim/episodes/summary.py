@@ -4,7 +4,9 @@ Input: the records of ``results.jsonl`` (:data:`~stackpick_sim.episodes.record.R
 order.
 Table 1 (paper): the detected pose vs. the true pose of the first three episodes; Table 2:
 the Kalman estimate at the pick moment vs. the true pose. Poses are the paper's
-(x px, y px, theta_x deg, theta_y deg) in the look view.
+(x px, y px, theta_x deg, theta_y deg) in the look view: the image plane of the wrist camera
+at the look pose, whose x and y may lie outside its frame once the belt has carried the face
+on by the pick moment.
 """
 
 from __future__ import annotations
@@ -130,7 +132,8 @@ def summary_markdown(s: dict[str, Any]) -> str:
     lines += [f"| {r['seed']} | {_pose(r['estimated'])} | {_pose(r['actual'])} | {_err(r)} |"
               for r in s["table1"]]
     lines += ["", "## Table 2: Kalman-estimated vs. actual pose at the pick moment "
-              "(look view)", "", "| seed | estimated | actual | error |", "|---|---|---|---|"]
+              "(look view's image plane: x, y may lie outside the frame)", "",
+              "| seed | estimated | actual | error |", "|---|---|---|---|"]
     lines += [f"| {r['seed']} | {_pose(r['estimated'])} | {_pose(r['actual'])} | {_err(r)} |"
               for r in s["table2"]]
     d = s["detection"]

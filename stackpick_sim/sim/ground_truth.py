@@ -21,7 +21,8 @@ from stackpick_sim.sim.cell import OFF_BELT_DROP, Cell, ObjectInfo
 __all__ = ["OFF_BELT_DROP", "TOP_VISIBLE_FRACTION", "FrameTruth", "ObjectTruth", "frame_truth",
            "resting_on", "top_face"]
 
-#: A face at least this visible (and with nothing resting on it) is a top object (the issue).
+#: A face at least this visible (and with nothing resting on it) is a top object: the pick
+#: target every detector and success rate is measured against.
 TOP_VISIBLE_FRACTION = 0.98
 #: Visibility is measured on the face ellipse shrunk by this many pixels, so that rasterisation
 #: at the outline (half a pixel either way) does not count as occlusion.

@@ -45,7 +45,7 @@ SUCTION_ACTUATOR = "suction"
 #: Name of the home keyframe (= the default look pose).
 HOME_KEY = "home"
 
-#: Joint speed limits, rad/s, in ARM_JOINTS order: Denso's vs060.urdf via NOTES.md.
+#: Joint speed limits, rad/s, in ARM_JOINTS order: Denso's vs060.urdf (denso_robot_ros).
 VELOCITY_LIMITS: NDArray[np.float64] = np.array([3.927, 2.618, 2.858, 3.927, 3.022, 6.283])
 VELOCITY_LIMITS.flags.writeable = False
 
