@@ -164,3 +164,17 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
         su[k] = u[k] + shift * gu[k]
         sv[k] = v[k] + shift * gv[k]
     return su, sv
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) every kernel for the argument types the detector
+    passes, on tiny inputs: run once after installing, so that parallel workers start on a
+    warm cache instead of each compiling the same code."""
+    img = np.zeros((4, 4), np.int16)
+    col = np.zeros(1)
+    counts = np.ones(1, np.int64)
+    box_pairs(col, col, col, col, col)
+    grouped_distances(np.ones((6, 1)), counts, col, col)
+    along_grouped(np.ones((1, 5)), counts, col, col, col, col, 1.0, 1.0)
+    bilinear_uv(img, img, col, col)
+    subpixel_columns(img, img, col, col, col, col, 0.5)
