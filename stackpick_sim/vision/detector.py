@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +55,15 @@ from stackpick_sim.vision.fitting import (
     fit_all,
     plausible,
     rms_residual,
+)
+from stackpick_sim.vision.limits import (
+    Deadline,
+    WorkLimits,
+    downscale_factor,
+    downscaled,
+    longest,
+    scaled_intrinsics,
+    upscaled,
 )
 from stackpick_sim.vision.merging import (
     MergedEllipse,
@@ -89,7 +98,7 @@ from stackpick_sim.vision.regroup import (
     split_at_junctions,
 )
 from stackpick_sim.vision.roi import Roi, find_roi
-from stackpick_sim.vision.segments import link_segments
+from stackpick_sim.vision.segments import EdgeSegments, link_segments
 from stackpick_sim.vision.wall import face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
@@ -158,7 +167,8 @@ class DetectorConfig:
     for the top rule (the nearest wins) and the pose its radius. ``heights_m``: optional
     cylinder height (m) of the objects of each radius, parallel to ``radii_m``; with the
     colours it lets the top rule rebuild the candidates' cylinders and reject one another
-    rests on (:mod:`~stackpick_sim.vision.resting`).
+    rests on (:mod:`~stackpick_sim.vision.resting`). ``limits``: caps on the work done on any
+    image and an optional time budget (:class:`~stackpick_sim.vision.limits.WorkLimits`).
     """
 
     intrinsics: CameraIntrinsics | None = None
@@ -166,6 +176,7 @@ class DetectorConfig:
     depth_range_m: tuple[float, float] | None = None
     kind_colours: tuple[tuple[float, float, float], ...] | None = None
     heights_m: tuple[float, ...] | None = None
+    limits: WorkLimits = field(default_factory=WorkLimits)
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -216,19 +227,57 @@ class TopObjectDetector:
         return lo, hi
 
     def detect(self, image: NDArray) -> Detection:
-        """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
+        """Detect ellipses, the top object and its pose in an (H, W[, C]) image.
+
+        Images of more than ``limits.max_pixels`` are detected on a :func:`~stackpick_sim.
+        vision.limits.downscaled` copy, and the ellipses, chains and pose's pixel centre
+        mapped back to the full image."""
         t0 = time.perf_counter()
         img = as_rgb_or_gray(image)
         shape = (int(img.shape[0]), int(img.shape[1]))
         if min(shape) < MIN_SIDE_PX:
             return Detection(reason=f"image {shape[1]}x{shape[0]} smaller than "
                              f"{MIN_SIDE_PX} px a side")
+        deadline = Deadline(t0, self.config.limits.time_budget_ms)
+        factor = downscale_factor(shape, self.config.limits.max_pixels)
+        if factor == 1:
+            return self._detect(img, t0, deadline)
+        small = downscaled(img, factor)
+        if min(small.shape[:2]) < MIN_SIDE_PX:
+            return Detection(reason=f"image {shape[1]}x{shape[0]} downscaled by {factor} "
+                             f"is smaller than {MIN_SIDE_PX} px a side")
+        config = replace(self.config, intrinsics=scaled_intrinsics(self._intrinsics(shape),
+                                                                   factor))
+        found = TopObjectDetector(config)._detect(small, t0, deadline)
+        return _upscaled_detection(found, factor)
+
+    def _detect(self, img: NDArray[np.uint8], t0: float, deadline: Deadline) -> Detection:
+        """:meth:`detect` of a validated image within the pixel limit."""
         timings: dict[str, float] = {}
+        try:
+            return self._stages(img, t0, deadline, timings)
+        except _OutOfTime as out:
+            timings["total"] = (time.perf_counter() - t0) * 1e3
+            return Detection(timings_ms=timings,
+                             reason=f"time budget of {deadline.budget_ms:g} ms ran out after "
+                                    f"the {out.stage} stage")
+
+    def _stages(self, img: NDArray[np.uint8], t0: float, deadline: Deadline,
+                timings: dict[str, float]) -> Detection:
+        """The stages of :meth:`detect`, each timed into ``timings``; raises _OutOfTime
+        after a stage that ends past the ``deadline``."""
+        shape = (int(img.shape[0]), int(img.shape[1]))
+        limits = self.config.limits
 
         def lap(name: str, start: float) -> float:
             now = time.perf_counter()
             timings[name] = (now - start) * 1e3
+            check(name)
             return now
+
+        def check(name: str) -> None:
+            if deadline.expired():
+                raise _OutOfTime(name)
 
         roi = find_roi(img)
         work = np.ascontiguousarray(roi.crop(img))
@@ -240,12 +289,18 @@ class TopObjectDetector:
         edges = grad.edges
         t = lap("edges", t)
         segs = link_segments(edges)
+        if len(segs.chains) > limits.max_chains:
+            segs = EdgeSegments(chains=tuple(segs.chains[i] for i in
+                                             longest(segs.chains, limits.max_chains)),
+                                edges=edges)
         t = lap("segments", t)
         pieces: list[NDArray[np.int32]] = []
         fits: list[tuple[int, Ellipse]] = []
         residuals: list[float] = []
         fitted: set[int] = set()
-        for c, points, ellipse, residual in fit_all(segs.chains, crop):
+        found = fit_all(segs.chains, crop)
+        found = [found[i] for i in longest([f[1] for f in found], limits.max_fits)]
+        for c, points, ellipse, residual in found:
             fits.append((len(pieces), ellipse))
             residuals.append(residual)
             pieces.append(points)
@@ -253,6 +308,9 @@ class TopObjectDetector:
         chains = tuple(pieces) + segs.chains
         t = lap("fitting", t)
         merged = merge_segments(chains, fits, edges, residuals)
+        if len(merged) > limits.max_ellipses:
+            best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))
+            merged = [merged[i] for i in sorted(best[:limits.max_ellipses])]
         t = lap("merging", t)
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)
@@ -296,10 +354,11 @@ class TopObjectDetector:
             if fallback is not None:
                 choice = replace(choice, index=fallback, reason="")
         if choice.index is None:
+            check("top")
             # Only then: a refit that passes next to a passing face is more often a lower,
             # nearly whole face than the top (development seeds 31, 176).
             merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
-                                                        gate)
+                                                        gate, limits.max_refits)
             if retried:
                 choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
                                     edge_points=points, image=rgb, height_of=height_of,
@@ -309,6 +368,7 @@ class TopObjectDetector:
                 # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
                 # whole face of its colour).
                 arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+                arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
                 merged, choice = _nearer_arc_face(merged, choice, arcs, chains, arc_chains, grad,
                                                   (points, grads), crop, gate, k_crop, radius_of)
         if choice.index is None:
@@ -318,8 +378,11 @@ class TopObjectDetector:
                 choice = replace(choice, index=rimmed, reason="")
         if choice.index is None:
             # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
-            merged, choice = _regroup_arcs(merged, choice, range(len(pieces)), chains, grad,
-                                           (points, grads), crop, gate)
+            check("top")
+            merged, choice = _regroup_arcs(merged, choice,
+                                           _longest_arcs(range(len(pieces)), chains,
+                                                         limits.max_arcs),
+                                           chains, grad, (points, grads), crop, gate)
         if choice.index is None and spare is not None:
             # The very last: a contrast refit with no T-junction and no edge inside, most of
             # its outline showing (select_unobstructed's evidence; development frame 820 of
@@ -335,7 +398,9 @@ class TopObjectDetector:
             # ds_paper_h3k, 1374, 1438 of ds_paper_h1k), else the one with nothing crossing
             # it (3032: its boundary with a lower face of its colour shows no contrast), else
             # one with its own rim inside. Last, as the least constrained.
+            check("top")
             arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
             merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
                                            crop, gate, unobstructed=True, arc_chains=arc_chains)
         t = lap("top", t)
@@ -371,6 +436,35 @@ class TopObjectDetector:
         t = lap("pose", t)
         timings["total"] = (t - t0) * 1e3
         return detection
+
+
+class _OutOfTime(Exception):
+    """The time budget ran out after (or within) ``stage``."""
+
+    def __init__(self, stage: str) -> None:
+        super().__init__(stage)
+        self.stage = stage
+
+
+def _longest_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]], cap: int
+                  ) -> list[int]:
+    """The ``cap`` longest of the ``arcs`` (indices into ``chains``), in their order."""
+    arcs = list(arcs)
+    return [arcs[i] for i in longest([chains[a] for a in arcs], cap)]
+
+
+def _upscaled_detection(found: Detection, factor: int) -> Detection:
+    """A detection on the image downscaled by ``factor`` in the full image's pixels: ellipses
+    and the pose's pixel centre mapped back (:func:`~stackpick_sim.vision.limits.upscaled`),
+    chains' pixels to the full-image pixel nearest each block's centre."""
+    shift = (factor - 1) // 2
+    ellipses = tuple(replace(e, ellipse=upscaled(e.ellipse, factor)) for e in found.ellipses)
+    segments = tuple((c * factor + shift).astype(np.int32) for c in found.segments)
+    pose = found.pose
+    if pose is not None:
+        half = (factor - 1) / 2.0
+        pose = replace(pose, x=pose.x * factor + half, y=pose.y * factor + half)
+    return replace(found, ellipses=ellipses, segments=segments, pose=pose)
 
 
 def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]]
@@ -467,18 +561,23 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
-                       gate: tuple[float, float] | None = None
+                       gate: tuple[float, float] | None = None, max_refits: int = 8
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
     support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
-    consistent edge; keep a refit where it passes the rule. Returns the ellipses, whether
-    any changed, and, when none passed, the refit :func:`~stackpick_sim.vision.occlusion.
-    select_unobstructed` takes among those within the size ``gate`` ((min, max) semi-major
-    axis, px, or None) as (index of the ellipse it refits, refit, its evidence), else None."""
+    consistent edge (at most ``max_refits`` ellipses, the best-supported: each refit reads
+    profiles along its whole outline); keep a refit where it passes the rule. Returns the
+    ellipses, whether any changed, and, when none passed, the refit
+    :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
+    size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
+    refits, refit, its evidence), else None."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
+    if len(todo) > max_refits:  # the best-supported, in their order
+        best = sorted(todo, key=lambda i: (-evidence[i].support, i))[:max_refits]
+        todo = sorted(best)
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
              and plausible(r, shape)]

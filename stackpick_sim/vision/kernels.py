@@ -166,6 +166,46 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
     return su, sv
 
 
+@_compiled
+def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
+                  reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
+    """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
+    ``starts[k]:starts[k + 1]``): whether it is the pixel of its chain nearest (the first of
+    equals) to another chain's end point, within ``reach_sq`` (px^2), other than the chain's
+    own two end pixels; see :func:`~stackpick_sim.vision.regroup.split_at_junctions`. A chain
+    whose box grown by the reach misses an end is not scanned for it (its nearest pixel lies
+    farther)."""
+    n_chains = starts.shape[0] - 1
+    cut = np.zeros(pixels.shape[0], np.bool_)
+    reach = math.sqrt(reach_sq)
+    for k in range(n_chains):
+        lo, hi = starts[k], starts[k + 1]
+        if hi - lo < 3:
+            continue
+        u0, v0 = pixels[lo, 0], pixels[lo, 1]
+        u1, v1 = u0, v0
+        for i in range(lo, hi):
+            u0, u1 = min(u0, pixels[i, 0]), max(u1, pixels[i, 0])
+            v0, v1 = min(v0, pixels[i, 1]), max(v1, pixels[i, 1])
+        for other in range(n_chains):
+            if other == k:
+                continue
+            for end in (starts[other], starts[other + 1] - 1):
+                eu, ev = float(pixels[end, 0]), float(pixels[end, 1])
+                if (eu < u0 - reach or eu > u1 + reach or ev < v0 - reach
+                        or ev > v1 + reach):
+                    continue
+                best, at = np.inf, -1
+                for i in range(lo, hi):
+                    du, dv = pixels[i, 0] - eu, pixels[i, 1] - ev
+                    d2 = du * du + dv * dv
+                    if d2 < best:
+                        best, at = d2, i
+                if best <= reach_sq and lo < at < hi - 1:
+                    cut[at] = True
+    return cut
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -178,3 +218,4 @@ def warm_up() -> None:
     along_grouped(np.ones((1, 5)), counts, col, col, col, col, 1.0, 1.0)
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
+    junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
