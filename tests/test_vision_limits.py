@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -65,3 +67,31 @@ def test_caps_must_be_positive_integers(field: str) -> None:
         WorkLimits(**{field: 0})
     with pytest.raises(ConfigError, match="time_budget_ms"):
         WorkLimits(time_budget_ms=0.0)
+
+
+def test_scene_vision_table_reaches_the_detector_through_the_cli(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from stackpick_sim.cli.main import main
+
+    path = tmp_path / "disc.png"
+    cv2.imwrite(str(path), _disc_image(320, 240, (160, 120), (60, 40), 10.0))
+    assert main(["detect", str(path), "--set", "vision.time_budget_ms=1e-6"]) == 0
+    assert "time budget of 1e-06 ms ran out" in capsys.readouterr().out
+    assert main(["detect", str(path), "--set", "vision.max_arcs=0"]) == 2
+    assert "vision.max_arcs" in capsys.readouterr().err
+
+
+def test_scene_gives_the_detector_its_kinds_and_depth_range() -> None:
+    import argparse
+
+    from stackpick_sim.cli.detect_cmd import detector_config
+
+    args = argparse.Namespace(scene="paper", overrides=["vision.max_fits=9"], fovy=None,
+                              radii=None, depth_range=None)
+    config = detector_config(args, 320, 240)
+    assert config.radii_m == (0.035, 0.025) and config.kind_colours is not None
+    assert config.depth_range_m is not None and 0.1 < config.depth_range_m[0] < 0.3
+    assert config.limits.max_fits == 9
+    explicit = detector_config(argparse.Namespace(scene=None, overrides=[], fovy=60.0,
+                                                  radii=[0.05], depth_range=None), 320, 240)
+    assert explicit.radii_m == (0.05,) and explicit.depth_range_m is None

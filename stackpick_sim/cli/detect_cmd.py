@@ -1,4 +1,5 @@
-"""``stackpick detect IMAGE.png [--json] [--overlay OUT.png]``: top object and its pose."""
+"""``stackpick detect IMAGE.png [--scene S] [--set K=V] [--json] [--overlay OUT.png]``: top
+object and its pose."""
 
 from __future__ import annotations
 
@@ -10,15 +11,18 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.exceptions import ImageError
-from stackpick_sim.geometry import CameraIntrinsics
+from stackpick_sim.geometry import CameraIntrinsics, face_depth_range
 from stackpick_sim.vision.detection import Detection
 from stackpick_sim.vision.detector import (
     DEFAULT_FOVY_DEG,
     DEFAULT_RADII_M,
     DetectorConfig,
     detect,
+    object_kinds,
 )
+from stackpick_sim.vision.limits import WorkLimits
 
 
 def register(subparsers: Any) -> None:
@@ -28,12 +32,23 @@ def register(subparsers: Any) -> None:
     p.add_argument("image", help="PNG/JPEG image (colour or grey)")
     p.add_argument("--json", action="store_true", help="print machine-readable JSON")
     p.add_argument("--overlay", metavar="OUT.png", help="write the detections drawn on the image")
-    p.add_argument("--fovy", type=float, default=DEFAULT_FOVY_DEG,
-                   help="vertical field of view of a centred pinhole camera, deg (default 45)")
-    p.add_argument("--radii", type=float, nargs="+", default=list(DEFAULT_RADII_M),
-                   metavar="M", help="candidate face radii, metres (default 0.035 0.025)")
+    p.add_argument("--scene", metavar="NAME_OR_PATH",
+                   help="take the camera's field of view, the object kinds (radii, colours, "
+                   "heights), the top face's depth range at the look pose and the [vision] "
+                   f"limits from this scene ({', '.join(available_scenes())} or a .toml "
+                   "file); the options below override them")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="override a scene key (implies --scene paper "
+                   "when --scene is not given), e.g. --set vision.max_arcs=12")
+    p.add_argument("--fovy", type=float, default=None,
+                   help="vertical field of view of a centred pinhole camera, deg (default: "
+                   f"the scene's, else {DEFAULT_FOVY_DEG:g})")
+    p.add_argument("--radii", type=float, nargs="+", default=None, metavar="M",
+                   help="candidate face radii, metres (default: the scene's kinds, else "
+                   f"{' '.join(f'{r:g}' for r in DEFAULT_RADII_M)})")
     p.add_argument("--depth-range", type=float, nargs=2, metavar=("MIN", "MAX"),
-                   help="expected depth of the top face, metres (chooses the radius)")
+                   help="expected depth of the top face, metres (chooses the radius; "
+                   "default: the scene's look pose, else none)")
     p.set_defaults(func=run)
 
 
@@ -62,14 +77,36 @@ def draw_overlay(image: NDArray[np.uint8], detection: Detection) -> NDArray[np.u
     return np.asarray(out, np.uint8)
 
 
+def detector_config(args: argparse.Namespace, width: int, height: int) -> DetectorConfig:
+    """The detector's settings for a ``width`` x ``height`` image from ``--scene``/``--set``
+    (when given) and the explicit options, which take precedence."""
+    fovy, radii = DEFAULT_FOVY_DEG, DEFAULT_RADII_M
+    colours: tuple[tuple[float, float, float], ...] | None = None
+    heights: tuple[float, ...] | None = None
+    depth: tuple[float, float] | None = None
+    limits = WorkLimits()
+    if args.scene is not None or args.overrides:
+        scene = load_scene(args.scene or "paper", args.overrides)
+        fovy = scene.camera.fovy_deg
+        kinds = [(t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
+                 for name, t in scene.object_types.items() if name in scene.objects.types]
+        radii, colours, heights = object_kinds(kinds)
+        depth = face_depth_range(scene.camera.look_height, scene.objects.max_face_height)
+        limits = WorkLimits.of(scene.vision)
+    if args.radii is not None:  # other radii: the scene's colours and heights no longer apply
+        radii, colours, heights = tuple(args.radii), None, None
+    return DetectorConfig(
+        intrinsics=CameraIntrinsics.from_fovy(fovy if args.fovy is None else args.fovy,
+                                              width, height),
+        radii_m=radii, kind_colours=colours, heights_m=heights,
+        depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the detector on one image; print text or JSON; exit 0 (also on a miss)."""
     image = _read(args.image)
     h, w = image.shape[:2]
-    config = DetectorConfig(intrinsics=CameraIntrinsics.from_fovy(args.fovy, w, h),
-                            radii_m=tuple(args.radii),
-                            depth_range_m=tuple(args.depth_range) if args.depth_range else None)
-    detection = detect(image, config)
+    detection = detect(image, detector_config(args, w, h))
     if args.overlay:
         if not cv2.imwrite(args.overlay, draw_overlay(image, detection)):
             raise ImageError(f"cannot write overlay '{args.overlay}'")

@@ -29,32 +29,34 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 
 
 @dataclass(frozen=True, kw_only=True)
 class WorkLimits:
-    """Caps on the detector's work (see the module docstring).
+    """Caps on the detector's work (see the module docstring); the fields, units and
+    defaults are those of the scene's ``[vision]`` table
+    (:class:`~stackpick_sim.config.scene_config.VisionCfg`), except that no time budget is
+    None here.
 
     ``max_pixels`` (px): larger images are downscaled by the smallest integer factor that
-    brings them within it (640x480 by default: the largest frame the detector is measured
-    on at full resolution). ``max_chains``: edge chains kept, longest first (a pile's ROI has
-    at most ~25). ``max_fits``: segment fits passed to the merge, longest arcs first (its pair
-    counts grow with their square). ``max_ellipses``: merged ellipses passed to the refit and
-    the top rule, best-supported first. ``max_arcs``: arcs the last-resort arc pairs are drawn
-    from, longest first (pairs grow with their square: 24 arcs are 276 pairs).
-    ``max_refits``: ellipses the top rule's contrast retry refits, best-supported first (each
-    reads profiles along its whole outline: ~3 ms for a 100 px face). ``time_budget_ms``
-    (ms of wall-clock time, None: no budget): see the module docstring.
+    brings them within it. ``max_chains``: edge chains kept, longest first. ``max_fits``:
+    segment fits passed to the merge, longest arcs first. ``max_ellipses``: merged ellipses
+    passed to the refit and the top rule, best-supported first. ``max_arcs``: arcs the
+    last-resort arc pairs are drawn from, longest first. ``max_refits``: ellipses the top
+    rule's contrast retry refits, best-supported first (each reads profiles along its whole
+    outline: ~3 ms for a 100 px face). ``time_budget_ms`` (ms of wall-clock time, None: no
+    budget): see the module docstring.
     """
 
-    max_pixels: int = 640 * 480
-    max_chains: int = 400
-    max_fits: int = 64
-    max_ellipses: int = 48
-    max_arcs: int = 24
-    max_refits: int = 8
+    max_pixels: int = VisionCfg.max_pixels
+    max_chains: int = VisionCfg.max_chains
+    max_fits: int = VisionCfg.max_fits
+    max_ellipses: int = VisionCfg.max_ellipses
+    max_arcs: int = VisionCfg.max_arcs
+    max_refits: int = VisionCfg.max_refits
     time_budget_ms: float | None = None
 
     def __post_init__(self) -> None:
@@ -66,6 +68,14 @@ class WorkLimits:
         if self.time_budget_ms is not None and not self.time_budget_ms > 0:
             raise ConfigError("limits.time_budget_ms must be positive milliseconds or None, "
                               f"got {self.time_budget_ms!r}")
+
+    @classmethod
+    def of(cls, cfg: VisionCfg) -> WorkLimits:
+        """The limits a scene's ``[vision]`` table sets."""
+        return cls(max_pixels=cfg.max_pixels, max_chains=cfg.max_chains, max_fits=cfg.max_fits,
+                   max_ellipses=cfg.max_ellipses, max_arcs=cfg.max_arcs,
+                   max_refits=cfg.max_refits,
+                   time_budget_ms=cfg.time_budget_ms if cfg.time_budget_ms > 0 else None)
 
 
 class Deadline:
