@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.exceptions import ImageError
 from stackpick_sim.geometry import CameraIntrinsics, face_depth_range
-from stackpick_sim.vision.detection import Detection
+from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.detector import (
     DEFAULT_FOVY_DEG,
     DEFAULT_RADII_M,
@@ -22,6 +22,7 @@ from stackpick_sim.vision.detector import (
     detect,
     object_kinds,
 )
+from stackpick_sim.vision.ellipses import find_ellipses
 from stackpick_sim.vision.limits import WorkLimits
 
 
@@ -49,6 +50,16 @@ def register(subparsers: Any) -> None:
     p.add_argument("--depth-range", type=float, nargs=2, metavar=("MIN", "MAX"),
                    help="expected depth of the top face, metres (chooses the radius; "
                    "default: the scene's look pose, else none)")
+    p.add_argument("--ellipses-only", action="store_true",
+                   help="report the ellipses alone, each with its outline support (no top "
+                   "object, no pose): stackpick_sim.vision.find_ellipses")
+    p.add_argument("--min-axis", type=float, default=5.0, metavar="PX",
+                   help="with --ellipses-only: smallest semi-minor axis, px (default 5)")
+    p.add_argument("--max-axis", type=float, default=None, metavar="PX",
+                   help="with --ellipses-only: largest semi-major axis, px (default: none)")
+    p.add_argument("--min-support", type=float, default=0.6, metavar="SHARE",
+                   help="with --ellipses-only: smallest share of the outline with a "
+                   "consistent edge along it, 0-1 (default 0.6)")
     p.set_defaults(func=run)
 
 
@@ -102,11 +113,36 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
         depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits)
 
 
+def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,
+                   args: argparse.Namespace) -> int:
+    """``--ellipses-only``: print the scored ellipses (text or JSON); exit 0."""
+    found = find_ellipses(image, min_axis_px=args.min_axis, max_axis_px=args.max_axis,
+                          min_support=args.min_support, limits=config.limits)
+    if args.overlay:
+        shown = Detection(ellipses=tuple(
+            DetectedEllipse(ellipse=s.ellipse, segments=(), residual_px=s.residual_px,
+                            support=s.support) for s in found))
+        if not cv2.imwrite(args.overlay, draw_overlay(image, shown)):
+            raise ImageError(f"cannot write overlay '{args.overlay}'")
+    if args.json:
+        print(json.dumps({"ellipses": [s.as_dict() for s in found]}, indent=2))
+        return 0
+    print(f"{len(found)} ellipses")
+    for i, s in enumerate(found):
+        e = s.ellipse
+        print(f"  [{i}] centre ({e.cx:.1f}, {e.cy:.1f}) axes {e.a:.1f} x {e.b:.1f} px "
+              f"angle {e.angle_deg:.1f} deg support {s.support:.2f}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the detector on one image; print text or JSON; exit 0 (also on a miss)."""
     image = _read(args.image)
     h, w = image.shape[:2]
-    detection = detect(image, detector_config(args, w, h))
+    config = detector_config(args, w, h)
+    if args.ellipses_only:
+        return _ellipses_only(image, config, args)
+    detection = detect(image, config)
     if args.overlay:
         if not cv2.imwrite(args.overlay, draw_overlay(image, detection)):
             raise ImageError(f"cannot write overlay '{args.overlay}'")
