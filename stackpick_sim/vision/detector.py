@@ -98,7 +98,7 @@ from stackpick_sim.vision.regroup import (
     split_at_junctions,
 )
 from stackpick_sim.vision.roi import Roi, find_roi
-from stackpick_sim.vision.segments import EdgeSegments, link_segments
+from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.wall import face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
@@ -204,6 +204,59 @@ class DetectorConfig:
         return dict(zip(self.radii_m, self.heights_m, strict=True)).get
 
 
+class _Clock:
+    """Stage times (ms, into ``timings``) and the time budget's checks."""
+
+    def __init__(self, t0: float, deadline: Deadline, timings: dict[str, float]) -> None:
+        self.t, self.deadline, self.timings = t0, deadline, timings
+
+    def lap(self, name: str) -> None:
+        """Record stage ``name`` as ending now; raise _OutOfTime past the deadline."""
+        now = time.perf_counter()
+        self.timings[name] = (now - self.t) * 1e3
+        self.t = now
+        self.check(name)
+
+    def check(self, name: str) -> None:
+        """Raise _OutOfTime (within stage ``name``) past the deadline."""
+        if self.deadline.expired():
+            raise _OutOfTime(name)
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Found:
+    """The ellipse stages' output, in the region of interest's pixels: ``roi`` and its
+    ``work`` crop of ``crop`` (H, W); edges and gradients ``grad``; the edge chains
+    ``segments``; the fitted ``pieces`` (and the chain indices ``fitted`` they came from);
+    ``chains``, the pieces then the segments; the refined ``merged`` ellipses within the size
+    ``gate``; the edge pixels ``points`` and their unit gradients ``grads``."""
+
+    roi: Roi
+    work: NDArray[np.uint8]
+    crop: tuple[int, int]
+    grad: EdgeImage
+    segments: tuple[NDArray[np.int32], ...]
+    pieces: list[NDArray[np.int32]]
+    fitted: set[int]
+    chains: tuple[NDArray[np.int32], ...]
+    merged: list[MergedEllipse]
+    points: NDArray[np.float64]
+    grads: NDArray[np.float64]
+    gate: tuple[float, float] | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Cues:
+    """What the top rule reads besides the ellipses (see :meth:`TopObjectDetector._cues`)."""
+
+    k_crop: CameraIntrinsics
+    rgb: NDArray[np.uint8] | None
+    belt: NDArray[np.float64] | None
+    colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
+    radius_of: Callable[[Ellipse], float | None] | None
+    height_of: Callable[[float], float | None] | None
+
+
 class TopObjectDetector:
     """Finds the top cylinder's face and pose in one image; see :func:`detect`."""
 
@@ -264,146 +317,176 @@ class TopObjectDetector:
 
     def _stages(self, img: NDArray[np.uint8], t0: float, deadline: Deadline,
                 timings: dict[str, float]) -> Detection:
-        """The stages of :meth:`detect`, each timed into ``timings``; raises _OutOfTime
-        after a stage that ends past the ``deadline``."""
+        """The stages of :meth:`detect` in order (roi, edges, segments, fitting, merging,
+        refine: :meth:`_ellipse_stages`; top: :meth:`_top_stage`; pose:
+        :meth:`_pose_stage`), each timed into ``timings``; raises _OutOfTime after a stage
+        that ends past the ``deadline``."""
+        clock = _Clock(t0, deadline, timings)
         shape = (int(img.shape[0]), int(img.shape[1]))
+        k = self._intrinsics(shape)
+        found = self._ellipse_stages(img, self._axis_range(k), clock)
+        cues = self._cues(found, k)
+        merged, choice = self._top_stage(found, cues, clock)
+        detection = self._pose_stage(found, merged, choice, img, k, cues, timings)
+        clock.lap("pose")
+        timings["total"] = (clock.t - t0) * 1e3
+        return detection
+
+    def _ellipse_stages(self, img: NDArray[np.uint8], gate: tuple[float, float] | None,
+                        clock: _Clock) -> _Found:
+        """roi, edges, segments, fitting, merging and refine (each within its cap of
+        ``limits``; after the refit, ellipses outside the size ``gate`` are dropped)."""
         limits = self.config.limits
-
-        def lap(name: str, start: float) -> float:
-            now = time.perf_counter()
-            timings[name] = (now - start) * 1e3
-            check(name)
-            return now
-
-        def check(name: str) -> None:
-            if deadline.expired():
-                raise _OutOfTime(name)
-
         roi = find_roi(img)
         work = np.ascontiguousarray(roi.crop(img))
         if min(work.shape[:2]) < MIN_SIDE_PX:
-            roi, work = Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), img
+            roi, work = Roi(u0=0, v0=0, u1=int(img.shape[1]), v1=int(img.shape[0])), img
         crop = (int(work.shape[0]), int(work.shape[1]))
-        t = lap("roi", t0)
+        clock.lap("roi")
         grad = edge_image(work)
         edges = grad.edges
-        t = lap("edges", t)
-        segs = link_segments(edges)
-        if len(segs.chains) > limits.max_chains:
-            segs = EdgeSegments(chains=tuple(segs.chains[i] for i in
-                                             longest(segs.chains, limits.max_chains)),
-                                edges=edges)
-        t = lap("segments", t)
-        pieces: list[NDArray[np.int32]] = []
-        fits: list[tuple[int, Ellipse]] = []
-        residuals: list[float] = []
-        fitted: set[int] = set()
-        found = fit_all(segs.chains, crop)
+        clock.lap("edges")
+        segments = link_segments(edges).chains
+        if len(segments) > limits.max_chains:
+            segments = tuple(segments[i] for i in longest(segments, limits.max_chains))
+        clock.lap("segments")
+        found = fit_all(segments, crop)
         found = [found[i] for i in longest([f[1] for f in found], limits.max_fits)]
-        for c, points, ellipse, residual in found:
-            fits.append((len(pieces), ellipse))
-            residuals.append(residual)
-            pieces.append(points)
-            fitted.add(c)
-        chains = tuple(pieces) + segs.chains
-        t = lap("fitting", t)
-        merged = merge_segments(chains, fits, edges, residuals)
+        pieces = [points for _, points, _, _ in found]
+        chains = tuple(pieces) + segments
+        clock.lap("fitting")
+        merged = merge_segments(chains, [(i, f[2]) for i, f in enumerate(found)], edges,
+                                [f[3] for f in found])
         if len(merged) > limits.max_ellipses:
             best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))
             merged = [merged[i] for i in sorted(best[:limits.max_ellipses])]
-        t = lap("merging", t)
+        clock.lap("merging")
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)
         merged = [MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                                 support=m.support) for m, e in zip(merged, refined, strict=True)]
-        k = self._intrinsics(shape)
-        gate = self._axis_range(k)
         if gate is not None:
             # After the refit: a fit on a few short arcs can be far smaller than its face.
             merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
-        t = lap("refine", t)
-        du, dv = roi.offset
+        clock.lap("refine")
+        return _Found(roi=roi, work=work, crop=crop, grad=grad, segments=segments,
+                      pieces=pieces, fitted={c for c, _, _, _ in found}, chains=chains,
+                      merged=merged, points=points, grads=grads, gate=gate)
+
+    def _cues(self, found: _Found, k: CameraIntrinsics) -> _Cues:
+        """What the top rule reads besides the ellipses: the crop's intrinsics, colours,
+        the belt's colour and the radius and height of each candidate's kind."""
+        du, dv = found.roi.offset
         # Built directly: dataclasses.replace costs several times the constructor.
         k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
                                   height=k.height)
+        work = found.work
         rgb = work if work.ndim == 3 else None
-        belt = None if roi.belt is None else np.array(roi.belt)
         # Each candidate's face colour once, for its radius and the rest test's wall bands.
         colour_of = None if rgb is None else face_colours(rgb)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours,
                                       colour_of))
-        height_of = self.config.height_of()
-        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                            edge_points=points, image=rgb, height_of=height_of,
-                            colour_of=colour_of, belt=belt)
-        if (choice.index is not None and radius_of is not None and height_of is not None
-                and rgb is not None):
+        return _Cues(k_crop=k_crop, rgb=rgb,
+                     belt=None if found.roi.belt is None else np.array(found.roi.belt),
+                     colour_of=colour_of, radius_of=radius_of,
+                     height_of=self.config.height_of())
+
+    def _select(self, ellipses: list[Ellipse], found: _Found, cues: _Cues) -> TopChoice:
+        """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every
+        cue."""
+        return select_top(ellipses, found.grad, cues.k_crop, cues.radius_of,
+                          edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
+                          colour_of=cues.colour_of, belt=cues.belt)
+
+    def _top_stage(self, found: _Found, cues: _Cues, clock: _Clock
+                   ) -> tuple[list[MergedEllipse], TopChoice]:
+        """The top rule, then, when it chose a face, the rest test's correction, and when
+        it chose none, its fallbacks (:meth:`_fallbacks`)."""
+        merged = found.merged
+        choice = self._select([m.ellipse for m in merged], found, cues)
+        if (choice.index is not None and cues.radius_of is not None
+                and cues.height_of is not None and cues.rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
-            # same-colour sliver beyond it (development frames 1769 of ds_paper_h1k, 2241 of
-            # ds_paper_h2k, 857 of ds_paper_dev4).
-            above = select_resting_rimmed([m.ellipse for m in merged], choice, grad, points,
-                                          k_crop, radius_of, height_of, rgb, belt)
+            # same-colour sliver beyond it.
+            above = select_resting_rimmed([m.ellipse for m in merged], choice, found.grad,
+                                          found.points, cues.k_crop, cues.radius_of,
+                                          cues.height_of, cues.rgb, cues.belt)
             if above is not None:
                 choice = replace(choice, index=above)
+        if choice.index is None:
+            merged, choice = self._fallbacks(found, merged, choice, cues, clock)
+        clock.lap("top")
+        return merged, choice
+
+    def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                   cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
+        """When no ellipse passed the top rule, in order, until one gives a face: the
+        unobstructed face, the contrast retry (and a clearly nearer face of arc pairs beside
+        its choice), a face with its own rim inside, arc pairs of the fitted pieces, the
+        retry's spare refit, arc pairs of every arc (see the module docstring)."""
+        limits, crop, gate, grad = self.config.limits, found.crop, found.gate, found.grad
+        edge_pixels = (found.points, found.grads)
         spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
-        if choice.index is None:
-            # Before the contrast retry: a refit of a lower face can shrink past the outline
-            # crossing it and pass (development seed 292).
-            fallback = select_unobstructed(choice.evidence)
-            if fallback is not None:
-                choice = replace(choice, index=fallback, reason="")
-        if choice.index is None:
-            check("top")
-            # Only then: a refit that passes next to a passing face is more often a lower,
-            # nearly whole face than the top (development seeds 31, 176).
-            merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
-                                                        gate, limits.max_refits)
-            if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                    edge_points=points, image=rgb, height_of=height_of,
-                                    colour_of=colour_of, belt=belt)
-            if retried and choice.index is not None and radius_of is not None:
-                # A face clearly nearer than such a refit is above it (development frame 3791
-                # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
-                # whole face of its colour).
-                arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
-                arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-                merged, choice = _nearer_arc_face(merged, choice, arcs, chains, arc_chains, grad,
-                                                  (points, grads), crop, gate, k_crop, radius_of)
+        # Before the contrast retry: a refit of a lower face can shrink past the outline
+        # crossing it and pass.
+        fallback = select_unobstructed(choice.evidence)
+        if fallback is not None:
+            return merged, replace(choice, index=fallback, reason="")
+        clock.check("top")
+        # Only then: a refit that passes next to a passing face is more often a lower,
+        # nearly whole face than the top.
+        merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
+                                                    gate, limits.max_refits)
+        if retried:
+            choice = self._select([m.ellipse for m in merged], found, cues)
+        if retried and choice.index is not None and cues.radius_of is not None:
+            # A face clearly nearer than such a refit is above it (a top face the merge never
+            # fitted beside a lower, nearly whole face of its colour).
+            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+            return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
+                                    edge_pixels, crop, gate, cues.k_crop, cues.radius_of)
         if choice.index is None:
             # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
-            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
+            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
             if rimmed is not None:
-                choice = replace(choice, index=rimmed, reason="")
-        if choice.index is None:
+                return merged, replace(choice, index=rimmed, reason="")
             # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
-            check("top")
-            merged, choice = _regroup_arcs(merged, choice,
-                                           _longest_arcs(range(len(pieces)), chains,
-                                                         limits.max_arcs),
-                                           chains, grad, (points, grads), crop, gate)
+            clock.check("top")
+            merged, choice = _regroup_arcs(
+                merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
+                                              limits.max_arcs),
+                found.chains, grad, edge_pixels, crop, gate)
         if choice.index is None and spare is not None:
             # The very last: a contrast refit with no T-junction and no edge inside, most of
-            # its outline showing (select_unobstructed's evidence; development frame 820 of
-            # ds_paper_dev4: a top face over a lower face of its colour, fitted with part of
-            # that one's outline, refits onto its own faint boundary).
+            # its outline showing (select_unobstructed's evidence: a top face over a lower
+            # face of its colour, fitted with part of that one's outline, refits onto its own
+            # faint boundary).
             i, refit, refit_evidence = spare
             merged[i] = replace(merged[i], ellipse=refit)
-            choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
-                                                  *choice.evidence[i + 1:]))
+            return merged, TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
+                                                        *choice.evidence[i + 1:]))
         if choice.index is None:
             # After all: pairs that take in the chains no fit was kept for and the parts of
-            # chains cut at junctions too (see regroup; development frames 3504, 3886 of
-            # ds_paper_h3k, 1374, 1438 of ds_paper_h1k), else the one with nothing crossing
-            # it (3032: its boundary with a lower face of its colour shows no contrast), else
-            # one with its own rim inside. Last, as the least constrained.
-            check("top")
-            arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
+            # chains cut at junctions too (see regroup), else the one with nothing crossing
+            # it (its boundary with a lower face of its colour shows no contrast), else one
+            # with its own rim inside. Last, as the least constrained.
+            clock.check("top")
+            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
             arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-            merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
-                                           crop, gate, unobstructed=True, arc_chains=arc_chains)
-        t = lap("top", t)
+            merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
+                                           edge_pixels, crop, gate, unobstructed=True,
+                                           arc_chains=arc_chains)
+        return merged, choice
+
+    def _pose_stage(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                    img: NDArray[np.uint8], k: CameraIntrinsics, cues: _Cues,
+                    timings: dict[str, float]) -> Detection:
+        """The reported ellipses (distinct, supported, in frame pixels) and the top face's
+        final fit and pose (``timings``: the stage times, shared with the caller, which
+        adds this stage's)."""
+        du, dv = found.roi.offset
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
                          [m.ellipse for m in merged], choice)
@@ -412,30 +495,29 @@ class TopObjectDetector:
                             segments=merged[i].segments, residual_px=merged[i].residual_px,
                             support=merged[i].support, evidence=choice.evidence[i])
             for i in keep)
-        offset = np.array([du, dv], np.int32)
-        frame_chains = chains if du == dv == 0 else _shifted(chains, offset)
-        top = None if choice.index is None else keep.index(choice.index)
-        pose = None
-        if choice.index is not None:
-            top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
-                                          crop)
-            top_ellipse = _profile_refit(top_ellipse, work, grad)
-            # The face's colour once, for its radius and the pose's wall test (the same pixels
-            # in the crop and in the frame while the face's interior lies in the crop).
-            face = face_colour(top_ellipse, work) if work.ndim == 3 else None
-            colours = self.config.kind_colours
-            radius = (None if colours is None or face is None
-                      else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
-            pose = estimate_pose(_moved(top_ellipse, du, dv), k,
-                                 self.config.radii_m if radius is None else (radius,), None,
-                                 self.config.depth_range_m,
-                                 image=img if img.ndim == 3 else None, face_rgb=face,
-                                 belt=belt)
-        detection = Detection(ellipses=ellipses, segments=frame_chains, top=top, pose=pose,
-                              timings_ms=timings, reason=choice.reason)
-        t = lap("pose", t)
-        timings["total"] = (t - t0) * 1e3
-        return detection
+        chains = found.chains
+        frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv],
+                                                                               np.int32))
+        if choice.index is None:
+            return Detection(ellipses=ellipses, segments=frame_chains, timings_ms=timings,
+                             reason=choice.reason)
+        work, grad = found.work, found.grad
+        top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, found.points,
+                                      found.grads, found.crop)
+        top_ellipse = _profile_refit(top_ellipse, work, grad)
+        # The face's colour once, for its radius and the pose's wall test (the same pixels
+        # in the crop and in the frame while the face's interior lies in the crop).
+        face = face_colour(top_ellipse, work) if work.ndim == 3 else None
+        colours = self.config.kind_colours
+        radius = (None if colours is None or face is None
+                  else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
+        pose = estimate_pose(_moved(top_ellipse, du, dv), k,
+                             self.config.radii_m if radius is None else (radius,), None,
+                             self.config.depth_range_m,
+                             image=img if img.ndim == 3 else None, face_rgb=face,
+                             belt=cues.belt)
+        return Detection(ellipses=ellipses, segments=frame_chains, top=keep.index(choice.index),
+                         pose=pose, timings_ms=timings, reason=choice.reason)
 
 
 class _OutOfTime(Exception):
