@@ -232,8 +232,9 @@ class VisionCfg:
     max_pixels: int = 640 * 480
     """Images with more pixels are detected on a copy downscaled by the smallest integer
     factor within this, px; ellipses and pose are mapped back to the full image."""
-    max_chains: int = 400
-    """Edge chains kept, longest first (a pile's region of interest has at most ~25)."""
+    max_chains: int = 200
+    """Connected edge pieces linked into chains, and chains kept, longest first (a pile's
+    region of interest has at most ~25 chains)."""
     max_fits: int = 64
     """Segment fits passed to the merge, longest arcs first (its cost grows with their
     square)."""

@@ -346,7 +346,7 @@ class TopObjectDetector:
         grad = edge_image(work)
         edges = grad.edges
         clock.lap("edges")
-        segments = link_segments(edges).chains
+        segments = link_segments(edges, limits.max_chains).chains
         if len(segments) > limits.max_chains:
             segments = tuple(segments[i] for i in longest(segments, limits.max_chains))
         clock.lap("segments")

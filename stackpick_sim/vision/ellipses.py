@@ -110,7 +110,7 @@ def _scored(work: NDArray[np.uint8], limits: WorkLimits) -> list[ScoredEllipse]:
 
     shape = (int(work.shape[0]), int(work.shape[1]))
     grad = edge_image(work)
-    chains = link_segments(grad.edges).chains
+    chains = link_segments(grad.edges, limits.max_chains).chains
     chains = tuple(chains[i] for i in longest(chains, limits.max_chains))
     fitted = fit_all(chains, shape)
     fitted = [fitted[i] for i in longest([f[1] for f in fitted], limits.max_fits)]

@@ -42,7 +42,8 @@ class WorkLimits:
     None here.
 
     ``max_pixels`` (px): larger images are downscaled by the smallest integer factor that
-    brings them within it. ``max_chains``: edge chains kept, longest first. ``max_fits``:
+    brings them within it. ``max_chains``: connected edge pieces linked and edge chains kept,
+    longest first. ``max_fits``:
     segment fits passed to the merge, longest arcs first. ``max_ellipses``: merged ellipses
     passed to the refit and the top rule, best-supported first. ``max_arcs``: arcs the
     last-resort arc pairs are drawn from, longest first. ``max_refits``: ellipses the top
