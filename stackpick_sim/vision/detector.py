@@ -357,17 +357,14 @@ class TopObjectDetector:
         clock.lap("fitting")
         merged = merge_segments(chains, [(i, f[2]) for i, f in enumerate(found)], edges,
                                 [f[3] for f in found])
-        if len(merged) > limits.max_ellipses:
-            best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))
-            merged = [merged[i] for i in sorted(best[:limits.max_ellipses])]
+        merged = _best_supported(merged, limits.max_ellipses)
         clock.lap("merging")
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)
         merged = [MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                                 support=m.support) for m, e in zip(merged, refined, strict=True)]
-        if gate is not None:
-            # After the refit: a fit on a few short arcs can be far smaller than its face.
-            merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
+        # After the refit: a fit on a few short arcs can be far smaller than its face.
+        merged = _within_gate(merged, gate)
         clock.lap("refine")
         return _Found(roi=roi, work=work, crop=crop, grad=grad, segments=segments,
                       pieces=pieces, fitted={c for c, _, _, _ in found}, chains=chains,
@@ -526,6 +523,23 @@ class _OutOfTime(Exception):
     def __init__(self, stage: str) -> None:
         super().__init__(stage)
         self.stage = stage
+
+
+def _best_supported(merged: list[MergedEllipse], cap: int) -> list[MergedEllipse]:
+    """The ``cap`` best-supported of ``merged`` (the earlier of equals), in their order."""
+    if len(merged) <= cap:
+        return merged
+    best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))
+    return [merged[i] for i in sorted(best[:cap])]
+
+
+def _within_gate(merged: list[MergedEllipse], gate: tuple[float, float] | None
+                 ) -> list[MergedEllipse]:
+    """Those of ``merged`` whose semi-major axis lies within the size ``gate`` (all without
+    one)."""
+    if gate is None:
+        return merged
+    return [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
 
 
 def _longest_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]], cap: int
