@@ -26,6 +26,7 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -c 'from stackpick_sim.vision.kernels import warm_up; warm_up()'
 	@touch $(STAMP)
 
 # One line naming the missing Debian packages if EGL rendering does not work.

@@ -1,4 +1,5 @@
-"""``stackpick detect IMAGE.png [--json] [--overlay OUT.png]``: top object and its pose."""
+"""``stackpick detect IMAGE.png [--scene S] [--set K=V] [--json] [--overlay OUT.png]``: top
+object and its pose."""
 
 from __future__ import annotations
 
@@ -10,18 +11,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.loader import available_scenes, load_scene
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics, check_fovy
+from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics, check_fovy, face_depth_range
 from stackpick_sim.image_io import read_image, write_image
 from stackpick_sim.overlay import detection_overlay
-from stackpick_sim.vision.detection import Detection
+from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.detector import (
     DEFAULT_FOVY_DEG,
     DEFAULT_RADII_M,
     DetectorConfig,
     detect,
+    object_kinds,
 )
 from stackpick_sim.vision.edges import as_rgb_or_gray
+from stackpick_sim.vision.ellipses import find_ellipses
+from stackpick_sim.vision.limits import WorkLimits
 
 
 def register(subparsers: Any) -> None:
@@ -33,15 +38,36 @@ def register(subparsers: Any) -> None:
     p.add_argument("--json", action="store_true", help="print machine-readable JSON")
     p.add_argument("--overlay", metavar="OUT.png", help="write the detections drawn on the image "
                    "(format from the extension: .png, .jpg, .bmp, .tif, .webp)")
-    p.add_argument("--fovy", type=float, default=DEFAULT_FOVY_DEG,
+    p.add_argument("--scene", metavar="NAME_OR_PATH",
+                   help="take the camera's field of view, the object kinds (radii, colours, "
+                   "heights), the top face's depth range at the look pose and the [vision] "
+                   f"limits from this scene ({', '.join(available_scenes())} or a .toml "
+                   "file); the options below override them")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="override a scene key (implies --scene paper "
+                   "when --scene is not given), e.g. --set vision.max_arcs=12")
+    p.add_argument("--fovy", type=float, default=None,
                    help="vertical field of view of a centred pinhole camera, deg, "
-                   f"{FOVY_RANGE_DEG[0]:g} to {FOVY_RANGE_DEG[1]:g} (default 45)")
-    p.add_argument("--radii", type=float, nargs="+", default=list(DEFAULT_RADII_M),
-                   metavar="M", help="candidate face radii, metres, "
-                   f"{RADIUS_RANGE_M[0]:g} to {RADIUS_RANGE_M[1]:g} (default 0.035 0.025)")
+                   f"{FOVY_RANGE_DEG[0]:g} to {FOVY_RANGE_DEG[1]:g} (default: the scene's, "
+                   f"else {DEFAULT_FOVY_DEG:g})")
+    p.add_argument("--radii", type=float, nargs="+", default=None, metavar="M",
+                   help=f"candidate face radii, metres, {RADIUS_RANGE_M[0]:g} to "
+                   f"{RADIUS_RANGE_M[1]:g} (default: the scene's kinds, else "
+                   f"{' '.join(f'{r:g}' for r in DEFAULT_RADII_M)})")
     p.add_argument("--depth-range", type=float, nargs=2, metavar=("MIN", "MAX"),
-                   help="expected depth of the top face, metres, "
-                   f"{DEPTH_RANGE_M[0]:g} to {DEPTH_RANGE_M[1]:g} (chooses the radius)")
+                   help=f"expected depth of the top face, metres, {DEPTH_RANGE_M[0]:g} to "
+                   f"{DEPTH_RANGE_M[1]:g} (chooses the radius; default: the scene's look "
+                   "pose, else none)")
+    p.add_argument("--ellipses-only", action="store_true",
+                   help="report the ellipses alone, each with its outline support (no top "
+                   "object, no pose): stackpick_sim.vision.find_ellipses")
+    p.add_argument("--min-axis", type=float, default=5.0, metavar="PX",
+                   help="with --ellipses-only: smallest semi-minor axis, px (default 5)")
+    p.add_argument("--max-axis", type=float, default=None, metavar="PX",
+                   help="with --ellipses-only: largest semi-major axis, px (default: none)")
+    p.add_argument("--min-support", type=float, default=0.6, metavar="SHARE",
+                   help="with --ellipses-only: smallest share of the outline with a "
+                   "consistent edge along it, 0-1 (default 0.6)")
     p.set_defaults(func=run)
 
 
@@ -54,11 +80,18 @@ DEPTH_RANGE_M = (0.01, 10.0)
 def _check_ranges(args: argparse.Namespace) -> None:
     """ConfigError naming the allowed range for a --fovy, --radii or --depth-range value
     outside it (before the image is read)."""
-    check_fovy(args.fovy)
+    if args.fovy is not None:
+        check_fovy(args.fovy)
     lo, hi = RADIUS_RANGE_M
-    for r in args.radii:
+    for r in args.radii or ():
         if not (math.isfinite(r) and lo <= r <= hi):
             raise ConfigError(f"--radii {r!r} is out of range; allowed: {lo:g} to {hi:g} m")
+    if not (math.isfinite(args.min_axis) and args.min_axis >= 0):
+        raise ConfigError(f"--min-axis {args.min_axis!r} is out of range; allowed: >= 0 px")
+    if args.max_axis is not None and not (math.isfinite(args.max_axis) and args.max_axis > 0):
+        raise ConfigError(f"--max-axis {args.max_axis!r} is out of range; allowed: > 0 px")
+    if not 0.0 <= args.min_support <= 1.0:
+        raise ConfigError(f"--min-support {args.min_support!r} is out of range; allowed: 0 to 1")
     if args.depth_range is not None:
         lo, hi = DEPTH_RANGE_M
         near, far = args.depth_range
@@ -75,14 +108,61 @@ def draw_overlay(image: NDArray, detection: Detection,
     return detection_overlay(as_rgb_or_gray(image), detection, intrinsics)
 
 
+def detector_config(args: argparse.Namespace, width: int, height: int) -> DetectorConfig:
+    """The detector's settings for a ``width`` x ``height`` image from ``--scene``/``--set``
+    (when given) and the explicit options, which take precedence."""
+    fovy, radii = DEFAULT_FOVY_DEG, DEFAULT_RADII_M
+    colours: tuple[tuple[float, float, float], ...] | None = None
+    heights: tuple[float, ...] | None = None
+    depth: tuple[float, float] | None = None
+    limits = WorkLimits()
+    if args.scene is not None or args.overrides:
+        scene = load_scene(args.scene or "paper", args.overrides)
+        fovy = scene.camera.fovy_deg
+        kinds = [(t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
+                 for name, t in scene.object_types.items() if name in scene.objects.types]
+        radii, colours, heights = object_kinds(kinds)
+        depth = face_depth_range(scene.camera.look_height, scene.objects.max_face_height)
+        limits = WorkLimits.of(scene.vision)
+    if args.radii is not None:  # other radii: the scene's colours and heights no longer apply
+        radii, colours, heights = tuple(args.radii), None, None
+    return DetectorConfig(
+        intrinsics=CameraIntrinsics.from_fovy(fovy if args.fovy is None else args.fovy,
+                                              width, height),
+        radii_m=radii, kind_colours=colours, heights_m=heights,
+        depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits)
+
+
+def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,
+                   args: argparse.Namespace) -> int:
+    """``--ellipses-only``: print the scored ellipses (text or JSON); exit 0."""
+    found = find_ellipses(image, min_axis_px=args.min_axis, max_axis_px=args.max_axis,
+                          min_support=args.min_support, limits=config.limits)
+    if args.overlay:
+        shown = Detection(ellipses=tuple(
+            DetectedEllipse(ellipse=s.ellipse, segments=(), residual_px=s.residual_px,
+                            support=s.support) for s in found))
+        write_image(args.overlay, draw_overlay(image, shown, None), order="bgr")
+    if args.json:
+        print(json.dumps(finite_json({"ellipses": [s.as_dict() for s in found]}), indent=2,
+                         allow_nan=False))
+        return 0
+    print(f"{len(found)} ellipses")
+    for i, s in enumerate(found):
+        e = s.ellipse
+        print(f"  [{i}] centre ({e.cx:.1f}, {e.cy:.1f}) axes {e.a:.1f} x {e.b:.1f} px "
+              f"angle {e.angle_deg:.1f} deg support {s.support:.2f}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the detector on one image; print text or JSON; exit 0 (also on a miss)."""
     _check_ranges(args)
     image = read_image(args.image)
     h, w = image.shape[:2]
-    config = DetectorConfig(intrinsics=CameraIntrinsics.from_fovy(args.fovy, w, h),
-                            radii_m=tuple(args.radii),
-                            depth_range_m=tuple(args.depth_range) if args.depth_range else None)
+    config = detector_config(args, w, h)
+    if args.ellipses_only:
+        return _ellipses_only(image, config, args)
     detection = detect(image, config)
     if args.overlay:
         write_image(args.overlay, draw_overlay(image, detection, config.intrinsics), order="bgr")

@@ -378,6 +378,47 @@ class SimCfg:
                  "1 to 10000")
 
 
+@dataclass(frozen=True, kw_only=True)
+class VisionCfg:
+    """The detector's bounds on its work (stackpick_sim/vision/limits.py): caps that keep the
+    cost of any image fixed. Deterministic, so seeded runs stay reproducible; the defaults lie
+    well above a pile frame's counts and change nothing on the project's scenes."""
+
+    max_pixels: int = 640 * 480
+    """Images with more pixels are detected on a copy downscaled by the smallest integer
+    factor within this, px; ellipses and pose are mapped back to the full image."""
+    max_chains: int = 200
+    """Connected edge pieces linked into chains, and chains kept, longest first (a pile's
+    region of interest has at most ~25 chains)."""
+    max_fits: int = 64
+    """Segment fits passed to the merge, longest arcs first (its cost grows with their
+    square)."""
+    max_ellipses: int = 48
+    """Merged ellipses passed to the refit and the top rule, best-supported first."""
+    max_arcs: int = 24
+    """Arcs the top rule's last-resort arc pairs are drawn from, longest first (24 arcs are
+    276 pairs)."""
+    max_refits: int = 8
+    """Ellipses the top rule's contrast retry refits, best-supported first."""
+    time_budget_ms: float = 0.0
+    """Wall-clock budget of one detection, ms; 0: none. When it runs out the detection is a
+    miss naming the stage. Depends on the machine's load: results under a budget are not
+    reproducible, so it is for real-time use, not for seeded runs."""
+
+    def __post_init__(self) -> None:
+        _require(MIN_VISION_PIXELS <= self.max_pixels <= 4096 * 4096, "vision.max_pixels",
+                 self.max_pixels, f"{MIN_VISION_PIXELS} to {4096 * 4096} px")
+        for key in ("max_chains", "max_fits", "max_ellipses", "max_arcs", "max_refits"):
+            value = getattr(self, key)
+            _require(1 <= value <= 100_000, f"vision.{key}", value, "1 to 100000")
+        _require(math.isfinite(self.time_budget_ms) and self.time_budget_ms >= 0,
+                 "vision.time_budget_ms", self.time_budget_ms, "0 (none) or a number > 0 ms")
+
+
+#: The fewest pixels vision.max_pixels may allow: a 64x48 image.
+MIN_VISION_PIXELS = 64 * 48
+
+
 #: Detectors an episode can use: the vision pipeline, or ground truth (isolates control).
 Detector = Literal["ours", "oracle"]
 DETECTORS: tuple[str, ...] = typing.get_args(Detector)
@@ -516,6 +557,7 @@ class SceneConfig:
     sim: SimCfg = field(default_factory=SimCfg)
     suction: SuctionCfg = field(default_factory=SuctionCfg)
     episode: EpisodeCfg = field(default_factory=EpisodeCfg)
+    vision: VisionCfg = field(default_factory=VisionCfg)
     randomize: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Domain randomisation: dotted scene key (``.N`` for a list's N-th element) -> [low,
     high], drawn per seed (stackpick_sim/sim/randomize.py); empty: nothing drawn."""

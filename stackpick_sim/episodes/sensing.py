@@ -31,6 +31,7 @@ from stackpick_sim.sim.cell import Cell, ObjectInfo
 from stackpick_sim.sim.ground_truth import top_face
 from stackpick_sim.vision import Detection, DetectorConfig, circle_poses, detect
 from stackpick_sim.vision.detector import object_kinds
+from stackpick_sim.vision.limits import WorkLimits
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.pose import CirclePose
 from stackpick_sim.vision.undistort import undistort
@@ -264,7 +265,8 @@ class Sensor:
         heights = tuple(tall[r] for r in radii) if all(r in tall for r in radii) else None
         return DetectorConfig(intrinsics=self._cell.intrinsics, radii_m=radii,
                               kind_colours=colours, heights_m=heights,
-                              depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)))
+                              depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)),
+                              limits=WorkLimits.of(cfg.vision))
 
 
 def ellipse_inside(e: Ellipse, k: CameraIntrinsics, margin_px: float = 0.0) -> bool:

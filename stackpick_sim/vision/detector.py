@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +55,15 @@ from stackpick_sim.vision.fitting import (
     fit_all,
     plausible,
     rms_residual,
+)
+from stackpick_sim.vision.limits import (
+    Deadline,
+    WorkLimits,
+    downscale_factor,
+    downscaled,
+    longest,
+    scaled_intrinsics,
+    upscaled,
 )
 from stackpick_sim.vision.merging import (
     MergedEllipse,
@@ -159,7 +168,8 @@ class DetectorConfig:
     for the top rule (the nearest wins) and the pose its radius. ``heights_m``: optional
     cylinder height (m) of the objects of each radius, parallel to ``radii_m``; with the
     colours it lets the top rule rebuild the candidates' cylinders and reject one another
-    rests on (:mod:`~stackpick_sim.vision.resting`).
+    rests on (:mod:`~stackpick_sim.vision.resting`). ``limits``: caps on the work done on any
+    image and an optional time budget (:class:`~stackpick_sim.vision.limits.WorkLimits`).
     """
 
     intrinsics: CameraIntrinsics | None = None
@@ -167,6 +177,7 @@ class DetectorConfig:
     depth_range_m: tuple[float, float] | None = None
     kind_colours: tuple[tuple[float, float, float], ...] | None = None
     heights_m: tuple[float, ...] | None = None
+    limits: WorkLimits = field(default_factory=WorkLimits)
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -194,6 +205,59 @@ class DetectorConfig:
         return dict(zip(self.radii_m, self.heights_m, strict=True)).get
 
 
+class _Clock:
+    """Stage times (ms, into ``timings``) and the time budget's checks."""
+
+    def __init__(self, t0: float, deadline: Deadline, timings: dict[str, float]) -> None:
+        self.t, self.deadline, self.timings = t0, deadline, timings
+
+    def lap(self, name: str) -> None:
+        """Record stage ``name`` as ending now; raise _OutOfTime past the deadline."""
+        now = time.perf_counter()
+        self.timings[name] = (now - self.t) * 1e3
+        self.t = now
+        self.check(name)
+
+    def check(self, name: str) -> None:
+        """Raise _OutOfTime (within stage ``name``) past the deadline."""
+        if self.deadline.expired():
+            raise _OutOfTime(name)
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Found:
+    """The ellipse stages' output, in the region of interest's pixels: ``roi`` and its
+    ``work`` crop of ``crop`` (H, W); edges and gradients ``grad``; the edge chains
+    ``segments``; the fitted ``pieces`` (and the chain indices ``fitted`` they came from);
+    ``chains``, the pieces then the segments; the refined ``merged`` ellipses within the size
+    ``gate``; the edge pixels ``points`` and their unit gradients ``grads``."""
+
+    roi: Roi
+    work: NDArray[np.uint8]
+    crop: tuple[int, int]
+    grad: EdgeImage
+    segments: tuple[NDArray[np.int32], ...]
+    pieces: list[NDArray[np.int32]]
+    fitted: set[int]
+    chains: tuple[NDArray[np.int32], ...]
+    merged: list[MergedEllipse]
+    points: NDArray[np.float64]
+    grads: NDArray[np.float64]
+    gate: tuple[float, float] | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Cues:
+    """What the top rule reads besides the ellipses (see :meth:`TopObjectDetector._cues`)."""
+
+    k_crop: CameraIntrinsics
+    rgb: NDArray[np.uint8] | None
+    belt: NDArray[np.float64] | None
+    colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
+    radius_of: Callable[[Ellipse], float | None] | None
+    height_of: Callable[[float], float | None] | None
+
+
 class TopObjectDetector:
     """Finds the top cylinder's face and pose in one image; see :func:`detect`."""
 
@@ -217,129 +281,210 @@ class TopObjectDetector:
         return lo, hi
 
     def detect(self, image: NDArray) -> Detection:
-        """Detect ellipses, the top object and its pose in an (H, W[, C]) image."""
+        """Detect ellipses, the top object and its pose in an (H, W[, C]) image.
+
+        Images of more than ``limits.max_pixels`` are detected on a :func:`~stackpick_sim.
+        vision.limits.downscaled` copy, and the ellipses, chains and pose's pixel centre
+        mapped back to the full image."""
         t0 = time.perf_counter()
         img = undistort(as_rgb_or_gray(image), self.config.intrinsics)
         shape = (int(img.shape[0]), int(img.shape[1]))
         if min(shape) < MIN_SIDE_PX:
             return Detection(reason=f"image {shape[1]}x{shape[0]} smaller than "
                              f"{MIN_SIDE_PX} px a side")
+        deadline = Deadline(t0, self.config.limits.time_budget_ms)
+        factor = downscale_factor(shape, self.config.limits.max_pixels)
+        if factor == 1:
+            return self._detect(img, t0, deadline)
+        small = downscaled(img, factor)
+        if min(small.shape[:2]) < MIN_SIDE_PX:
+            return Detection(reason=f"image {shape[1]}x{shape[0]} downscaled by {factor} "
+                             f"is smaller than {MIN_SIDE_PX} px a side")
+        config = replace(self.config, intrinsics=scaled_intrinsics(self._intrinsics(shape),
+                                                                   factor))
+        found = TopObjectDetector(config)._detect(small, t0, deadline)
+        return _upscaled_detection(found, factor)
+
+    def _detect(self, img: NDArray[np.uint8], t0: float, deadline: Deadline) -> Detection:
+        """:meth:`detect` of a validated image within the pixel limit."""
         timings: dict[str, float] = {}
+        try:
+            return self._stages(img, t0, deadline, timings)
+        except _OutOfTime as out:
+            timings["total"] = (time.perf_counter() - t0) * 1e3
+            return Detection(timings_ms=timings,
+                             reason=f"time budget of {deadline.budget_ms:g} ms ran out after "
+                                    f"the {out.stage} stage")
 
-        def lap(name: str, start: float) -> float:
-            now = time.perf_counter()
-            timings[name] = (now - start) * 1e3
-            return now
+    def _stages(self, img: NDArray[np.uint8], t0: float, deadline: Deadline,
+                timings: dict[str, float]) -> Detection:
+        """The stages of :meth:`detect` in order (roi, edges, segments, fitting, merging,
+        refine: :meth:`_ellipse_stages`; top: :meth:`_top_stage`; pose:
+        :meth:`_pose_stage`), each timed into ``timings``; raises _OutOfTime after a stage
+        that ends past the ``deadline``."""
+        clock = _Clock(t0, deadline, timings)
+        shape = (int(img.shape[0]), int(img.shape[1]))
+        k = self._intrinsics(shape)
+        found = self._ellipse_stages(img, self._axis_range(k), clock)
+        cues = self._cues(found, k)
+        merged, choice = self._top_stage(found, cues, clock)
+        detection = self._pose_stage(found, merged, choice, img, k, cues, timings)
+        clock.lap("pose")
+        timings["total"] = (clock.t - t0) * 1e3
+        return detection
 
+    def _ellipse_stages(self, img: NDArray[np.uint8], gate: tuple[float, float] | None,
+                        clock: _Clock) -> _Found:
+        """roi, edges, segments, fitting, merging and refine (each within its cap of
+        ``limits``; after the refit, ellipses outside the size ``gate`` are dropped)."""
+        limits = self.config.limits
         roi = find_roi(img)
         work = np.ascontiguousarray(roi.crop(img))
         if min(work.shape[:2]) < MIN_SIDE_PX:
-            roi, work = Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), img
+            roi, work = Roi(u0=0, v0=0, u1=int(img.shape[1]), v1=int(img.shape[0])), img
         crop = (int(work.shape[0]), int(work.shape[1]))
-        t = lap("roi", t0)
+        clock.lap("roi")
         grad = edge_image(work)
         edges = grad.edges
-        t = lap("edges", t)
-        segs = link_segments(edges)
-        t = lap("segments", t)
-        pieces: list[NDArray[np.int32]] = []
-        fits: list[tuple[int, Ellipse]] = []
-        residuals: list[float] = []
-        fitted: set[int] = set()
-        for c, points, ellipse, residual in fit_all(segs.chains, crop):
-            fits.append((len(pieces), ellipse))
-            residuals.append(residual)
-            pieces.append(points)
-            fitted.add(c)
-        chains = tuple(pieces) + segs.chains
-        t = lap("fitting", t)
-        merged = merge_segments(chains, fits, edges, residuals)
-        t = lap("merging", t)
+        clock.lap("edges")
+        segments = link_segments(edges, limits.max_chains).chains
+        if len(segments) > limits.max_chains:
+            segments = tuple(segments[i] for i in longest(segments, limits.max_chains))
+        clock.lap("segments")
+        found = fit_all(segments, crop)
+        found = [found[i] for i in longest([f[1] for f in found], limits.max_fits)]
+        pieces = [points for _, points, _, _ in found]
+        chains = tuple(pieces) + segments
+        clock.lap("fitting")
+        merged = merge_segments(chains, [(i, f[2]) for i, f in enumerate(found)], edges,
+                                [f[3] for f in found])
+        merged = _best_supported(merged, limits.max_ellipses)
+        clock.lap("merging")
         points, grads = edge_points(grad)
         refined = refine_all([m.ellipse for m in merged], points, grads, crop)
         merged = [MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                                 support=m.support) for m, e in zip(merged, refined, strict=True)]
-        k = self._intrinsics(shape)
-        gate = self._axis_range(k)
-        if gate is not None:
-            # After the refit: a fit on a few short arcs can be far smaller than its face.
-            merged = [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
-        t = lap("refine", t)
-        du, dv = roi.offset
+        # After the refit: a fit on a few short arcs can be far smaller than its face.
+        merged = _within_gate(merged, gate)
+        clock.lap("refine")
+        return _Found(roi=roi, work=work, crop=crop, grad=grad, segments=segments,
+                      pieces=pieces, fitted={c for c, _, _, _ in found}, chains=chains,
+                      merged=merged, points=points, grads=grads, gate=gate)
+
+    def _cues(self, found: _Found, k: CameraIntrinsics) -> _Cues:
+        """What the top rule reads besides the ellipses: the crop's intrinsics, colours,
+        the belt's colour and the radius and height of each candidate's kind."""
+        du, dv = found.roi.offset
         # Built directly: dataclasses.replace costs several times the constructor.
         k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
                                   height=k.height)
+        work = found.work
         rgb = work if work.ndim == 3 else None
-        belt = None if roi.belt is None else np.array(roi.belt)
         # Each candidate's face colour once, for its radius and the rest test's wall bands.
         colour_of = None if rgb is None else face_colours(rgb)
         radius_of = (None if self.config.kind_colours is None else
                      radius_by_colour(work, self.config.radii_m, self.config.kind_colours,
                                       colour_of))
-        height_of = self.config.height_of()
-        choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                            edge_points=points, image=rgb, height_of=height_of,
-                            colour_of=colour_of, belt=belt)
-        if (choice.index is not None and radius_of is not None and height_of is not None
-                and rgb is not None):
+        return _Cues(k_crop=k_crop, rgb=rgb,
+                     belt=None if found.roi.belt is None else np.array(found.roi.belt),
+                     colour_of=colour_of, radius_of=radius_of,
+                     height_of=self.config.height_of())
+
+    def _select(self, ellipses: list[Ellipse], found: _Found, cues: _Cues) -> TopChoice:
+        """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every
+        cue."""
+        return select_top(ellipses, found.grad, cues.k_crop, cues.radius_of,
+                          edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
+                          colour_of=cues.colour_of, belt=cues.belt)
+
+    def _top_stage(self, found: _Found, cues: _Cues, clock: _Clock
+                   ) -> tuple[list[MergedEllipse], TopChoice]:
+        """The top rule, then, when it chose a face, the rest test's correction, and when
+        it chose none, its fallbacks (:meth:`_fallbacks`)."""
+        merged = found.merged
+        choice = self._select([m.ellipse for m in merged], found, cues)
+        if (choice.index is not None and cues.radius_of is not None
+                and cues.height_of is not None and cues.rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
-            # same-colour sliver beyond it (development frames 1769 of ds_paper_h1k, 2241 of
-            # ds_paper_h2k, 857 of ds_paper_dev4).
-            above = select_resting_rimmed([m.ellipse for m in merged], choice, grad, points,
-                                          k_crop, radius_of, height_of, rgb, belt)
+            # same-colour sliver beyond it.
+            above = select_resting_rimmed([m.ellipse for m in merged], choice, found.grad,
+                                          found.points, cues.k_crop, cues.radius_of,
+                                          cues.height_of, cues.rgb, cues.belt)
             if above is not None:
                 choice = replace(choice, index=above)
+        if choice.index is None:
+            merged, choice = self._fallbacks(found, merged, choice, cues, clock)
+        clock.lap("top")
+        return merged, choice
+
+    def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                   cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
+        """When no ellipse passed the top rule, in order, until one gives a face: the
+        unobstructed face, the contrast retry (and a clearly nearer face of arc pairs beside
+        its choice), a face with its own rim inside, arc pairs of the fitted pieces, the
+        retry's spare refit, arc pairs of every arc (see the module docstring)."""
+        limits, crop, gate, grad = self.config.limits, found.crop, found.gate, found.grad
+        edge_pixels = (found.points, found.grads)
         spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
-        if choice.index is None:
-            # Before the contrast retry: a refit of a lower face can shrink past the outline
-            # crossing it and pass (development seed 292).
-            fallback = select_unobstructed(choice.evidence)
-            if fallback is not None:
-                choice = replace(choice, index=fallback, reason="")
-        if choice.index is None:
-            # Only then: a refit that passes next to a passing face is more often a lower,
-            # nearly whole face than the top (development seeds 31, 176).
-            merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
-                                                        gate)
-            if retried:
-                choice = select_top([m.ellipse for m in merged], grad, k_crop, radius_of,
-                                    edge_points=points, image=rgb, height_of=height_of,
-                                    colour_of=colour_of, belt=belt)
-            if retried and choice.index is not None and radius_of is not None:
-                # A face clearly nearer than such a refit is above it (development frame 3791
-                # of ds_paper_h3k: a top face the merge never fitted beside a lower, nearly
-                # whole face of its colour).
-                arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
-                merged, choice = _nearer_arc_face(merged, choice, arcs, chains, arc_chains, grad,
-                                                  (points, grads), crop, gate, k_crop, radius_of)
+        # Before the contrast retry: a refit of a lower face can shrink past the outline
+        # crossing it and pass.
+        fallback = select_unobstructed(choice.evidence)
+        if fallback is not None:
+            return merged, replace(choice, index=fallback, reason="")
+        clock.check("top")
+        # Only then: a refit that passes next to a passing face is more often a lower,
+        # nearly whole face than the top.
+        merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
+                                                    gate, limits.max_refits)
+        if retried:
+            choice = self._select([m.ellipse for m in merged], found, cues)
+        if retried and choice.index is not None and cues.radius_of is not None:
+            # A face clearly nearer than such a refit is above it (a top face the merge never
+            # fitted beside a lower, nearly whole face of its colour).
+            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+            return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
+                                    edge_pixels, crop, gate, cues.k_crop, cues.radius_of)
         if choice.index is None:
             # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
-            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, points)
+            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
             if rimmed is not None:
-                choice = replace(choice, index=rimmed, reason="")
-        if choice.index is None:
+                return merged, replace(choice, index=rimmed, reason="")
             # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
-            merged, choice = _regroup_arcs(merged, choice, range(len(pieces)), chains, grad,
-                                           (points, grads), crop, gate)
+            clock.check("top")
+            merged, choice = _regroup_arcs(
+                merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
+                                              limits.max_arcs),
+                found.chains, grad, edge_pixels, crop, gate)
         if choice.index is None and spare is not None:
             # The very last: a contrast refit with no T-junction and no edge inside, most of
-            # its outline showing (select_unobstructed's evidence; development frame 820 of
-            # ds_paper_dev4: a top face over a lower face of its colour, fitted with part of
-            # that one's outline, refits onto its own faint boundary).
+            # its outline showing (select_unobstructed's evidence: a top face over a lower
+            # face of its colour, fitted with part of that one's outline, refits onto its own
+            # faint boundary).
             i, refit, refit_evidence = spare
             merged[i] = replace(merged[i], ellipse=refit)
-            choice = TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
-                                                  *choice.evidence[i + 1:]))
+            return merged, TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
+                                                        *choice.evidence[i + 1:]))
         if choice.index is None:
             # After all: pairs that take in the chains no fit was kept for and the parts of
-            # chains cut at junctions too (see regroup; development frames 3504, 3886 of
-            # ds_paper_h3k, 1374, 1438 of ds_paper_h1k), else the one with nothing crossing
-            # it (3032: its boundary with a lower face of its colour shows no contrast), else
-            # one with its own rim inside. Last, as the least constrained.
-            arc_chains, arcs = last_resort_arcs(pieces, segs.chains, fitted)
-            merged, choice = _regroup_arcs(merged, choice, arcs, chains, grad, (points, grads),
-                                           crop, gate, unobstructed=True, arc_chains=arc_chains)
-        t = lap("top", t)
+            # chains cut at junctions too (see regroup), else the one with nothing crossing
+            # it (its boundary with a lower face of its colour shows no contrast), else one
+            # with its own rim inside. Last, as the least constrained.
+            clock.check("top")
+            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+            merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
+                                           edge_pixels, crop, gate, unobstructed=True,
+                                           arc_chains=arc_chains)
+        return merged, choice
+
+    def _pose_stage(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                    img: NDArray[np.uint8], k: CameraIntrinsics, cues: _Cues,
+                    timings: dict[str, float]) -> Detection:
+        """The reported ellipses (distinct, supported, in frame pixels) and the top face's
+        final fit and pose (``timings``: the stage times, shared with the caller, which
+        adds this stage's)."""
+        du, dv = found.roi.offset
         keep = _distinct([i for i, ev in enumerate(choice.evidence)
                           if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
                          [m.ellipse for m in merged], choice)
@@ -348,30 +493,75 @@ class TopObjectDetector:
                             segments=merged[i].segments, residual_px=merged[i].residual_px,
                             support=merged[i].support, evidence=choice.evidence[i])
             for i in keep)
-        offset = np.array([du, dv], np.int32)
-        frame_chains = chains if du == dv == 0 else _shifted(chains, offset)
-        top = None if choice.index is None else keep.index(choice.index)
-        pose = None
-        if choice.index is not None:
-            top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, points, grads,
-                                          crop)
-            top_ellipse = _profile_refit(top_ellipse, work, grad)
-            # The face's colour once, for its radius and the pose's wall test (the same pixels
-            # in the crop and in the frame while the face's interior lies in the crop).
-            face = face_colour(top_ellipse, work) if work.ndim == 3 else None
-            colours = self.config.kind_colours
-            radius = (None if colours is None or face is None
-                      else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
-            pose = estimate_pose(_moved(top_ellipse, du, dv), k,
-                                 self.config.radii_m if radius is None else (radius,), None,
-                                 self.config.depth_range_m,
-                                 image=img if img.ndim == 3 else None, face_rgb=face,
-                                 belt=belt)
-        detection = Detection(ellipses=ellipses, segments=frame_chains, top=top, pose=pose,
-                              timings_ms=timings, reason=choice.reason)
-        t = lap("pose", t)
-        timings["total"] = (t - t0) * 1e3
-        return detection
+        chains = found.chains
+        frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv],
+                                                                               np.int32))
+        if choice.index is None:
+            return Detection(ellipses=ellipses, segments=frame_chains, timings_ms=timings,
+                             reason=choice.reason)
+        work, grad = found.work, found.grad
+        top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, found.points,
+                                      found.grads, found.crop)
+        top_ellipse = _profile_refit(top_ellipse, work, grad)
+        # The face's colour once, for its radius and the pose's wall test (the same pixels
+        # in the crop and in the frame while the face's interior lies in the crop).
+        face = face_colour(top_ellipse, work) if work.ndim == 3 else None
+        colours = self.config.kind_colours
+        radius = (None if colours is None or face is None
+                  else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
+        pose = estimate_pose(_moved(top_ellipse, du, dv), k,
+                             self.config.radii_m if radius is None else (radius,), None,
+                             self.config.depth_range_m,
+                             image=img if img.ndim == 3 else None, face_rgb=face,
+                             belt=cues.belt)
+        return Detection(ellipses=ellipses, segments=frame_chains, top=keep.index(choice.index),
+                         pose=pose, timings_ms=timings, reason=choice.reason)
+
+
+class _OutOfTime(Exception):
+    """The time budget ran out after (or within) ``stage``."""
+
+    def __init__(self, stage: str) -> None:
+        super().__init__(stage)
+        self.stage = stage
+
+
+def _best_supported(merged: list[MergedEllipse], cap: int) -> list[MergedEllipse]:
+    """The ``cap`` best-supported of ``merged`` (the earlier of equals), in their order."""
+    if len(merged) <= cap:
+        return merged
+    best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))
+    return [merged[i] for i in sorted(best[:cap])]
+
+
+def _within_gate(merged: list[MergedEllipse], gate: tuple[float, float] | None
+                 ) -> list[MergedEllipse]:
+    """Those of ``merged`` whose semi-major axis lies within the size ``gate`` (all without
+    one)."""
+    if gate is None:
+        return merged
+    return [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
+
+
+def _longest_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]], cap: int
+                  ) -> list[int]:
+    """The ``cap`` longest of the ``arcs`` (indices into ``chains``), in their order."""
+    arcs = list(arcs)
+    return [arcs[i] for i in longest([chains[a] for a in arcs], cap)]
+
+
+def _upscaled_detection(found: Detection, factor: int) -> Detection:
+    """A detection on the image downscaled by ``factor`` in the full image's pixels: ellipses
+    and the pose's pixel centre mapped back (:func:`~stackpick_sim.vision.limits.upscaled`),
+    chains' pixels to the full-image pixel nearest each block's centre."""
+    shift = (factor - 1) // 2
+    ellipses = tuple(replace(e, ellipse=upscaled(e.ellipse, factor)) for e in found.ellipses)
+    segments = tuple((c * factor + shift).astype(np.int32) for c in found.segments)
+    pose = found.pose
+    if pose is not None:
+        half = (factor - 1) / 2.0
+        pose = replace(pose, x=pose.x * factor + half, y=pose.y * factor + half)
+    return replace(found, ellipses=ellipses, segments=segments, pose=pose)
 
 
 def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]]
@@ -468,18 +658,23 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
-                       gate: tuple[float, float] | None = None
+                       gate: tuple[float, float] | None = None, max_refits: int = 8
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
     support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
-    consistent edge; keep a refit where it passes the rule. Returns the ellipses, whether
-    any changed, and, when none passed, the refit :func:`~stackpick_sim.vision.occlusion.
-    select_unobstructed` takes among those within the size ``gate`` ((min, max) semi-major
-    axis, px, or None) as (index of the ellipse it refits, refit, its evidence), else None."""
+    consistent edge (at most ``max_refits`` ellipses, the best-supported: each refit reads
+    profiles along its whole outline); keep a refit where it passes the rule. Returns the
+    ellipses, whether any changed, and, when none passed, the refit
+    :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
+    size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
+    refits, refit, its evidence), else None."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
+    if len(todo) > max_refits:  # the best-supported, in their order
+        best = sorted(todo, key=lambda i: (-evidence[i].support, i))[:max_refits]
+        todo = sorted(best)
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
              and plausible(r, shape)]

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 
 #: Segments shorter than this (px) are not fitted: a few pixels of arc do not fix 5 parameters.
 MIN_FIT_PX = 10
@@ -146,9 +147,10 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
     ``np.nonzero`` order, without the (E, N) matrix."""
     p = np.asarray(points, np.float64)
     pu, pv = p[:, 0], p[:, 1]
-    reach = params[:, 2:3] + tol_px + 1.0
-    e, n = np.nonzero((np.abs(pu - params[:, 0:1]) <= reach)
-                      & (np.abs(pv - params[:, 1:2]) <= reach))
+    reach = params[:, 2] + tol_px + 1.0
+    e, n = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv),
+                             np.ascontiguousarray(params[:, 0]),
+                             np.ascontiguousarray(params[:, 1]), reach)
     # The pairs run ellipse by ellipse: each ellipse's parameters repeated, not gathered.
     d = grouped_distances(params, np.bincount(e, minlength=params.shape[0]), pu[n], pv[n])
     close = (d < tol_px).nonzero()[0]
@@ -172,36 +174,14 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
                       pu: NDArray[np.float64], pv: NDArray[np.float64]) -> NDArray[np.float64]:
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
-    ``counts[1]`` to ellipse 1, ... (the same values; one repeat instead of six gathers)."""
+    ``counts[1]`` to ellipse 1, ... (the same values, in one compiled loop)."""
     rows = np.empty((6, params.shape[0]))
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    cx, cy, a, b, c, s = rows.repeat(counts, axis=1)
-    # :func:`distances` term by term, each written into a fresh or spent array (the same
-    # values, fewer allocations).
-    du, dv = pu - cx, pv - cy
-    x = c * du
-    x += s * dv
-    x /= a
-    y = c * dv
-    y -= s * du  # the same value as -s du + c dv, term for term
-    y /= b
-    grad = x / a
-    grad *= grad
-    yb = y / b
-    yb *= yb
-    grad += yb
-    np.sqrt(grad, out=grad)
-    grad *= 2.0
-    grad += 1e-12
-    x *= x
-    y *= y
-    x += y
-    x -= 1.0
-    np.abs(x, out=x)
-    x /= grad
-    return x
+    return kernels.grouped_distances(rows, np.asarray(counts, np.int64),
+                                     np.ascontiguousarray(pu, np.float64),
+                                     np.ascontiguousarray(pv, np.float64))
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
@@ -52,23 +53,8 @@ def _bilinear_pair(gx: NDArray[np.int16], gy: NDArray[np.int16], pts: NDArray[np
 def _bilinear_uv(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np.float64],
                  v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`_bilinear_pair` at points given as (N,) columns ``u``, ``v``."""
-    h, w = gx.shape
-    # min(max()): np.clip's Python wrapper costs more than the two ufuncs here.
-    u = np.minimum(np.maximum(u, 0.0), w - 1.001)
-    v = np.minimum(np.maximum(v, 0.0), h - 1.001)
-    u0, v0 = u.astype(np.int64), v.astype(np.int64)
-    fu, fv = u - u0, v - v0
-    i00 = v0 * w + u0
-    i01 = i00 + w
-    gu, gv = 1 - fu, 1 - fv
-    w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
-    out = []
-    for img in (gx, gy):
-        flat = img.ravel()
-        # The four corners summed in this order, as a sum over a stacked axis would.
-        out.append(flat[i00] * w00 + flat[i00 + 1] * w10 + flat[i01] * w01
-                   + flat[i01 + 1] * w11)
-    return out[0], out[1]
+    return kernels.bilinear_uv(gx, gy, np.ascontiguousarray(u, np.float64),
+                               np.ascontiguousarray(v, np.float64))
 
 
 def subpixel(image: EdgeImage, pts: NDArray[np.float64], dirs: NDArray[np.float64]
@@ -87,15 +73,11 @@ def _subpixel_columns(image: EdgeImage, u: NDArray[np.float64], v: NDArray[np.fl
                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`subpixel` of points and directions given as (N,) columns; the moved points'
     columns."""
-    steps = np.array([-1.0, 0.0, 1.0])[:, None]
-    qu = (u + steps * gu).ravel()
-    qv = (v + steps * gv).ravel()
-    before, centre, after = np.hypot(*_bilinear_uv(image.gx, image.gy, qu, qv)).reshape(3, -1)
-    curvature = before - 2.0 * centre + after
-    ok = curvature < -1e-9
-    shift = np.where(ok, 0.5 * (before - after) / np.where(ok, curvature, -1.0), 0.0)
-    shift = np.minimum(np.maximum(shift, -MAX_SHIFT_PX), MAX_SHIFT_PX)
-    return u + shift * gu, v + shift * gv
+    def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.ascontiguousarray(c, np.float64)
+
+    return kernels.subpixel_columns(image.gx, image.gy, col(u), col(v), col(gu), col(gv),
+                                    MAX_SHIFT_PX)
 
 
 def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
@@ -219,11 +201,11 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     if not current or points.shape[0] == 0:
         return current
     n = len(current)
-    a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T
+    a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
     reach = a + TOLERANCES_PX[0] + 1
     pu, pv = points[:, 0], points[:, 1]
-    pe, pm = np.nonzero((np.abs(pu - cx[:, None]) <= reach[:, None])
-                        & (np.abs(pv - cy[:, None]) <= reach[:, None]))
+    pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
+                               reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
     counts = np.bincount(pe, minlength=n)
     # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
@@ -267,10 +249,10 @@ def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
     gu, gv), each (K,): pixel and unit gradient. The pairs run ellipse by ellipse: the first
     ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its
     :func:`_form` repeated per pair)."""
-    cx, cy, fa, fh, fb = np.array([_form(e) for e in ellipses], np.float64).T.repeat(
-        counts, axis=1)
-    u, v, gu, gv = cols
-    return _along_test(cx, cy, fa, fh, fb, u, v, gu, gv, tol_px)
+    forms = np.array([_form(e) for e in ellipses], np.float64).reshape(-1, 5)
+    u, v, gu, gv = (np.ascontiguousarray(c) for c in cols)
+    return kernels.along_grouped(forms, np.asarray(counts, np.int64), u, v, gu, gv,
+                                 4.0 * tol_px * tol_px, MIN_NORMAL_COS * MIN_NORMAL_COS)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     ellipse_distances,
@@ -153,17 +154,18 @@ def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray
     it, the faint boundary between them ending near the point where the two outlines meet;
     cut there, the face's arc is a piece of its own (development frames 1374 and 1438 of
     ds_paper_h1k: the top face's outline and the sliver of the face under it in one chain)."""
-    ends = np.array([p for c in chains for p in (c[0], c[-1])], np.float64).reshape(-1, 2)
-    end_owner = np.repeat(np.arange(len(chains)), 2)
+    if not chains:
+        return []
+    pixels = np.ascontiguousarray(np.concatenate(chains), np.int32)
+    starts = np.zeros(len(chains) + 1, np.int64)
+    np.cumsum([c.shape[0] for c in chains], out=starts[1:])
+    at = np.flatnonzero(kernels.junction_cuts(pixels, starts, SPLIT_REACH_PX ** 2)).tolist()
     out = []
-    for k, c in enumerate(chains):
-        others = ends[end_owner != k]
-        if c.shape[0] < 3 or others.shape[0] == 0:
-            out.append([c])
-            continue
-        d2 = ((c[:, None, :] - others[None, :, :]) ** 2).sum(axis=2)
-        nearest = d2.argmin(axis=0)
-        near = d2[nearest, np.arange(others.shape[0])] <= SPLIT_REACH_PX ** 2
-        cuts = sorted({int(i) for i in nearest[near] if 0 < i < c.shape[0] - 1})
+    k = 0
+    for c, start in zip(chains, starts.tolist(), strict=False):
+        cuts = []
+        while k < len(at) and at[k] < start + c.shape[0]:
+            cuts.append(at[k] - start)
+            k += 1
         out.append([c[a:b] for a, b in zip([0, *cuts], [*cuts, c.shape[0]], strict=True)])
     return out

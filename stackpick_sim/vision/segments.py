@@ -167,8 +167,10 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     return [chain[i:j] for i, j in itertools.pairwise(bounds) if j > i]
 
 
-def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
-    """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments."""
+def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None) -> EdgeSegments:
+    """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments; with
+    ``max_contours``, only the longest that many connected pieces (in their order) are
+    ordered and split (the cost of this stage is a Python pass per piece)."""
     # Junctions, cut out: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel
     # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
     box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
@@ -188,6 +190,9 @@ def link_segments(edges: NDArray[np.uint8]) -> EdgeSegments:
             if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
     if not kept:
         return EdgeSegments(chains=(), edges=edges)
+    if max_contours is not None and len(kept) > max_contours:
+        longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
+        kept = [kept[i] for i in sorted(longest[:max_contours])]
     # The end-point test of all contour pixels at once (each is a kept pixel: only its 3x3
     # sum is read), then each contour's share of it.
     every = np.concatenate(kept)

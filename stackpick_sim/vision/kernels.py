@@ -1,0 +1,221 @@
+"""Compiled per-pixel and per-pair loops of the ellipse stages (numba).
+
+Each kernel computes, element by element, the same IEEE operations in the same order as the
+numpy expression it stands for (no fast-math: no reassociation, no fused multiply-add), so
+its results are bit-identical to the array version; what it saves is numpy's cost per call
+and its temporaries on the few hundred to few thousand elements of a frame, and the
+(ellipse, pixel) matrices the array versions build (their memory grows with ellipses x edge
+pixels).
+
+Compilation happens on a kernel's first call and is cached on disk (``cache=True``) beside
+this module, or where ``NUMBA_CACHE_DIR`` points: a fresh process with a warm cache loads
+each kernel in about a millisecond. numba writes each cache file to a temporary name and
+renames it into place, so workers compiling at the same time do not corrupt it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _compiled(fn: _F) -> _F:
+    """``fn`` compiled by numba on its first call (cached on disk), with its own signature
+    for the type checker."""
+    return cast("_F", njit(cache=True, nogil=True)(fn))
+
+
+
+@_compiled
+def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
+              cy: NDArray[np.float64], reach: NDArray[np.float64]
+              ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover - compiled
+    """(ellipse, point) index pairs with |pu - cx| <= reach and |pv - cy| <= reach, in
+    ``np.nonzero`` order of the (E, N) test matrix (ellipse by ellipse, points ascending),
+    without the matrix."""
+    n_e, n_p = cx.shape[0], pu.shape[0]
+    count = 0
+    for e in range(n_e):
+        x, y, r = cx[e], cy[e], reach[e]
+        for m in range(n_p):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                count += 1
+    pe = np.empty(count, np.int64)
+    pm = np.empty(count, np.int64)
+    k = 0
+    for e in range(n_e):
+        x, y, r = cx[e], cy[e], reach[e]
+        for m in range(n_p):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                pe[k] = e
+                pm[k] = m
+                k += 1
+    return pe, pm
+
+
+@_compiled
+def grouped_distances(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                      pu: NDArray[np.float64], pv: NDArray[np.float64]
+                      ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Sampson distances of points (pu, pv) that run ellipse by ellipse (``counts[e]`` of
+    them to column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and sine, those
+    two computed by numpy's own cos and sin); see
+    :func:`~stackpick_sim.vision.fitting.grouped_distances`."""
+    out = np.empty(pu.shape[0])
+    k = 0
+    for e in range(rows.shape[1]):
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        for _ in range(counts[e]):
+            du, dv = pu[k] - cx, pv[k] - cy
+            x = (c * du + s * dv) / a
+            y = (c * dv - s * du) / b
+            xa, yb = x / a, y / b
+            grad = 2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12
+            out[k] = abs(x * x + y * y - 1.0) / grad
+            k += 1
+    return out
+
+
+@_compiled
+def along_grouped(forms: NDArray[np.float64], counts: NDArray[np.int64],
+                  u: NDArray[np.float64], v: NDArray[np.float64], gu: NDArray[np.float64],
+                  gv: NDArray[np.float64], dist_sq: float, cos_sq: float
+                  ) -> NDArray[np.bool_]:  # pragma: no cover - compiled
+    """The along-the-outline test of pixels (u, v) with unit gradients (gu, gv) that run
+    ellipse by ellipse (``counts[e]`` against row e of (E, 5) ``forms`` (cx, cy, A, H, B));
+    ``dist_sq`` = 4 tol^2, ``cos_sq`` = the normal cone's cosine squared; see
+    :func:`~stackpick_sim.vision.refine._along_test`."""
+    out = np.empty(u.shape[0], np.bool_)
+    k = 0
+    for e in range(forms.shape[0]):
+        cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
+        for _ in range(counts[e]):
+            du = u[k] - cx
+            dv = v[k] - cy
+            nu = fa * du + fh * dv
+            nv = fb * dv + fh * du
+            f = du * nu + dv * nv - 1.0
+            n2 = nu * nu + nv * nv
+            dot = nu * gu[k] + nv * gv[k]
+            out[k] = f * f < dist_sq * n2 and dot * dot >= cos_sq * n2
+            k += 1
+    return out
+
+
+@_compiled
+def _bilinear(img: NDArray[np.int16], u0: np.int64, v0: np.int64, w00: float, w10: float,
+              w01: float, w11: float) -> float:  # pragma: no cover - compiled
+    """The four corners from (u0, v0) weighted, summed in the array version's order."""
+    return (img[v0, u0] * w00 + img[v0, u0 + 1] * w10 + img[v0 + 1, u0] * w01
+            + img[v0 + 1, u0 + 1] * w11)
+
+
+@_compiled
+def bilinear_uv(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np.float64],
+                v: NDArray[np.float64]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """Bilinear samples of two (H, W) images at points (u, v), clamped inside; see
+    :func:`~stackpick_sim.vision.refine._bilinear_uv`."""
+    h, w = gx.shape
+    ox, oy = np.empty(u.shape[0]), np.empty(u.shape[0])
+    for k in range(u.shape[0]):
+        uk = min(max(u[k], 0.0), w - 1.001)
+        vk = min(max(v[k], 0.0), h - 1.001)
+        u0, v0 = np.int64(uk), np.int64(vk)
+        fu, fv = uk - u0, vk - v0
+        gu, gv = 1 - fu, 1 - fv
+        w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
+        ox[k] = _bilinear(gx, u0, v0, w00, w10, w01, w11)
+        oy[k] = _bilinear(gy, u0, v0, w00, w10, w01, w11)
+    return ox, oy
+
+
+@_compiled
+def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np.float64],
+                     v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                     max_shift: float
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """Edge pixels (u, v) moved to the gradient-magnitude peak along their unit gradients
+    (gu, gv): a parabola through the bilinear magnitudes one pixel either side, the shift
+    clamped to ``max_shift``; see :func:`~stackpick_sim.vision.refine._subpixel_columns`."""
+    n = u.shape[0]
+    qu, qv = np.empty(3 * n), np.empty(3 * n)
+    for j in range(3):
+        step = j - 1.0
+        for k in range(n):
+            qu[j * n + k] = u[k] + step * gu[k]
+            qv[j * n + k] = v[k] + step * gv[k]
+    bx, by = bilinear_uv(gx, gy, qu, qv)
+    su, sv = np.empty(n), np.empty(n)
+    for k in range(n):
+        before = np.hypot(bx[k], by[k])
+        centre = np.hypot(bx[n + k], by[n + k])
+        after = np.hypot(bx[2 * n + k], by[2 * n + k])
+        curvature = before - 2.0 * centre + after
+        shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
+        shift = min(max(shift, -max_shift), max_shift)
+        su[k] = u[k] + shift * gu[k]
+        sv[k] = v[k] + shift * gv[k]
+    return su, sv
+
+
+@_compiled
+def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
+                  reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
+    """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
+    ``starts[k]:starts[k + 1]``): whether it is the pixel of its chain nearest (the first of
+    equals) to another chain's end point, within ``reach_sq`` (px^2), other than the chain's
+    own two end pixels; see :func:`~stackpick_sim.vision.regroup.split_at_junctions`. A chain
+    whose box grown by the reach misses an end is not scanned for it (its nearest pixel lies
+    farther)."""
+    n_chains = starts.shape[0] - 1
+    cut = np.zeros(pixels.shape[0], np.bool_)
+    reach = math.sqrt(reach_sq)
+    for k in range(n_chains):
+        lo, hi = starts[k], starts[k + 1]
+        if hi - lo < 3:
+            continue
+        u0, v0 = pixels[lo, 0], pixels[lo, 1]
+        u1, v1 = u0, v0
+        for i in range(lo, hi):
+            u0, u1 = min(u0, pixels[i, 0]), max(u1, pixels[i, 0])
+            v0, v1 = min(v0, pixels[i, 1]), max(v1, pixels[i, 1])
+        for other in range(n_chains):
+            if other == k:
+                continue
+            for end in (starts[other], starts[other + 1] - 1):
+                eu, ev = float(pixels[end, 0]), float(pixels[end, 1])
+                if (eu < u0 - reach or eu > u1 + reach or ev < v0 - reach
+                        or ev > v1 + reach):
+                    continue
+                best, at = np.inf, -1
+                for i in range(lo, hi):
+                    du, dv = pixels[i, 0] - eu, pixels[i, 1] - ev
+                    d2 = du * du + dv * dv
+                    if d2 < best:
+                        best, at = d2, i
+                if best <= reach_sq and lo < at < hi - 1:
+                    cut[at] = True
+    return cut
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) every kernel for the argument types the detector
+    passes, on tiny inputs: run once after installing, so that parallel workers start on a
+    warm cache instead of each compiling the same code."""
+    img = np.zeros((4, 4), np.int16)
+    col = np.zeros(1)
+    counts = np.ones(1, np.int64)
+    box_pairs(col, col, col, col, col)
+    grouped_distances(np.ones((6, 1)), counts, col, col)
+    along_grouped(np.ones((1, 5)), counts, col, col, col, col, 1.0, 1.0)
+    bilinear_uv(img, img, col, col)
+    subpixel_columns(img, img, col, col, col, col, 0.5)
+    junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
