@@ -280,11 +280,11 @@ def contrast_support(ellipse: Ellipse, image: EdgeImage,
 
 #: Search reach (px) either side of the outline for the contrast refit: a face fitted on a
 #: partial outline (same-colour neighbours leave only faint edges) is off by up to ~3 px
-#: there (development seeds 4, 36).
+#: there (measured on rendered paper-scene frames).
 REFIT_REACH_PX = 3
 #: Inward search reach (px) of the innermost-edge refit: a top face lying on a lower face of
 #: its own colour and about its size ends at a faint boundary up to a few px inside the lower
-#: face's strong silhouette (4-5 px on development seeds 202 and 339: a rim offset of 5 px is
+#: face's strong silhouette (4-5 px on rendered paper-scene frames: a rim offset of 5 px is
 #: ~1.5 mm at the paper scene's 0.3 m); the face's smooth inside holds no other edge.
 REFIT_INNER_REACH_PX = 6
 #: Contrast refit rounds (each re-centres the search on the previous fit).

@@ -107,7 +107,7 @@ DEFAULT_FOVY_DEG = 45.0
 #: Ellipses whose outline shows consistent edge contrast along less than this share are not
 #: reported (they are arcs of two outlines fitted together, or far rims): a real face at
 #: least half visible keeps about its visible share, and the scoring counts faces >= 50%
-#: visible. Placeholder from the development seeds 0-99, not tuned further.
+#: visible. Placeholder chosen on rendered paper-scene frames, not tuned further.
 MIN_REPORTED_SUPPORT = 0.6
 #: Size gate (with a depth range): a face of radius r at depth z images with a semi-major
 #: axis of at least f r / z px (perspective only enlarges it: up to 4% on the paper scene's
@@ -123,16 +123,17 @@ DUPLICATE_SHARE = 0.9
 #: Only ellipses whose centres and semi-axes each differ by at most this (px) are compared
 #: outline to outline (the cost of the comparison is in its array passes): two outlines
 #: within DUPLICATE_TOLERANCE_PX of each other along nearly all their length differ by about
-#: that much, twice it at most (measured on development seeds 0-399: the duplicates found
-#: differ by <= 1.3 px, and 89% of the compared pairs by more than this).
+#: that much, twice it at most (measured on 400 rendered paper-scene frames: the duplicates
+#: found differ by <= 1.3 px, and 89% of the compared pairs by more than this).
 DUPLICATE_NEAR_PX = 2.0 * DUPLICATE_TOLERANCE_PX
 #: A reported ellipse whose outline lies within DUPLICATE_TOLERANCE_PX of the top face's along
 #: at least this share of its own is the top face fitted again on arcs of its outline and of
 #: another (a lower face's silhouette beyond it), not a face of its own: where a face shows,
 #: its outline lies outside the whole top face, and two faces' outlines cross at points; they
 #: run together along an arc only where a face of the top's size lies nearly in line under it,
-#: hidden. Development sets 0-3999 and ds_cluttered 0-199: 350 ellipses besides the top
-#: reach this share, 4 of which match a true face (two equal faces stacked in line).
+#: hidden. On 4000 rendered paper-scene frames and 200 cluttered-scene frames, 350 ellipses
+#: besides the top reach this share, 4 of which match a true face (two equal faces stacked
+#: in line).
 MISFIT_SHARE = 0.5
 #: A reported ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
 #: behind its face), not a face, when it has a better-supported face's size within this
@@ -527,7 +528,7 @@ class _OutOfTime(Exception):
 
 
 def _best_supported(merged: list[MergedEllipse], cap: int) -> list[MergedEllipse]:
-    """The ``cap`` best-supported of ``merged`` (the earlier of equals), in their order."""
+    """The ``cap`` best-supported of ``merged`` (of equals, the first), in their order."""
     if len(merged) <= cap:
         return merged
     best = sorted(range(len(merged)), key=lambda i: (-merged[i].support, i))

@@ -269,11 +269,12 @@ def unblurred_gradients(image: NDArray[np.uint8], edges: EdgeImage) -> EdgeImage
 
     For the top face's final fit (:func:`~stackpick_sim.vision.refine.refine_on_profile`):
     on the simulator's frames, fits on the smoothed gradients came out with a semi-minor
-    axis 0.3-0.6 px short on faces beside other outlines (development seeds), enough for
-    several degrees of tilt on a nearly square-on face; on these gradients the error halved
-    and the theta p95 on seeds 0-299 fell from ~3 to ~1.3 deg. Smoothing moves a gradient
-    peak where other structure lies within its footprint; the fit's averaging over the whole
-    outline and its outlier test take the place of the smoothing against noise.
+    axis 0.3-0.6 px short on faces beside other outlines (rendered paper-scene frames),
+    enough for several degrees of tilt on a nearly square-on face; on these gradients the
+    error halves and the theta p95 over 300 such frames is ~1.3 deg against ~3 deg on the
+    smoothed ones. Smoothing moves a gradient peak where other structure lies within its
+    footprint; the fit's averaging over the whole outline and its outlier test take the place
+    of the smoothing against noise.
     """
     gx, gy = colour_gradients(image)
     return EdgeImage(edges=edges.edges, gx=gx, gy=gy, noise=noise_level(gx, gy))

@@ -125,7 +125,7 @@ def upscaled(ellipse: Ellipse, factor: int) -> Ellipse:
 
 
 def longest(items: Sequence[NDArray], cap: int) -> list[int]:
-    """Indices of the ``cap`` longest arrays of ``items`` (first axis; the earlier of equals),
+    """Indices of the ``cap`` longest arrays of ``items`` (first axis; of equals, the first),
     in their order: all of them when there are at most ``cap``."""
     if len(items) <= cap:
         return list(range(len(items)))

@@ -76,7 +76,7 @@ JUNCTION_RADIUS_PX = 3
 #: JUNCTION_RADIUS_PX of the gap end, it must have pixels inside the outline (by more than
 #: MERGE_TOLERANCE_PX) within this distance (px) of the end. A tilted cylinder's own wall
 #: lines (its silhouette and shading edges, which touch the faint face-to-wall rim) and the
-#: outlines of objects lying under it stay outside its face (dev seeds 96, 122).
+#: outlines of objects lying under it stay outside its face.
 CROSSING_REACH_PX = 6.0
 #: Edge pixels farther than this inside the outline (px) count as interior edges.
 INTERIOR_MARGIN_PX = 2.5
@@ -84,8 +84,8 @@ INTERIOR_MARGIN_PX = 2.5
 MAX_INTERIOR_SHARE = 0.05
 #: A candidate face nearer the camera than every other by this much (m) is the top: an
 #: object resting on another's wall lies higher than it though both faces show whole. Face
-#: depths of one pile's top candidates that were not clearly ordered differed by < 1 cm on
-#: the development seeds; the fit's depth error is ~1 mm.
+#: depths of one pile's top candidates that were not clearly ordered differ by < 1 cm on
+#: rendered paper-scene frames; the fit's depth error is ~1 mm.
 DEPTH_TIE_M = 0.01
 #: Candidates whose supports differ by less than this are tied.
 SUPPORT_TIE = 0.02
@@ -93,24 +93,24 @@ SUPPORT_TIE = 0.02
 #: T-junction and no edge pixel inside, with edge contrast along at least this share of its
 #: outline. An occluder's outline runs into the face it covers (interior edges, T-ends), so
 #: such a face's gaps are boundaries too faint even for the contrast test: a top face over a
-#: lower face of its colour and shade (development seed 292: 0.80). Far rims and arcs of two
-#: outlines fitted together show about half their outline (0.5-0.6). Not proof on its own:
-#: lower faces whose occluder only clips their rim also reach 0.75-0.88 with no edge inside
-#: (development seeds, paper scene), so this evidence is used only when nothing passes, or
-#: with the DEPTH_TIE_M margin. Placeholder from the development seeds, not tuned further.
+#: lower face of its colour and shade (~0.80 on rendered paper-scene frames). Far rims and
+#: arcs of two outlines fitted together show about half their outline (0.5-0.6). Not proof
+#: on its own: lower faces whose occluder only clips their rim also reach 0.75-0.88 with no
+#: edge inside (on the same frames), so this evidence is used only when nothing passes, or
+#: with the DEPTH_TIE_M margin. Placeholder chosen on those frames, not tuned further.
 FALLBACK_MIN_SUPPORT = 0.75
 
 #: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
 #: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
 #: own colour and about its size is fitted on the lower face's strong silhouette where the
 #: lower face shows a sliver beyond it; its own faint boundary then lies up to a few px inside
-#: the fit (the contrast refit's inward reach, see REFIT_INNER_REACH_PX; 3-4 px on development
-#: frame 202 of ds_paper_dev3), and where it is too near the silhouette for the contrast refit
+#: the fit (the contrast refit's inward reach, see REFIT_INNER_REACH_PX; 3-4 px measured on
+#: rendered paper-scene frames), and where it is too near the silhouette for the contrast refit
 #: to separate it, the fit keeps it inside as "interior edges". An occluder's outline runs
 #: across the face, deeper than this. Such a fit is too large by up to this much, so its depth
 #: from its size reads too near (up to ~2 cm for a small face at 0.22 m): it is no evidence
-#: in the depth test (a misfit of a lower face won it on development seed 198 of the paper
-#: scene with objects.count = [5, 5]), only a last resort.
+#: in the depth test (a lower face's misfit can win it, as on the paper scene with
+#: objects.count = [5, 5]), only a last resort.
 RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
 #: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
 #: factor on the paper scene's frames (see detector.SIZE_GATE_SLACK): the slack of a depth
@@ -578,8 +578,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
             and image is not None and image.ndim == 3 and len(pool) > 1):
         # A leaning object shows no T-junction on the face it leans on (see resting). When
         # every passing face has an object resting on it, the pool's faces left (failed on
-        # support alone) are above them (paper seed 404: the top's arc over a lower face of
-        # its colour does not show).
+        # support alone) are above them (e.g. a top face whose arc over a lower face of its
+        # own colour does not show).
         under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
                          image, colour_of=colour_of, cache=bands, belt=belt)
         free = [i for i, u in zip(pool, under, strict=True) if not u]

@@ -52,13 +52,13 @@ WALL_END_SKIP_PX = 2.0
 #: Wall support difference below which the edge-line evidence is called a tie.
 WALL_TIE = 0.15
 #: A solution's colour band needs this many samples to count as visible (fewer: the band
-#: hides behind the face, as for a face seen square on). On the development frames (paper
-#: 0-999) no band decision was wrong down to 3 samples, while the smaller-tilt fallback
-#: missed 14 of 234 faces, 5 of them with clear bands of 4-7 samples (a small face, or a
-#: tilt of 10-15 deg): 8, the earlier value, sent those to the fallback.
+#: hides behind the face, as for a face seen square on). On 1000 rendered paper-scene frames
+#: no band decision is wrong down to 3 samples, while the smaller-tilt fallback misses 14 of
+#: 234 faces, 5 of them with clear bands of 4-7 samples (a small face, or a tilt of 10-15
+#: deg): a threshold of 8 would send those to the fallback.
 MIN_BAND_SAMPLES = 4
-#: Band shares (0-1) closer than this are a tie. Measured on the development seeds: the true
-#: band scores 0.5-1.0, the wrong one 0-0.3 (0.57 once, on a same-colour neighbour).
+#: Band shares (0-1) closer than this are a tie. Measured on rendered paper-scene frames: the
+#: true band scores 0.5-1.0, the wrong one 0-0.3 (0.57 once, on a same-colour neighbour).
 BAND_TIE = 0.3
 #: A lone visible band showing the face's hue on less than this share is the wrong solution.
 LONE_BAND_MIN_SHARE = 0.5

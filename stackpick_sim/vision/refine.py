@@ -263,8 +263,8 @@ PROFILE_STEP_PX = 0.5
 PROFILE_STEPS = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
 PROFILE_STEPS.setflags(write=False)
 #: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
-#: from the sub-pixel refit, already within a fraction of a pixel (a second round did not
-#: help on the development seeds).
+#: from the sub-pixel refit, already within a fraction of a pixel (a second round does not
+#: help on rendered paper-scene frames).
 PROFILE_ROUNDS = 1
 #: Samples whose residual to the first profile fit exceeds this multiple of the median
 #: residual (and OUTLIER_MIN_PX) are dropped before the final fit: a neighbour's edge met

@@ -6,8 +6,8 @@ arcs of its outline between the junctions with theirs (the faint boundaries betw
 colour faces break it up, and Canny links the rest with the lower faces' silhouettes): an
 arc of a sixth of the outline or less fits an ellipse that extrapolates far off the face, no
 pair of its arcs scores C > MERGE_K, and the face is never fitted although most of its
-outline lies in the edge map (development frames 217 and 377 of ds_paper_dev3, both top
-faces).
+outline lies in the edge map (seen on rendered paper-scene frames, where it loses top faces
+lying on lower faces of their own colour).
 
 So when no ellipse passes the top rule, the ellipse of each pair of fitted arcs is fitted
 directly, held to the merge's own checks on a merged pair (RMS residual at most
@@ -25,8 +25,8 @@ junctions too (:func:`~stackpick_sim.vision.detector.last_resort_arcs`). Between
 junctions a face's outline breaks into arcs of 10-30 px whose own five-parameter fits are
 ill-posed (the pixel staircase of an arc of a sixth of the outline or less fits a flat ellipse
 a few px across, below MIN_AXIS_PX), so no piece of it is fitted, yet a pair of such arcs
-across the face fixes its ellipse (development frames 3504 and 3886 of ds_paper_h3k: a top face
-lying across faces of its colour, its whole outline in the edge map in such pieces). And where
+across the face fixes its ellipse (a top face lying across faces of its colour, its whole
+outline in the edge map in such pieces). And where
 Canny runs a face's outline on into a lower face's silhouette, the face's arc is a part of a
 chain of two curves (:func:`split_at_junctions`).
 """
@@ -152,8 +152,8 @@ def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray
 
     Canny runs a face's outline on into the silhouette of a lower face of its colour beyond
     it, the faint boundary between them ending near the point where the two outlines meet;
-    cut there, the face's arc is a piece of its own (development frames 1374 and 1438 of
-    ds_paper_h1k: the top face's outline and the sliver of the face under it in one chain)."""
+    cut there, the face's arc is a piece of its own (a top face whose outline chain also takes
+    the sliver of the face under it)."""
     if not chains:
         return []
     pixels = np.ascontiguousarray(np.concatenate(chains), np.int32)

@@ -4,8 +4,8 @@ The image rules (T-junctions on face outlines, :mod:`~stackpick_sim.vision.wall_
 side walls) see an object lying on another only where one covers the other in the image. A
 cylinder leaning on another's side wall, below that one's face, covers little or nothing of
 it: both faces show whole, with no T-junction, and the leaning one's face can be the farther
-from the camera (paper scene seed 487: a small cylinder tilted 42 deg leans its far rim on a
-large one's wall, faces 2 mm apart in depth). The ground truth calls the leaned-on object not
+from the camera (in the paper scene, a small cylinder tilted 42 deg leaning its far rim on a
+large one's wall: faces 2 mm apart in depth). The ground truth calls the leaned-on object not
 top: a contact whose normal points up (z >= 0.3) into another object.
 
 That contact can be read from the 3-D reconstruction instead. Each whole face gives its
@@ -107,9 +107,9 @@ def _separations(centres: NDArray[np.float64], normals: NDArray[np.float64],
 
 #: Every this many of the separating-axis directions form the coarse set of the cost gate in
 #: :func:`rests_on`: a pair apart along one of them by more than CONTACT_GAP_M does not touch
-#: (the separation is a maximum over the directions, so a subset's is a lower bound). On the
-#: development frames 0-199 of ds_paper_dev3 this rules out 62 of 114 candidate face pairs
-#: whichever their pose solutions, and every pair of 44 of the 87 calls.
+#: (the separation is a maximum over the directions, so a subset's is a lower bound). On 200
+#: rendered paper-scene frames this rules out 62 of 114 candidate face pairs whichever their
+#: pose solutions, and every pair of 44 of the 87 calls.
 COARSE_EVERY = 16
 
 
@@ -134,7 +134,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
     either gives None takes no part. The true height matters: one 5 mm too tall flips the
-    contact normal of a lean on a far rim (development frame 128 of ds_paper_dev3).
+    contact normal of a lean on a far rim.
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
     face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
     computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`); ``belt``: the bare
@@ -159,7 +159,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     heights = np.array([height for _, _, height in kinds for _ in range(2)])
     # Cost gate, before the wall bands choose the solutions: a pair of faces apart along one
     # of the coarse directions whichever their solutions (all four combinations) does not
-    # touch (about half the development frames' calls have no other pair).
+    # touch (on rendered paper-scene frames about half the calls have no other pair).
     face_pairs = [(p, q) for p in range(len(kinds)) for q in range(p + 1, len(kinds))]
     combos = np.array([(2 * p + j, 2 * q + k) for p, q in face_pairs for j in (0, 1)
                        for k in (0, 1)], np.int64)
@@ -178,7 +178,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
-            # smaller tilt, as the pose takes (paper seed 544: a flat face leaned on).
+            # smaller tilt, as the pose takes (a flat face another object leans on).
             pick = int(np.argmax([float(s.normal_cam[2]) for s in units[p]]))
         if pick is not None:
             picks[p] = pick

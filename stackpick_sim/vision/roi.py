@@ -6,7 +6,7 @@ the edges never look outside it. The box is found on a DECIMATION-times smaller 
 averages, taken in halving steps): a pixel is foreground when its brightest channel differs
 from the belt's by FOREGROUND_DELTA. The belt's level is the most common brightest-channel
 level of the small copy (its histogram smoothed over BELT_MODE_WINDOW levels): the belt is
-the frame's largest surface. (The median over the frame's border, used before, is taken by
+the frame's largest surface. (Not the median over the frame's border: that is taken by
 whatever lies beyond the belt's sides once the camera sees them: from 0.40 m up, the frame's
 top and bottom rows.) The belt's colour (the mean of the small copy's pixels within
 BELT_COLOUR_LEVELS of that level) is kept as well: the side-wall tests tell a grey object's

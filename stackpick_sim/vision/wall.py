@@ -13,9 +13,9 @@ the belt's hue too: given the bare belt's colour, a sample that has it (BELT_DEL
 wall either (on the coloured objects of the paper's scenes the hue test already rejects it).
 
 The solution whose predicted band matches better resolves the two-fold tilt ambiguity
-(:mod:`stackpick_sim.vision.pose`). (Tried and dropped: calling a face whose best band is
-mostly not its colour "leaned on", hence not top; on the development seeds free walls and
-covered ones overlapped, since a leaning neighbour of the same colour passes the hue test.)
+(:mod:`stackpick_sim.vision.pose`). (Not used: calling a face whose best band is mostly not
+its colour "leaned on", hence not top; on rendered paper-scene frames free walls and covered
+ones overlap, since a leaning neighbour of the same colour passes the hue test.)
 
 The band's image does not depend on the face radius (the whole solution scales with it), so
 unit-radius solutions are used throughout.
@@ -43,8 +43,8 @@ WALL_RIM_POINTS = 32
 #: mixes both colours.
 WALL_MARGIN_PX = 2.0
 #: Largest L1 distance between the chromaticities (r, g, b) / (r + g + b) of a band sample
-#: and the face. Face and wall of one object differ by ~0.02-0.07 (measured on the simulator's
-#: frames, development seeds); the grey belt sits ~0.35 from orange, ~0.3 from blue.
+#: and the face. Face and wall of one object differ by ~0.02-0.07 (measured on rendered
+#: paper-scene frames); the grey belt sits ~0.35 from orange, ~0.3 from blue.
 CHROMA_TOLERANCE = 0.12
 #: A band sample darker than this share of the face's brightness carries no usable hue
 #: (deep shadow). An upright wall under the ring light measures ~0.27 of its face.
@@ -52,9 +52,9 @@ MIN_RELATIVE_BRIGHTNESS = 0.12
 #: A wall sample may be at most tan(tilt) + this share of the face's brightness, the tilt
 #: being the face normal's angle to the viewing ray: under a ring light at the camera a
 #: Lambertian wall faces the light by at most sin(tilt) where the face does by cos(tilt).
-#: The margin covers ambient light on near-frontal walls (~0.2) and shading (measured on the
-#: development seeds: true walls at <= tan(tilt) + 0.2, the same-coloured lower faces that the
-#: other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4).
+#: The margin covers ambient light on near-frontal walls (~0.2) and shading (measured on
+#: rendered paper-scene frames: true walls at <= tan(tilt) + 0.2, the same-coloured lower
+#: faces that the other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4).
 WALL_BRIGHTNESS_MARGIN = 0.3
 #: A band sample within this many grey levels of the bare belt's colour in every channel is
 #: belt, not wall (what tells them apart when the face has the belt's hue: a grey object).

@@ -33,13 +33,13 @@ from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.wall import WALL_DEPTH_FRACTIONS, solution_band_points, solution_bands
 
 #: A face is under another when at least this share of one solution's predicted wall band
-#: lies inside the other face. Placeholder from the development seeds 0-299.
+#: lies inside the other face. Placeholder chosen on rendered paper-scene frames.
 MIN_COVERED_SHARE = 0.15
 #: Depths along the axis (face radii) of the band checked for cover: the colour test's
 #: (WALL_DEPTH_FRACTIONS, first: the rest test reads its bands from these) and 0.8, which
 #: stays on the wall of the paper scene's squattest cylinder (height / radius = 0.86).
 #: Deeper than the colour test's band: an object resting on a wall often covers only its
-#: far part (dev seed 67).
+#: far part.
 COVER_DEPTH_FRACTIONS: tuple[float, ...] = (*WALL_DEPTH_FRACTIONS, 0.8)
 #: Band points must lie this far (px) inside the other ellipse: its blurred outline and the
 #: fit error are not evidence.
@@ -51,9 +51,8 @@ COVER_MARGIN_PX = 1.0
 #: so its face lies well in front.
 COVER_DEPTH_TOLERANCE_M = 0.003
 #: A solution's band needs this many points outside its face for its cover share to count
-#: (fewer give 0). Kept at the colour test's earlier threshold when that one went down to
-#: MIN_BAND_SAMPLES: a cover share over a few points of a thin band lost a top face to a
-#: lower one on a development frame (2212 of ds_paper_h2k).
+#: (fewer give 0). Above the colour test's MIN_BAND_SAMPLES: a cover share over a few points
+#: of a thin band is noise, and can put a top face under a lower one.
 MIN_COVER_SAMPLES = 8
 
 

@@ -1,6 +1,6 @@
 """The paper's baseline: Randomized Hough Transform ellipse detection (Xu/Oja-style RHT).
 
-Section 2.2 of the seed paper: three edge points give the three parameters (A, H, B) of
+Section 2.2 of the paper: three edge points give the three parameters (A, H, B) of
 ``A x^2 + 2 H x y + B y^2 = 1`` (Eq. 1) about the ellipse centre, a valid ellipse has
 ``A B - H^2 > 0`` (Eq. 2), and the centre comes from the three points' tangents (Fig. 5).
 

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from stackpick_sim.geometry import Ellipse, mask_iou
 from stackpick_sim.vision.benchmark.frames import BenchFrame, TruthFace
 
-#: Mask IoU above which a detected ellipse matches a true face (the field's convention for
-#: real images, see NOTES.md).
+#: Mask IoU above which a detected ellipse matches a true face: pixel-mask IoU > 0.8, the
+#: field's convention for scoring ellipse detections on real images.
 MATCH_IOU = 0.8
 #: Faces at least this visible are counted for precision and recall (documented choice).
 COUNTED_VISIBLE_FRACTION = 0.5
