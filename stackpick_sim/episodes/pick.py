@@ -28,10 +28,10 @@ from stackpick_sim.control.reach import (
     tool_pose_on_axis,
 )
 from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
-from stackpick_sim.episodes.outcome import face_in_view, touching, view_pose
-from stackpick_sim.episodes.record import PoseErrors
+from stackpick_sim.episodes.outcome import touching
 from stackpick_sim.episodes.sensing import Observation
-from stackpick_sim.episodes.target import TargetState
+from stackpick_sim.exceptions import EpisodeError
+from stackpick_sim.pipeline import ControlGoal, TargetState
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -144,7 +144,7 @@ class ArmPhases:
     _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
-    _look_T_cam: NDArray[np.float64]
+    phase: str
 
     def fail(self, reason: str, detail: str) -> None:
         raise NotImplementedError
@@ -182,7 +182,8 @@ class ArmPhases:
     def _replan_if_turned(self, t: float) -> None:
         """Plan the reach again once the tracked normal has turned (the consensus of views
         settled on the other solution of the pose's ambiguity)."""
-        n = self.ep.estimator.normal
+        ep = self.ep
+        n = ep.estimator.state(t, ep.arm.eih.world_T_cam(ep.scene.cell.data)).normal
         if float(n @ self._planned_normal) < math.cos(math.radians(REPLAN_TURN_DEG)):
             self._plan_reach(t)
 
@@ -203,11 +204,12 @@ class ArmPhases:
         lead = 1.0 / cfg.approach_gain
         now_T_tool = ep.arm.command_world_T_tool()
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
-        goal = approach_pose(self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
-                             cfg.standoff, now_T_tool)
-        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain, dt), dt)
-        here = approach_pose(self._commanded(ep.estimator.state(t, cam), cfg.standoff),
-                             cfg.standoff, now_T_tool)
+        target = self._commanded(ep.estimator.state(t, cam), cfg.standoff)
+        goal = ControlGoal(phase="approach", target=target,
+                           lead=self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
+                           standoff=cfg.standoff, standoff_rate=0.0, dt=dt)
+        ep.arm.apply(self._command(goal), dt)
+        here = approach_pose(target, cfg.standoff, now_T_tool)
         pos, ang = pose_error(ep.arm.eih.world_T_ee(ep.scene.cell.data), here)
         if pos < APPROACH_DONE[0] and ang < APPROACH_DONE[1]:
             self._enter("servo", t)
@@ -217,9 +219,22 @@ class ArmPhases:
         ep = self.ep
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
         target = self._commanded(ep.estimator.state(t, cam), standoff)
-        qdot, err = ep.arm.servo_rate(target, standoff, rate, dt)
+        qdot = self._command(ControlGoal(phase=self.phase, target=target, lead=None,
+                                         standoff=standoff, standoff_rate=rate, dt=dt))
+        err = ep.arm.servo_errors(target, standoff)
         ep.arm.apply(qdot, dt)
         return err
+
+    def _command(self, goal: ControlGoal) -> NDArray[np.float64]:
+        """(6,) joint rates for ``goal``: the episode's action when one is given (an
+        external policy), else its controller's."""
+        ep = self.ep
+        qdot = ep.action if ep.action is not None else ep.controller.command(goal, ep.arm)
+        qdot = np.asarray(qdot, dtype=float)
+        if qdot.shape != (6,) or not np.all(np.isfinite(qdot)):
+            raise EpisodeError(f"the {goal.phase} command must be 6 finite joint rates (rad/s); "
+                               f"got {np.round(qdot, 4).tolist()}")
+        return qdot
 
     def _servo(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
         cfg = self.ep.scene.cell.cfg.episode
@@ -240,7 +255,8 @@ class ArmPhases:
         cfg = ep.scene.cell.cfg.episode
         touched = touching(ep.scene.cell, ep.lips)
         if touched:
-            self._pick_moment(t)
+            cell = ep.scene.cell
+            ep.audit.on_contact(ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data)))
             ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
             self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
             self._enter("grasp", t)
@@ -266,20 +282,6 @@ class ArmPhases:
         self._floor = descent_floor(overtravel, est.face_z, est.lowest_face_z, tallest,
                                     self._floor)
         return self._floor
-
-    def _pick_moment(self, t: float) -> None:
-        ep, rec = self.ep, self.ep.record
-        cell = ep.scene.cell
-        if rec.target_object is None:
-            return
-        obj = next(o for o in cell.objects if o.name == rec.target_object)
-        k = cell.intrinsics
-        actual, centre_w = face_in_view(cell, obj, self._look_T_cam, k)
-        state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
-        estimated = view_pose(state.centre, state.normal, self._look_T_cam, k)
-        rec.pick_estimate = PoseErrors(estimated=estimated, actual=actual)
-        rec.prediction_error_px = rec.pick_estimate.center_error_px
-        rec.prediction_error_mm = 1e3 * float(np.linalg.norm(state.centre - centre_w))
 
     def _grasp(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
         cfg = self.ep.scene.cell.cfg.episode

@@ -2,11 +2,14 @@
 
 The batch stores the scene and overrides (``run.json``) and the states before and after the
 episode; the replay regenerates the pile from the seed, checks it against the stored start
-state, runs the episode again (deterministic), and compares the end state too.
+state, runs the episode again (deterministic) with the detector, estimator and controller
+its record names, and compares the end state too. A stage that cannot be loaded here (a
+plug-in not installed) stops the replay with one line.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,11 +19,12 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.batch import RunSpec, episode_dir
-from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
+from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, estimator_name, run_episode
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.overlay import OTHER_COLOUR, TOP_COLOUR, draw_ellipse, draw_label, draw_marker
+from stackpick_sim.registry import KINDS, PluginError, load
 from stackpick_sim.sim.camera import make_renderer
 from stackpick_sim.sim.stacks import generate_scene
 
@@ -75,7 +79,16 @@ def _wrist_view(obs: Observation | None, info: TickInfo) -> NDArray[np.uint8]:
 def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
     """Re-run ``seed`` of the batch in ``out_dir`` and write ``video`` (mp4v)."""
     spec = RunSpec.from_dir(out_dir)
-    scene = generate_scene(load_scene(spec.scene, spec.overrides), seed)
+    overrides = (*spec.overrides, *recorded_stages(out_dir, seed))
+    cfg = load_scene(spec.scene, overrides)
+    for kind in KINDS:
+        name = estimator_name(cfg) if kind == "estimator" else getattr(cfg.episode, kind)
+        try:
+            load(kind, name)
+        except PluginError as exc:
+            raise PluginError(f"cannot replay seed {seed} of {out_dir}: its {kind} "
+                              f"{name!r} does not load here ({exc})") from None
+    scene = generate_scene(cfg, seed)
     cell = scene.cell
     stored = episode_dir(out_dir, seed)
     initial_diff = _diff(stored / "initial_qpos.npy", cell.data.qpos)
@@ -108,6 +121,23 @@ def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
         overview.close()
     return ReplayResult(record=record, frames=frames[0], initial_diff=initial_diff,
                         final_diff=_diff(stored / "final_qpos.npy", cell.data.qpos))
+
+
+def recorded_stages(out_dir: Path, seed: int) -> list[str]:
+    """``--set`` overrides naming the stages the record of ``seed`` ran with (none when the
+    record or its names are missing: the run's own overrides then decide)."""
+    path = out_dir / "results.jsonl"
+    if not path.is_file():
+        return []
+    for line in path.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and rec.get("seed") == seed:
+            return [f"episode.{k}={rec[k]}" for k in KINDS if isinstance(rec.get(k), str)
+                    and rec[k]]
+    return []
 
 
 def _diff(path: Path, qpos: NDArray[np.float64]) -> float:
