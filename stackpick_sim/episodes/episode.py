@@ -95,6 +95,9 @@ class Episode:
     action: NDArray[np.float64] | None = None
     """(6,) joint rates, rad/s, replacing the controller's command in the approach, the servo
     and the descent (an external policy: the Gymnasium environment), or None."""
+    reference_action: NDArray[np.float64] | None = None
+    """With an ``action``: what the controller commanded instead at the latest tick of the
+    approach, servo or descent (the reference policy of the Gymnasium environment)."""
     audit: Audit = field(init=False)
 
 

@@ -227,9 +227,14 @@ class ArmPhases:
 
     def _command(self, goal: ControlGoal) -> NDArray[np.float64]:
         """(6,) joint rates for ``goal``: the episode's action when one is given (an
-        external policy), else its controller's."""
+        external policy; the controller's command is then kept as its reference), else the
+        controller's."""
         ep = self.ep
-        qdot = ep.action if ep.action is not None else ep.controller.command(goal, ep.arm)
+        if ep.action is None:
+            qdot = ep.controller.command(goal, ep.arm)
+        else:  # the controller's command too, as the reference of the external policy
+            ep.reference_action = np.asarray(ep.controller.command(goal, ep.arm), dtype=float)
+            qdot = ep.action
         qdot = np.asarray(qdot, dtype=float)
         if qdot.shape != (6,) or not np.all(np.isfinite(qdot)):
             raise EpisodeError(f"the {goal.phase} command must be 6 finite joint rates (rad/s); "

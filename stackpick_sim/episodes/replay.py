@@ -49,7 +49,9 @@ class ReplayResult:
     final_diff: float
 
 
-def _wrist_view(obs: Observation | None, info: TickInfo) -> NDArray[np.uint8]:
+def wrist_view(obs: Observation | None, info: TickInfo) -> NDArray[np.uint8]:
+    """The wrist frame of ``obs`` (BGR, VIEW_SIZE) with its candidates, the tracker's estimate
+    and the time and phase of ``info`` drawn on it (black before the first frame)."""
     w, h = VIEW_SIZE
     if obs is None or obs.image is None:
         return np.zeros((h, w, 3), np.uint8)
@@ -111,7 +113,7 @@ def replay_episode(out_dir: Path, seed: int, video: Path) -> ReplayResult:
             return
         overview.update_scene(cell.data, camera="overview")
         right = cv2.cvtColor(overview.render(), cv2.COLOR_RGB2BGR)
-        writer.write(np.hstack([_wrist_view(latest[0], info), right]))
+        writer.write(np.hstack([wrist_view(latest[0], info), right]))
         frames[0] += 1
 
     try:

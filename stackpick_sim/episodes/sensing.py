@@ -71,6 +71,8 @@ class Sensor:
         """Whether the next frame is processed; the phase logic clears it for frames the
         controller would not use (after the servo, or with the tracked face out of view)."""
         self.wall = {"render": 0.0, "vision": 0.0}
+        self.last: Observation | None = None
+        """The latest frame captured (its detection may not be usable yet)."""
 
     def due(self, t: float) -> bool:
         """Whether a frame is due at sim time ``t`` s."""
@@ -90,7 +92,7 @@ class Sensor:
         if not self.process:
             if self.keep_images:  # replay: a clean picture, the noise stream left untouched
                 image = self._render(None)
-            self._pending.append(Observation(
+            self._queue(Observation(
                 capture_time=t, available_time=t + self.latency, world_T_cam=world_T_cam.copy(),
                 candidates=(), detection=None, image=image,
                 reason="not processed: the controller does not use this frame"))
@@ -105,10 +107,14 @@ class Sensor:
         start = time.perf_counter()
         found = self.detector.detect(frame, self.hints)
         self.wall["vision"] += time.perf_counter() - start
-        self._pending.append(Observation(
+        self._queue(Observation(
             capture_time=t, available_time=t + self.latency, world_T_cam=world_T_cam.copy(),
             candidates=tuple(found.candidates), detection=found.raw,
             image=image if self.keep_images else None, reason=found.reason))
+
+    def _queue(self, obs: Observation) -> None:
+        self._pending.append(obs)
+        self.last = obs
 
     def ready(self, t: float) -> list[Observation]:
         """Observations whose detection is usable at sim time ``t`` s, oldest first."""
