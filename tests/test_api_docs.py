@@ -27,7 +27,7 @@ def doc_module() -> types.ModuleType:
     for block in blocks:
         if "gymnasium" in block and pytest.importorskip("gymnasium") is None:
             continue
-        exec(compile(block, str(DOC), "exec"), module.__dict__)  # noqa: S102
+        exec(compile(block, str(DOC), "exec"), module.__dict__)
     yield module
     del sys.modules[MODULE]
 
