@@ -42,3 +42,16 @@ def test_gym_policy_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert module["main"](["--seeds", "1:2"]) == 0
     out = capsys.readouterr().out
     assert "reference seed 1: reward 1" in out and "random    seed 1: reward 0" in out
+
+
+def test_bench_detect_takes_a_plugin_detector(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(REPO)
+    assert main(["bench-detect", "--scene", "paper", "--seeds", "1:3", "--quiet", "--methods",
+                 f"ours,{HOUGH}", "--out", str(tmp_path)]) == 0
+    methods = json.loads((tmp_path / "results.json").read_text())["methods"]
+    assert list(methods) == ["ours", HOUGH]
+    assert main(["bench-detect", "--scene", "paper", "--seeds", "1", "--methods", "hogh",
+                 "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown detector 'hogh'" in err and "edgedrawing" in err

@@ -102,14 +102,19 @@ def detector_method(name: str, cfg: SceneConfig) -> Method:
     return Method(name, run)
 
 
+def methods_by_name(names: list[str], cfg: SceneConfig, rht_seed: int) -> list[Method]:
+    """The benchmark's own methods and episode detectors, in the order of ``names``."""
+    builtin = [n for n in names if n in METHOD_NAMES]
+    by_name = {m.name: m for m in make_methods(builtin, seed=rht_seed)}
+    by_name.update({n: detector_method(n, cfg) for n in names if n not in METHOD_NAMES})
+    return [by_name[n] for n in names]
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and write the results; exit 1 if no frame was scored."""
     names = [n.strip() for n in args.methods.split(",") if n.strip()]
     cfg = scene_from_args(args)
-    builtin = [n for n in names if n in METHOD_NAMES]
-    by_name = {m.name: m for m in make_methods(builtin, seed=args.rht_seed)}
-    by_name.update({n: detector_method(n, cfg) for n in names if n not in METHOD_NAMES})
-    methods = [by_name[n] for n in names]
+    methods = methods_by_name(names, cfg, args.rht_seed)
     if args.data is not None:
         if not args.data.is_dir():
             raise ConfigError(f"--data {args.data} is not a directory")

@@ -1,0 +1,109 @@
+"""StackPick-v0 speed and the reference policy's picks. Writes benchmarks/results/gym_<scene>.md
+and .json.
+
+    python benchmarks/bench_gym.py [--scene paper] [--seeds 0:5] [--episodes 0:100]
+
+Speed: env steps per second on one core (the process pinned to one CPU, BLAS and OpenMP on
+one thread) with the reference policy, over whole episodes of ``--seeds``; the target is the
+camera's 30 Hz (one step is one camera frame). Also given as a ratio, sim time per wall time
+(1: real time), and against ``run_episode`` on the same seeds in the same run (the batch's
+own loop, no observations).
+
+``--episodes``: the reference policy's success on those seeds beside ``run_episode``'s (what
+``stackpick run`` records), seed by seed: the policy lags the controller by one step, so the
+two may differ on some seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import gymnasium  # noqa: E402
+
+import stackpick_sim.gym  # noqa: E402,F401
+from stackpick_sim.cli.common import parse_seeds  # noqa: E402
+from stackpick_sim.config.loader import load_scene  # noqa: E402
+from stackpick_sim.episodes import run_episode  # noqa: E402
+from stackpick_sim.gym.env import ReferencePolicy  # noqa: E402
+from stackpick_sim.sim.stacks import generate_scene  # noqa: E402
+
+
+def policy_episode(env: Any, seed: int) -> tuple[int, float, float, dict[str, Any]]:
+    """One episode with the reference policy: steps, wall s (steps only), sim s, last info."""
+    policy = ReferencePolicy()
+    obs, info = env.reset(seed=seed)
+    steps, wall = 0, 0.0
+    while True:
+        t0 = time.perf_counter()
+        obs, _, terminated, truncated, info = env.step(policy(obs, info))
+        wall += time.perf_counter() - t0
+        steps += 1
+        if terminated or truncated:
+            return steps, wall, float(info["time"]), info
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scene", default="paper")
+    parser.add_argument("--seeds", default="0:5", help="seeds of the speed measurement")
+    parser.add_argument("--episodes", default=None, help="seeds of the success comparison")
+    parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
+    args = parser.parse_args()
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    cfg = load_scene(args.scene)
+    env = gymnasium.make("StackPick-v0", scene=args.scene).unwrapped
+    steps = 0
+    wall = sim = batch_wall = 0.0
+    for seed in parse_seeds(args.seeds):
+        n, w, s, _ = policy_episode(env, seed)
+        steps, wall, sim = steps + n, wall + w, sim + s
+        scene = generate_scene(cfg, seed)
+        t0 = time.perf_counter()
+        run_episode(scene)
+        batch_wall += time.perf_counter() - t0
+    result: dict[str, Any] = {
+        "scene": args.scene, "seeds": args.seeds, "steps": steps,
+        "steps_per_s": steps / wall, "sim_per_wall": sim / wall,
+        "env_wall_per_batch_wall": wall / batch_wall, "cores": 1}
+    lines = [f"# StackPick-v0 on {args.scene}, one core",
+             "", f"- env steps/s (reference policy, seeds {args.seeds}): "
+             f"{result['steps_per_s']:.1f} (target >= 30: real time at 30 fps)",
+             f"- sim time per wall time: {result['sim_per_wall']:.2f}",
+             f"- env wall time / run_episode wall time, same seeds: "
+             f"{result['env_wall_per_batch_wall']:.2f}"]
+    if args.episodes:
+        rows = []
+        for seed in parse_seeds(args.episodes):
+            info = policy_episode(env, seed)[3]
+            batch = run_episode(generate_scene(cfg, seed))
+            rows.append({"seed": seed, "policy": bool(info["success"]),
+                         "policy_failure": info["failure"], "batch": batch.success,
+                         "batch_failure": batch.failure})
+        n = len(rows)
+        pol, bat = sum(r["policy"] for r in rows), sum(r["batch"] for r in rows)
+        same = sum(r["policy"] == r["batch"] for r in rows)
+        result["episodes"] = rows
+        lines += [f"- reference policy: {pol}/{n} picks; run_episode (stackpick run): {bat}/{n};"
+                  f" same outcome on {same}/{n} seeds ({args.episodes})"]
+        lines += [f"  - seed {r['seed']}: policy {r['policy_failure'] or 'ok'}, run "
+                  f"{r['batch_failure'] or 'ok'}" for r in rows if r["policy"] != r["batch"]]
+    env.close()
+    args.out.mkdir(parents=True, exist_ok=True)
+    text = "\n".join(lines) + "\n"
+    (args.out / f"gym_{args.scene}.md").write_text(text)
+    (args.out / f"gym_{args.scene}.json").write_text(json.dumps(result, indent=1))
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
