@@ -1,7 +1,8 @@
-"""StackPick-v0 speed and the reference policy's picks. Writes benchmarks/results/gym_<scene>.md
-and .json.
+"""StackPick-v0 speed and the reference policy's picks. Writes
+benchmarks/results/gym_<scene>_<step>.md and .json.
 
-    python benchmarks/bench_gym.py [--scene paper] [--seeds 0:5] [--episodes 0:100]
+    python benchmarks/bench_gym.py [--scene paper] [--step frame] [--seeds 0:5]
+        [--episodes 0:100 --compare OUT]
 
 Speed: env steps per second on one core (the process pinned to one CPU, BLAS and OpenMP on
 one thread) with the reference policy, over whole episodes of ``--seeds``; the target is the
@@ -9,9 +10,10 @@ camera's 30 Hz (one step is one camera frame). Also given as a ratio, sim time p
 (1: real time), and against ``run_episode`` on the same seeds in the same run (the batch's
 own loop, no observations).
 
-``--episodes``: the reference policy's success on those seeds beside ``run_episode``'s (what
-``stackpick run`` records), seed by seed: the policy lags the controller by one step, so the
-two may differ on some seeds.
+``--episodes``: the reference policy's success on those seeds beside ``stackpick run``'s,
+seed by seed, read from ``--compare OUT`` (the ``--out`` of ``stackpick run`` on the same
+scene and seeds). With ``--step tick`` the two must agree on every seed; with ``--step frame``
+each command is held for a camera frame, so outcomes can differ.
 """
 
 from __future__ import annotations
@@ -54,13 +56,16 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="paper")
     parser.add_argument("--seeds", default="0:5", help="seeds of the speed measurement")
+    parser.add_argument("--step", choices=("frame", "tick"), default="frame")
     parser.add_argument("--episodes", default=None, help="seeds of the success comparison")
+    parser.add_argument("--compare", type=Path, default=None,
+                        help="a `stackpick run` output directory with those seeds")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     cfg = load_scene(args.scene)
-    env = gymnasium.make("StackPick-v0", scene=args.scene).unwrapped
+    env = gymnasium.make("StackPick-v0", scene=args.scene, step=args.step).unwrapped
     steps = 0
     wall = sim = batch_wall = 0.0
     for seed in parse_seeds(args.seeds):
@@ -74,33 +79,37 @@ def main() -> int:
         "scene": args.scene, "seeds": args.seeds, "steps": steps,
         "steps_per_s": steps / wall, "sim_per_wall": sim / wall,
         "env_wall_per_batch_wall": wall / batch_wall, "cores": 1}
-    lines = [f"# StackPick-v0 on {args.scene}, one core",
+    result["step"] = args.step
+    lines = [f"# StackPick-v0 on {args.scene}, step={args.step}, one core",
              "", f"- env steps/s (reference policy, seeds {args.seeds}): "
              f"{result['steps_per_s']:.1f} (target >= 30: real time at 30 fps)",
              f"- sim time per wall time: {result['sim_per_wall']:.2f}",
              f"- env wall time / run_episode wall time, same seeds: "
              f"{result['env_wall_per_batch_wall']:.2f}"]
-    if args.episodes:
+    if args.episodes and args.compare:
+        recorded = {r["seed"]: r for r in map(json.loads, (args.compare / "results.jsonl")
+                                                  .read_text().splitlines())}
         rows = []
         for seed in parse_seeds(args.episodes):
             info = policy_episode(env, seed)[3]
-            batch = run_episode(generate_scene(cfg, seed))
+            batch = recorded[seed]
             rows.append({"seed": seed, "policy": bool(info["success"]),
-                         "policy_failure": info["failure"], "batch": batch.success,
-                         "batch_failure": batch.failure})
+                         "policy_failure": info["failure"], "batch": bool(batch["success"]),
+                         "batch_failure": batch["failure"]})
         n = len(rows)
         pol, bat = sum(r["policy"] for r in rows), sum(r["batch"] for r in rows)
         same = sum(r["policy"] == r["batch"] for r in rows)
         result["episodes"] = rows
-        lines += [f"- reference policy: {pol}/{n} picks; run_episode (stackpick run): {bat}/{n};"
+        lines += [f"- reference policy: {pol}/{n} picks; stackpick run: {bat}/{n};"
                   f" same outcome on {same}/{n} seeds ({args.episodes})"]
         lines += [f"  - seed {r['seed']}: policy {r['policy_failure'] or 'ok'}, run "
                   f"{r['batch_failure'] or 'ok'}" for r in rows if r["policy"] != r["batch"]]
     env.close()
     args.out.mkdir(parents=True, exist_ok=True)
     text = "\n".join(lines) + "\n"
-    (args.out / f"gym_{args.scene}.md").write_text(text)
-    (args.out / f"gym_{args.scene}.json").write_text(json.dumps(result, indent=1))
+    name = f"gym_{args.scene}_{args.step}"
+    (args.out / f"{name}.md").write_text(text)
+    (args.out / f"{name}.json").write_text(json.dumps(result, indent=1))
     print(text)
     return 0
 

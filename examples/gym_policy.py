@@ -1,11 +1,12 @@
 """Drive StackPick-v0 with our controller as the reference policy, then with random actions.
 
-    python examples/gym_policy.py --seeds 0:3
+    python examples/gym_policy.py --seeds 0:3 [--step tick]
 
-The reference policy acts on ``info["reference_action"]``, our controller's command at the
-previous step; random actions move the arm anywhere within its speed limits (the phase
-machine still detects, tracks, grasps and lifts on its own, and ends the episode when a
-phase times out).
+The reference policy acts on ``info["reference_action"]``, our controller's command for the
+goal the action is for (with ``--step tick`` the episode is then that of ``stackpick run``;
+one step per camera frame holds each command for three control ticks); random actions move
+the arm anywhere within its speed limits (the phase machine still detects, tracks, grasps and
+lifts on its own, and ends the episode when a phase times out).
 """
 
 from __future__ import annotations
@@ -39,9 +40,10 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--scene", default="paper")
     p.add_argument("--seeds", default="0:2", help="START:STOP")
+    p.add_argument("--step", choices=("frame", "tick"), default="frame")
     args = p.parse_args(argv)
     start, stop = (int(x) for x in args.seeds.split(":"))
-    env = gymnasium.make("StackPick-v0", scene=args.scene)
+    env = gymnasium.make("StackPick-v0", scene=args.scene, step=args.step)
     rng = np.random.default_rng(0)
     space = env.action_space
 

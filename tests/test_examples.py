@@ -39,7 +39,7 @@ def test_hough_plugin_runs_in_workers_from_the_repository_root(
 def test_gym_policy_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("gymnasium")
     module = runpy.run_path(str(REPO / "examples" / "gym_policy.py"))
-    assert module["main"](["--seeds", "1:2"]) == 0
+    assert module["main"](["--seeds", "1:2", "--step", "tick"]) == 0
     out = capsys.readouterr().out
     assert "reference seed 1: reward 1" in out and "random    seed 1: reward 0" in out
 

@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 import stackpick_sim.gym  # noqa: E402,F401
 from stackpick_sim.config.loader import load_scene  # noqa: E402
 from stackpick_sim.episodes import run_episode  # noqa: E402
-from stackpick_sim.episodes.record import FAILURES, PHASES  # noqa: E402
+from stackpick_sim.episodes.record import FAILURES, PHASES, WALL_CLOCK_KEYS  # noqa: E402
 from stackpick_sim.gym.env import ReferencePolicy, StackPickEnv  # noqa: E402
 from stackpick_sim.sim.stacks import generate_scene  # noqa: E402
 
@@ -34,33 +34,42 @@ def test_env_passes_gymnasium_checks(env: StackPickEnv) -> None:
 def test_reset_builds_the_pile_of_stackpick_run(env: StackPickEnv) -> None:
     obs, info = env.reset(seed=SEED)
     scene = generate_scene(load_scene("paper"), SEED)
-    cell = env.episode.scene.cell
-    assert [o.name for o in cell.objects] == [o.name for o in scene.cell.objects]
-    bodies = [o.body_id for o in scene.cell.objects]
-    # One control tick has run (the first frame): the belt (along y) has carried the pile
-    # for it, nothing else has moved.
-    now, built = cell.data.xpos[bodies], scene.cell.data.xpos[bodies]
-    assert np.allclose(now[:, [0, 2]], built[:, [0, 2]], atol=1e-4)
-    travel = cell.cfg.conveyor.speed * info["time"]
-    assert np.allclose(now[:, 1] - built[:, 1], travel, atol=0.3 * travel)
-    assert obs["image"].shape == (240, 320, 3) and obs["image"].any()
-    assert PHASES[obs["phase"]] in ("look", "detect") and info["time"] > 0
+    assert env.episode.scene.cell.spec_xml == scene.cell.spec_xml
+    assert env.observation_space.contains(obs)
+    assert obs["image"].any()
+    # Look, detect and track ran on their own: the agent is first asked in the approach.
+    assert PHASES[obs["phase"]] == info["phase"] == "approach" and info["time"] > 0
+    assert np.any(info["reference_action"] != 0)
 
 
-def test_reference_policy_picks_like_stackpick_run(env: StackPickEnv) -> None:
-    obs, info = env.reset(seed=SEED)
+def _drive(env: StackPickEnv, seed: int) -> tuple[float, int, dict]:
+    obs, info = env.reset(seed=seed)
     policy = ReferencePolicy()
-    total, moved = 0.0, False
+    total, steps = 0.0, 0
     while True:
-        action = policy(obs, info)
-        moved |= bool(np.any(action != 0))
-        obs, reward, terminated, truncated, info = env.step(action)
-        total += reward
+        obs, reward, terminated, truncated, info = env.step(policy(obs, info))
+        total, steps = total + reward, steps + 1
         if terminated or truncated:
-            break
-    batch = run_episode(generate_scene(load_scene("paper"), SEED))
-    assert moved and total == 1.0 and info["success"] == batch.success is True
-    assert info["record"]["picked_object"] == batch.picked_object
+            return total, steps, info
+
+
+def test_reference_policy_reproduces_stackpick_run_tick_by_tick() -> None:
+    env = gymnasium.make("StackPick-v0", scene="paper", step="tick").unwrapped
+    total, steps, info = _drive(env, SEED)
+    env.close()
+    batch = run_episode(generate_scene(load_scene("paper"), SEED)).as_dict()
+    policy = info["record"]
+    for key in WALL_CLOCK_KEYS:
+        batch.pop(key), policy.pop(key)
+    assert policy == batch and total == 1.0 and info["success"]
+    assert steps > 20  # one step per control tick of the approach, servo and descent
+
+
+def test_reference_policy_at_the_camera_rate(env: StackPickEnv) -> None:
+    """One step per camera frame: the episode ends with a verdict, the view renders."""
+    total, steps, info = _drive(env, 2)
+    assert info["failure"] in (None, *FAILURES) and info["failure"] != "error"
+    assert total == (1.0 if info["success"] else 0.0) and steps > 3
     frame = env.render()
     assert frame is not None and frame.shape == (480, 1280, 3) and frame.dtype == np.uint8
     with pytest.raises(gymnasium.error.ResetNeeded):

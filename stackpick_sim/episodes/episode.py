@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 
 import mujoco
@@ -44,11 +44,13 @@ from stackpick_sim.episodes.phases import PhaseLogic
 from stackpick_sim.episodes.record import EpisodeRecord
 from stackpick_sim.episodes.sensing import Observation, Sensor
 from stackpick_sim.exceptions import EstimationError
-from stackpick_sim.pipeline import Controller, Detector, Estimator
+from stackpick_sim.pipeline import ControlGoal, Controller, Detector, Estimator
 from stackpick_sim.registry import TRUTH_STAGES, load, version_of
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.conveyor import Conveyor
 from stackpick_sim.sim.stacks import Scene, generate_scene
+
+FloatArray = NDArray[np.float64]
 
 #: Seed-sequence stream of the camera's pixel noise and light jitter.
 CAMERA_STREAM = 2
@@ -92,12 +94,6 @@ class Episode:
     camera: WristCamera | None
     lips: frozenset[int]
     wall: dict[str, float] = field(default_factory=dict)
-    action: NDArray[np.float64] | None = None
-    """(6,) joint rates, rad/s, replacing the controller's command in the approach, the servo
-    and the descent (an external policy: the Gymnasium environment), or None."""
-    reference_action: NDArray[np.float64] | None = None
-    """With an ``action``: what the controller commanded instead at the latest tick of the
-    approach, servo or descent (the reference policy of the Gymnasium environment)."""
     audit: Audit = field(init=False)
 
 
@@ -185,11 +181,24 @@ class EpisodeRun:
         return self.logic.failure is not None or self.logic.done
 
     def step(self) -> bool:
-        """One control tick (sense, decide, act, physics); False once the episode is over."""
+        """One control tick (sense, decide, act, physics) with the episode's own controller;
+        False once the episode is over."""
+        ticks = self.ticks()
+        try:
+            while True:
+                ticks.send(None)
+        except StopIteration as stop:
+            return bool(stop.value)
+
+    def ticks(self) -> Generator[ControlGoal, FloatArray | None, bool]:
+        """One control tick as a generator: it yields each :class:`ControlGoal` the arm is to
+        follow and takes back (6,) joint rates (rad/s) for it, or None for the controller's
+        command (an external policy drives the arm this way). Returns whether the episode
+        goes on."""
         if self.over:
             return False
         try:
-            self._tick()
+            yield from self._tick()
         except Exception as exc:  # a bug in a stage or here: an ``error`` record, not a crash
             self.traceback = traceback.format_exc()
             self.logic.fail(ERROR, f"{type(exc).__name__}: {exc}")
@@ -197,7 +206,7 @@ class EpisodeRun:
             self._close_camera()
         return not self.over
 
-    def _tick(self) -> None:
+    def _tick(self) -> Generator[ControlGoal, FloatArray | None, None]:
         ep, logic = self.episode, self.logic
         cell = ep.scene.cell
         model, data = cell.model, cell.data
@@ -216,7 +225,7 @@ class EpisodeRun:
         t0 = time.perf_counter()
         servo = None
         try:
-            servo = logic.tick(t, self.dt, observations)
+            servo = yield from logic.tick(t, self.dt, observations)
         except ControlError as exc:  # the servo law or the joint-limit QP had no solution
             logic.fail("joint_limit" if ep.arm.at_limit() else "servo_diverged",
                        f"control: {exc}")

@@ -6,13 +6,13 @@ logged in sim time; the record is filled in as the phases pass.
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stackpick_sim.episodes.arm import ServoErrors
 from stackpick_sim.episodes.audit import DETECTION_PHASES
-from stackpick_sim.episodes.pick import ArmPhases
+from stackpick_sim.episodes.pick import ArmPhases, Command
 from stackpick_sim.episodes.record import FAILURES, PHASES
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
@@ -146,8 +146,12 @@ class PhaseLogic(ArmPhases):
             return None
 
     # -- the machine -----------------------------------------------------------------------
-    def tick(self, t: float, dt: float, observations: list[Observation]) -> ServoErrors | None:
-        """Advance the phase machine at sim time ``t`` s; returns the servo errors if servoing."""
+    def tick(self, t: float, dt: float, observations: list[Observation]) -> Command:
+        """Advance the phase machine at sim time ``t`` s; returns the servo errors if servoing.
+
+        A generator: a phase that moves the arm yields its :class:`ControlGoal` and takes
+        back the joint rates to apply, or None for the controller's (see
+        :meth:`~stackpick_sim.episodes.pick.ArmPhases._command`)."""
         self._now = t
         cfg = self.ep.scene.cell.cfg.episode
         if self.phase not in ("look", "detect"):
@@ -160,7 +164,9 @@ class PhaseLogic(ArmPhases):
         if self._retarget_if_outvoted(t):
             return None
         handler = getattr(self, f"_{self.phase}")
-        result: ServoErrors | None = handler(t, dt, observations)
+        result = handler(t, dt, observations)
+        if isinstance(result, Generator):
+            result = yield from result
         self._update_sensor_hints()
         return result
 

@@ -13,6 +13,7 @@ base (a grasp at the edge of the reach, on a fast belt, cannot rise straight up)
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -35,6 +36,11 @@ from stackpick_sim.pipeline import ControlGoal, TargetState
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
+
+FloatArray = NDArray[np.float64]
+#: A phase that commands the arm: yields its goals (see :meth:`ArmPhases._command`),
+#: returns the servo errors (or None).
+Command = Generator[ControlGoal, FloatArray | None, ServoErrors | None]
 
 #: The approach hands over to the servo within this distance (m) and angle (deg) of its goal.
 APPROACH_DONE = (0.01, 5.0)
@@ -195,11 +201,11 @@ class ArmPhases:
                                    self.ep.scene.cell.cfg.episode.standoff, self._face_share)
         return replace(state, normal=tilted_axis(state.normal, share))
 
-    def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:
+    def _approach(self, t: float, dt: float, obs: list[Observation]) -> Command:
         ep = self.ep
         cfg = ep.scene.cell.cfg.episode
         if not self._check_track(t):
-            return
+            return None
         self._replan_if_turned(t)
         lead = 1.0 / cfg.approach_gain
         now_T_tool = ep.arm.command_world_T_tool()
@@ -208,45 +214,44 @@ class ArmPhases:
         goal = ControlGoal(phase="approach", target=target,
                            lead=self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
                            standoff=cfg.standoff, standoff_rate=0.0, dt=dt)
-        ep.arm.apply(self._command(goal), dt)
+        ep.arm.apply((yield from self._command(goal)), dt)
         here = approach_pose(target, cfg.standoff, now_T_tool)
         pos, ang = pose_error(ep.arm.eih.world_T_ee(ep.scene.cell.data), here)
         if pos < APPROACH_DONE[0] and ang < APPROACH_DONE[1]:
             self._enter("servo", t)
+        return None
 
     def _servo_step(self, t: float, dt: float, standoff: float,
-                    rate: float) -> ServoErrors:
+                    rate: float) -> Generator[ControlGoal, FloatArray | None, ServoErrors]:
         ep = self.ep
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
         target = self._commanded(ep.estimator.state(t, cam), standoff)
-        qdot = self._command(ControlGoal(phase=self.phase, target=target, lead=None,
-                                         standoff=standoff, standoff_rate=rate, dt=dt))
+        qdot = yield from self._command(ControlGoal(phase=self.phase, target=target, lead=None,
+                                                    standoff=standoff, standoff_rate=rate,
+                                                    dt=dt))
         err = ep.arm.servo_errors(target, standoff)
         ep.arm.apply(qdot, dt)
         return err
 
-    def _command(self, goal: ControlGoal) -> NDArray[np.float64]:
-        """(6,) joint rates for ``goal``: the episode's action when one is given (an
-        external policy; the controller's command is then kept as its reference), else the
-        controller's."""
+    def _command(self, goal: ControlGoal
+                 ) -> Generator[ControlGoal, FloatArray | None, FloatArray]:
+        """(6,) joint rates for ``goal``: the goal is yielded to the episode's driver, which
+        answers with an external policy's action, or None for the controller's command."""
         ep = self.ep
-        if ep.action is None:
-            qdot = ep.controller.command(goal, ep.arm)
-        else:  # the controller's command too, as the reference of the external policy
-            ep.reference_action = np.asarray(ep.controller.command(goal, ep.arm), dtype=float)
-            qdot = ep.action
-        qdot = np.asarray(qdot, dtype=float)
+        action = yield goal
+        qdot = np.asarray(ep.controller.command(goal, ep.arm) if action is None else action,
+                          dtype=float)
         if qdot.shape != (6,) or not np.all(np.isfinite(qdot)):
             raise EpisodeError(f"the {goal.phase} command must be 6 finite joint rates (rad/s); "
                                f"got {np.round(qdot, 4).tolist()}")
         return qdot
 
-    def _servo(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _servo(self, t: float, dt: float, obs: list[Observation]) -> Command:
         cfg = self.ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return None
         self._replan_if_turned(t)
-        err = self._servo_step(t, dt, cfg.standoff, 0.0)
+        err = yield from self._servo_step(t, dt, cfg.standoff, 0.0)
         ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
               and err.tilt_deg < cfg.servo_tilt_tol_deg)
         self._settled = self._settled + 1 if ok else 0
@@ -255,7 +260,7 @@ class ArmPhases:
             self._enter("descend", t)
         return err
 
-    def _descend(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _descend(self, t: float, dt: float, obs: list[Observation]) -> Command:
         ep = self.ep
         cfg = ep.scene.cell.cfg.episode
         touched = touching(ep.scene.cell, ep.lips)
@@ -265,14 +270,14 @@ class ArmPhases:
             ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
             self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
             self._enter("grasp", t)
-            return self._servo_step(t, dt, self._standoff, 0.0)
+            return (yield from self._servo_step(t, dt, self._standoff, 0.0))
         floor = self._descent_floor(cfg.overtravel)
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
         speed = cfg.descend_speed if aligned and self._standoff > floor else 0.0
         self._standoff = max(self._standoff - speed * dt, floor)
-        err = self._servo_step(t, dt, self._standoff, -speed)
+        err = yield from self._servo_step(t, dt, self._standoff, -speed)
         self._last_lateral = err.lateral
         self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
         if descent_missed(err.depth, self._standoff, floor, self._at_floor):
@@ -288,9 +293,9 @@ class ArmPhases:
                                     self._floor)
         return self._floor
 
-    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> Command:
         cfg = self.ep.scene.cell.cfg.episode
-        err = self._servo_step(t, dt, self._standoff, 0.0)
+        err = yield from self._servo_step(t, dt, self._standoff, 0.0)
         if t - self.phase_start >= cfg.grasp_dwell:
             self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
             self._lift_from = self.ep.arm.command_world_T_tool()

@@ -1,26 +1,31 @@
 """StackPick-v0: drive the arm through a pick, one camera frame per step.
 
 * ``reset(seed=s)`` builds and settles the same pile as ``stackpick run --seeds s`` (same
-  scene, same ``--set`` overrides) and runs the episode to its first camera frame.
+  scene, same ``--set`` overrides) and runs the episode (look, detect, track) up to the first
+  control tick of the approach: the agent is asked only when its action moves the arm.
 * Observation (a dict): ``image`` the latest wrist-camera frame, (H, W, 3) uint8 RGB with the
   scene's noise; ``qpos``/``qvel`` the six arm joints' angles (rad) and rates (rad/s);
   ``phase`` the index of the phase in :data:`stackpick_sim.episodes.record.PHASES`.
 * Action: (6,) joint velocity targets, rad/s, within the arm model's speed limits, held
-  until the next camera frame (``step="frame"``, the default) or for one control tick
-  (``step="tick"``). They replace the controller's command in the approach, the servo and
-  the descent; the phase machine keeps its transitions and time-outs, and the other phases
-  (look, detect, track, grasp, lift, verify) run as in ``stackpick run``, whatever the action.
+  until the control tick that takes the next camera frame (``step="frame"``, the default) or
+  for one control tick (``step="tick"``, ``episode.control_period``). They replace the
+  controller's command in the approach, the servo and the descent; the phase machine keeps
+  its transitions and time-outs, and the other phases (look, detect, track, grasp, lift,
+  verify) run as in ``stackpick run`` between two steps.
 * Reward 1 on a verified pick, else 0; the episode terminates when the pick is verified or
   fails. ``info``: ``phase``, ``time`` (s), and at the end ``success``, ``failure`` (a reason
   of :data:`~stackpick_sim.episodes.record.FAILURES`), ``failure_detail`` and the whole
-  ``record``. ``info["reference_action"]`` is what our controller commanded at the step's
-  last tick (zeros outside those phases): :class:`ReferencePolicy` acts on it.
+  ``record``. ``info["reference_action"]`` is what our controller would command now, for
+  the goal the next action is for: :class:`ReferencePolicy` acts on it. With
+  ``step="tick"`` it reproduces ``stackpick run``'s episode exactly; with ``step="frame"``
+  it holds each command for a camera frame (three ticks), so outcomes can differ.
 * ``render_mode="rgb_array"``: the replay's side-by-side view (wrist camera with the
   detections | the overview camera), (480, 1280, 3) RGB.
 """
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from typing import Any
 
 import gymnasium
@@ -33,11 +38,18 @@ from stackpick_sim.episodes.episode import Episode, EpisodeHooks, EpisodeRun, Ti
 from stackpick_sim.episodes.record import PHASES, EpisodeRecord
 from stackpick_sim.episodes.replay import VIEW_SIZE, wrist_view
 from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.pipeline import ControlGoal
 from stackpick_sim.sim.camera import make_renderer
 from stackpick_sim.sim.robot import VELOCITY_LIMITS
 
 #: Largest seed ``reset()`` draws when no seed is given.
 MAX_SEED = 2**31 - 1
+#: Phases whose arm command the action gives (the others use the controller's).
+ACTION_PHASES = ("approach", "servo", "descend")
+FloatArray = NDArray[np.float64]
+#: Actions are clipped to the speed limits widened by this share: a controller's command at
+#: a limit can exceed it by floating-point rounding (1e-15 rad/s), which is not clipped.
+LIMIT_ROUNDING = 1e-9
 
 
 class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
@@ -67,6 +79,10 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
         self._run: EpisodeRun | None = None
         self._record: EpisodeRecord | None = None
         self._overview: Any = None
+        self._events: Generator[ControlGoal, FloatArray | None, None] | None = None
+        self._reference = np.zeros(6)
+        self._reported = False
+        """The step that ended the episode has been returned."""
 
     @property
     def episode(self) -> Episode:
@@ -84,26 +100,53 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
         self._run = EpisodeRun(self.cfg, EpisodeHooks(keep_images=True))
         self._run.reset(seed)
         self._record = None
-        self._run.step()  # the first tick takes the first frame
+        self._reported = False
+        self._events = self._goals(self._run)
+        self._advance(None, first=True)
         return self._observation(), self._info()
+
+    @staticmethod
+    def _goals(run: EpisodeRun) -> Generator[ControlGoal, FloatArray | None, None]:
+        while (yield from run.ticks()):
+            pass
+
+    def _advance(self, action: FloatArray | None, first: bool = False) -> None:
+        """Answer the pending goal with ``action`` and run on to the next goal the agent is
+        asked for (or the episode's end)."""
+        assert self._run is not None and self._events is not None
+        ep = self._run.episode
+        frames = ep.sensor.frames
+        reply = action
+        try:
+            while True:
+                goal = self._events.send(reply)
+                if goal.phase not in ACTION_PHASES:
+                    reply = None  # the grasp's hold: the controller's
+                    continue
+                if first or self.step_unit == "tick" or ep.sensor.frames > frames:
+                    break
+                reply = action
+        except StopIteration:
+            self._record = self._run.finish()
+            self._reference = np.zeros(6)
+            return
+        try:
+            self._reference = np.asarray(ep.controller.command(goal, ep.arm), dtype=float)
+        except Exception:  # the controller has no answer here: the step will say so
+            self._reference = np.zeros(6)
 
     def step(self, action: NDArray[np.float64]
              ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
-        run = self._run
-        if run is None:
+        if self._run is None:
             raise gymnasium.error.ResetNeeded("call reset() first")
-        if self._record is not None:
+        if self._reported:
             raise gymnasium.error.ResetNeeded("the episode is over; call reset()")
-        ep = run.episode
-        ep.action = np.clip(np.asarray(action, dtype=np.float64), -self.limit, self.limit)
-        ep.reference_action = None
-        frames = ep.sensor.frames
-        while run.step() and self.step_unit == "frame" and ep.sensor.frames == frames:
-            pass
-        terminated = run.over
-        if terminated:
-            self._record = run.finish()
-        reward = 1.0 if terminated and self._record is not None and self._record.success else 0.0
+        if self._record is None:  # else it ended before the agent was asked (e.g. no detection)
+            bound = self.limit * (1.0 + LIMIT_ROUNDING)
+            self._advance(np.clip(np.asarray(action, dtype=np.float64), -bound, bound))
+        self._reported = self._record is not None
+        terminated = self._record is not None
+        reward = 1.0 if self._record is not None and self._record.success else 0.0
         return self._observation(), reward, terminated, False, self._info()
 
     def _observation(self) -> dict[str, Any]:
@@ -121,10 +164,9 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
     def _info(self) -> dict[str, Any]:
         assert self._run is not None
         ep = self._run.episode
-        ref = ep.reference_action
         info: dict[str, Any] = {
             "phase": self._run.logic.phase, "time": float(ep.scene.cell.data.time),
-            "reference_action": np.zeros(6) if ref is None else ref.copy()}
+            "reference_action": self._reference.copy()}
         if self._record is not None:
             rec = self._record
             info.update(success=rec.success, failure=rec.failure,
@@ -148,6 +190,9 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
 
     def close_episode(self) -> None:
         """Release the running episode's renderers (reset and close do it)."""
+        if self._events is not None:
+            self._events.close()
+            self._events = None
         if self._run is not None and self._record is None:
             self._run.finish()
         self._run = None
@@ -160,7 +205,8 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
 
 
 class ReferencePolicy:
-    """Our controller as a policy: acts on ``info["reference_action"]`` of the last step."""
+    """Our controller as a policy: ``info["reference_action"]``, its command for the goal the
+    next action is for."""
 
     def __call__(self, observation: dict[str, Any], info: dict[str, Any]) -> NDArray[np.float64]:
         return np.asarray(info.get("reference_action", np.zeros(6)), dtype=np.float64)
