@@ -87,11 +87,11 @@ def main() -> int:
              f"- env wall time / run_episode wall time, same seeds: "
              f"{result['env_wall_per_batch_wall']:.2f}"]
     if args.episodes and args.compare:
+        infos = {seed: policy_episode(env, seed)[3] for seed in parse_seeds(args.episodes)}
         recorded = {r["seed"]: r for r in map(json.loads, (args.compare / "results.jsonl")
                                                   .read_text().splitlines())}
         rows = []
-        for seed in parse_seeds(args.episodes):
-            info = policy_episode(env, seed)[3]
+        for seed, info in infos.items():
             batch = recorded[seed]
             rows.append({"seed": seed, "policy": bool(info["success"]),
                          "policy_failure": info["failure"], "batch": bool(batch["success"]),

@@ -1,7 +1,7 @@
 """Pick episodes: the phase machine, its records, batches, summaries and replays."""
 
 from stackpick_sim.episodes.batch import RunSpec, run_batch, write_outputs
-from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
+from stackpick_sim.episodes.episode import EpisodeHooks, EpisodeRun, TickInfo, run_episode
 from stackpick_sim.episodes.record import FAILURES, MIN_LIFT_M, PHASES, EpisodeRecord
 from stackpick_sim.episodes.replay import ReplayResult, replay_episode
 from stackpick_sim.episodes.summary import summarize, summary_markdown, wilson_interval
@@ -14,6 +14,7 @@ __all__ = [
     "EpisodeError",
     "EpisodeHooks",
     "EpisodeRecord",
+    "EpisodeRun",
     "ReplayResult",
     "RunSpec",
     "TickInfo",
