@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -38,10 +40,14 @@ from stackpick_sim.gym.env import ReferencePolicy  # noqa: E402
 from stackpick_sim.sim.stacks import generate_scene  # noqa: E402
 
 
-def policy_episode(env: Any, seed: int) -> tuple[int, float, float, dict[str, Any]]:
-    """One episode with the reference policy: steps, wall s (steps only), sim s, last info."""
+def policy_episode(env: Any, seed: int) -> tuple[int, float, float, float, dict[str, Any]]:
+    """One episode with the reference policy: steps, wall s of the steps, wall s of the
+    episode after its pile (the reset's look, detect and track too), sim s, last info."""
     policy = ReferencePolicy()
+    t0 = time.perf_counter()
     obs, info = env.reset(seed=seed)
+    pile = env.episode.scene.build_wall_s
+    reset = time.perf_counter() - t0
     steps, wall = 0, 0.0
     while True:
         t0 = time.perf_counter()
@@ -49,7 +55,7 @@ def policy_episode(env: Any, seed: int) -> tuple[int, float, float, dict[str, An
         wall += time.perf_counter() - t0
         steps += 1
         if terminated or truncated:
-            return steps, wall, float(info["time"]), info
+            return steps, wall, wall + reset - pile, float(info["time"]), info
 
 
 def main() -> int:
@@ -60,34 +66,45 @@ def main() -> int:
     parser.add_argument("--episodes", default=None, help="seeds of the success comparison")
     parser.add_argument("--compare", type=Path, default=None,
                         help="a `stackpick run` output directory with those seeds")
+    parser.add_argument("--cpu", type=int, default=None,
+                        help="the CPU to run on (default: the lowest this process may use)")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+        cpus = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, {min(cpus) if args.cpu is None else args.cpu})
     cfg = load_scene(args.scene)
     env = gymnasium.make("StackPick-v0", scene=args.scene, step=args.step).unwrapped
     steps = 0
-    wall = sim = batch_wall = 0.0
+    wall = episode_wall = sim = batch_wall = 0.0
     for seed in parse_seeds(args.seeds):
-        n, w, s, _ = policy_episode(env, seed)
-        steps, wall, sim = steps + n, wall + w, sim + s
+        n, w, e, s, _ = policy_episode(env, seed)
+        steps, wall, episode_wall, sim = steps + n, wall + w, episode_wall + e, sim + s
         scene = generate_scene(cfg, seed)
         t0 = time.perf_counter()
         run_episode(scene)
         batch_wall += time.perf_counter() - t0
     result: dict[str, Any] = {
         "scene": args.scene, "seeds": args.seeds, "steps": steps,
-        "steps_per_s": steps / wall, "sim_per_wall": sim / wall,
-        "env_wall_per_batch_wall": wall / batch_wall, "cores": 1}
+        "steps_per_s": steps / wall, "sim_per_wall": sim / episode_wall,
+        "env_wall_per_batch_wall": episode_wall / batch_wall, "cores": 1,
+        "load_average": os.getloadavg()[0], "machine_cpus": os.cpu_count()}
     result["step"] = args.step
-    lines = [f"# StackPick-v0 on {args.scene}, step={args.step}, one core",
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=Path(__file__).parent, check=False).stdout.strip()
+    result["commit"], result["command"] = commit, " ".join(["python", *sys.argv])
+    lines = [f"# StackPick-v0 on {args.scene}, step={args.step}, one core", "",
+             f"Commit {commit or '?'}: `{result['command']}`",
              "", f"- env steps/s (reference policy, seeds {args.seeds}): "
              f"{result['steps_per_s']:.1f} (target >= 30: real time at 30 fps)",
-             f"- sim time per wall time: {result['sim_per_wall']:.2f}",
-             f"- env wall time / run_episode wall time, same seeds: "
-             f"{result['env_wall_per_batch_wall']:.2f}"]
+             f"- sim time per wall time (whole episodes, pile excluded): "
+             f"{result['sim_per_wall']:.2f}",
+             f"- env wall time / run_episode wall time, same seeds (pile excluded): "
+             f"{result['env_wall_per_batch_wall']:.2f}",
+             f"- machine: {result['machine_cpus']} CPUs, 1-minute load average "
+             f"{result['load_average']:.1f} at the end (other work slows every figure)"]
     if args.episodes and args.compare:
-        infos = {seed: policy_episode(env, seed)[3] for seed in parse_seeds(args.episodes)}
+        infos = {seed: policy_episode(env, seed)[4] for seed in parse_seeds(args.episodes)}
         recorded = {r["seed"]: r for r in map(json.loads, (args.compare / "results.jsonl")
                                                   .read_text().splitlines())}
         rows = []

@@ -156,3 +156,11 @@ def test_steppable_episode_is_run_episode() -> None:
     assert stepped == direct and stepped["success"]
     assert ticks == round(stepped["sim_time_s"] / ep.scene.cell.cfg.episode.control_period)
     assert np.isfinite(ep.scene.cell.data.qpos).all()
+
+
+def test_a_baseline_detector_drives_an_episode() -> None:
+    """``findellipses`` (a peer ellipse detector with our top rule and pose) in closed loop."""
+    rec = run_episode(generate_scene(load_scene("paper", ["episode.detector=findellipses"]),
+                                     SEED))
+    assert rec.detector == "findellipses" and rec.failure != "error", rec.failure_detail
+    assert rec.measurements_fused >= 3 and "approach" in rec.phases
