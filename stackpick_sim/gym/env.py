@@ -46,6 +46,8 @@ from stackpick_sim.sim.robot import VELOCITY_LIMITS
 MAX_SEED = 2**31 - 1
 #: Phases whose arm command the action gives (the others use the controller's).
 ACTION_PHASES = ("approach", "servo", "descend")
+#: Phases after which the agent is not asked again.
+BLIND_PHASES = ("grasp", "lift", "verify")
 FloatArray = NDArray[np.float64]
 #: Actions are clipped to the speed limits widened by this share: a controller's command at
 #: a limit can exceed it by floating-point rounding (1e-15 rad/s), which is not clipped.
@@ -97,13 +99,20 @@ class StackPickEnv(gymnasium.Env[dict[str, Any], NDArray[np.float64]]):
         if seed is None:
             seed = int(self.np_random.integers(0, MAX_SEED))
         self.close_episode()
-        self._run = EpisodeRun(self.cfg, EpisodeHooks(keep_images=True))
+        self._run = EpisodeRun(self.cfg, EpisodeHooks(keep_images=True,
+                                                      on_tick=self._images_while_asked))
         self._run.reset(seed)
         self._record = None
         self._reported = False
         self._events = self._goals(self._run)
         self._advance(None, first=True)
         return self._observation(), self._info()
+
+    @staticmethod
+    def _images_while_asked(tick: TickInfo) -> None:
+        """Render every frame for the observation until the grasp; after it the agent is not
+        asked again (the frames the detector processes are rendered anyway)."""
+        tick.episode.sensor.keep_images = tick.phase not in BLIND_PHASES
 
     @staticmethod
     def _goals(run: EpisodeRun) -> Generator[ControlGoal, FloatArray | None, None]:
