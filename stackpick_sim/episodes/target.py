@@ -25,7 +25,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +44,7 @@ from stackpick_sim.estimation import (
     transfer_via_plane,
 )
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.pipeline import TargetState
 from stackpick_sim.vision import circle_poses
 
 FloatArray = NDArray[np.float64]
@@ -129,20 +130,13 @@ NORMAL_AGREEMENT_DEG = 10.0
 VOTE_SIGHT_DEG = 5.0
 
 
-@dataclass(frozen=True, kw_only=True)
-class TargetState:
-    """The face at one instant: centre (3,) m, velocity (3,) m/s, unit inward normal (3,)."""
-
-    centre: FloatArray
-    velocity: FloatArray
-    normal: FloatArray
-
-
 class TargetEstimator:
     """Fuses the tracked face's detections; :meth:`state` predicts it at any time."""
 
-    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool) -> None:
-        self.frame = cfg.episode.tracker_frame
+    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
+                 frame: str | None = None) -> None:
+        self.frame = frame or cfg.episode.tracker_frame
+        """``belt`` or ``image`` (default: the scene's ``episode.tracker_frame``)."""
         self.k = intrinsics
         self.pixel_std = ORACLE_PIXEL_STD if oracle else VISION_PIXEL_STD
         self._belt_v = np.array([0.0, cfg.conveyor.speed])
