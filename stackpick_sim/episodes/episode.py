@@ -1,5 +1,5 @@
 """One pick as a phase machine: look, detect, track, approach, servo, descend, grasp, lift,
-verify (the issue's phases, :data:`~stackpick_sim.episodes.record.PHASES`).
+verify (the phases of :data:`~stackpick_sim.episodes.record.PHASES`).
 
 Time runs in control ticks of ``episode.control_period`` (physics at ``sim.timestep``
 between them). At every tick: kinematics are brought up to date, a frame is captured if

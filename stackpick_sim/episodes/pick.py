@@ -95,7 +95,7 @@ def descent_floor(overtravel: float, face_z: float, lowest_face_z: float, talles
     pile); never above ``previous``, the floor of an earlier tick (m). A monocular height
     errs one way, too high (see
     :attr:`~stackpick_sim.episodes.target.TargetEstimator.lowest_face_z`), so a face not
-    met by then is missed; a face met earlier ends the descent at contact as before.
+    met by then is missed; a face met above the floor ends the descent at contact.
     """
     below = min(max(face_z - lowest_face_z, 0.0), tallest)
     return min(previous, -overtravel - below)
@@ -110,8 +110,8 @@ def descent_missed(depth_error: float, standoff: float, floor: float,
     long the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
     follows the commanded descent some millimetres late: a miss is the tool itself past the
     predicted face, or the tool resting near the floor for DESCENT_WAIT. A tool still far
-    above (slowed by the wrist's J5 = 0 singularity, paper seed 242: 10-20 mm behind) is
-    waited for, up to the phase's time-out.
+    above (the wrist swinging through its J5 = 0 singularity leaves the tool 10-20 mm
+    behind the command) is waited for, up to the phase's time-out.
     """
     return depth_error + standoff <= floor + DESCENT_ARRIVED or at_floor > DESCENT_WAIT
 
