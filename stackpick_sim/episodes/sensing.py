@@ -266,7 +266,8 @@ class Sensor:
         return DetectorConfig(intrinsics=self._cell.intrinsics, radii_m=radii,
                               kind_colours=colours, heights_m=heights,
                               depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)),
-                              limits=WorkLimits.of(cfg.vision))
+                              limits=WorkLimits.of(cfg.vision),
+                              marking_depth_ratio=cfg.vision.marking_depth_ratio)
 
 
 def ellipse_inside(e: Ellipse, k: CameraIntrinsics, margin_px: float = 0.0) -> bool:

@@ -1,0 +1,135 @@
+"""Markings and relief inside a face: the top rule's evidence that a face's inner outlines are
+its own.
+
+Failure class: *an ellipse that is a marking or relief inside a larger face's outline*.
+Printed lids carry artwork (a word, a stripe, a logo's ring) and a tinplate can end a raised
+rim round a groove and a countersunk panel. Their edges lie inside the face's outline, so the
+face fails the top rule on interior edges, and a closed inner outline (a groove, a ring, a fit
+on the artwork) shows no T-junction and nothing inside it: it passes the rule and is taken for
+an unoccluded top face lying inside the true one.
+
+What tells such an outline from a smaller object lying on the face is where it would lie. A
+face whose outline shows whole (support >= TOP_MIN_SUPPORT, no T-junction end) has nothing
+across its outline: whatever lies on it lies wholly inside it, and an object resting on it is
+nearer the camera than it, by about its own height. A face's depth from its image size is
+proportional to r / a (its radius r, from its colour when the object kinds' colours are known,
+and its semi-major axis a, px). An ellipse lying inside the whole face by more than the
+interior-edge margin, whose depth so read is not nearer than the face's (``depth_ratio`` of
+it or more, with its own kind's radius, else the smallest), is not an object on it: a marking
+or relief in the face's plane, whose radius is smaller than any kind's at that depth. Such an
+ellipse is no candidate for the top. A whole face that fails the rule on interior edges alone
+and holds no ellipse that could be an object on it (every ellipse inside it is a marking) has
+only its own markings inside: it is a candidate.
+
+Both tests read only ellipses, their evidence and radii: no image pass (cheap).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from stackpick_sim.geometry import Ellipse
+
+if TYPE_CHECKING:  # the top rule (occlusion) calls this module
+    from stackpick_sim.vision.occlusion import OcclusionEvidence
+
+#: Outline samples per ellipse for the "wholly inside" test.
+INSIDE_SAMPLES = 32
+#: A face's rim band, whose colour gives its kind: the ellipse at this share of its
+#: semi-axes. An object lying wholly inside the face (inside by the interior-edge margin) can
+#: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
+#: most of this band; a can end's rim (its outer 12 %) lies on it.
+RIM_SAMPLE_SCALE = 0.94
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkingTest:
+    """What the test reads besides the ellipses: the object kinds' ``radii`` (m); a face's
+    radius by the colour of its rim band (``rim_radius_of``, None when the kinds' colours are
+    unknown; see RIM_SAMPLE_SCALE); ``depth_ratio``: an inner ellipse whose depth reads at
+    least this multiple of the face's is a marking (ratio); ``margin_px``: how far (px)
+    inside the face a marking's whole outline lies (the margin of the interior-edge count)."""
+
+    radii: tuple[float, ...]
+    rim_radius_of: Callable[[Ellipse], float | None] | None
+    depth_ratio: float
+    margin_px: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Markings:
+    """The outcome of :func:`find_markings`: ``markings``, indices of ellipses that are a
+    marking or relief inside a whole face; ``marked``, indices of whole faces that failed the
+    rule on interior edges alone and hold only markings."""
+
+    markings: frozenset[int]
+    marked: frozenset[int]
+
+
+def whole_with_edges_inside(ev: OcclusionEvidence) -> bool:
+    """No T-junction end, support >= TOP_MIN_SUPPORT, more interior edges than allowed: a
+    face whose outline shows whole and that failed on interior edges alone."""
+    return not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside
+
+
+def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
+                  ) -> Markings:
+    """The markings and marked faces among ``ellipses`` (see the module docstring), given
+    their top-rule ``evidence``, the ``test``'s settings and, when known, each ellipse's radius
+    by its colour (``radius_of``). Without the colours (or where they give None) an inner
+    ellipse is read with the smallest radius and a face with the largest: the reading most in
+    favour of an object. A face's radius is read from its rim band, not its middle, which an
+    object lying on it can cover."""
+    faces = [i for i, ev in enumerate(evidence) if whole_with_edges_inside(ev)]
+    if not faces:
+        return Markings(markings=frozenset(), marked=frozenset())
+    small, large = min(test.radii), max(test.radii)
+
+    def depth(e: Ellipse, default: float, read: Callable[[Ellipse], float | None] | None
+              ) -> float:
+        r = read(e) if read is not None else None
+        return (default if r is None else r) / e.a
+
+    markings: set[int] = set()
+    marked: set[int] = set()
+    for f in faces:
+        face = ellipses[f]
+        # Smaller ellipses centred on the face: an object on it, or its markings.
+        inner = [i for i, e in enumerate(ellipses)
+                 if i != f and e.a < face.a and holds_centre(face, e)]
+        face_depth = depth(face, large, test.rim_radius_of)
+        blocked = False
+        for i in inner:
+            farther = depth(ellipses[i], small, radius_of) >= test.depth_ratio * face_depth
+            if farther and _inside(ellipses[i], face, test.margin_px):
+                markings.add(i)
+            elif not farther or _clear(evidence[i]):
+                blocked = True  # an object nearer than it, or a clear face across its rim
+        if not blocked:
+            marked.add(f)
+    return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
+
+
+def _clear(ev: OcclusionEvidence) -> bool:
+    """No T-junction end and no edge pixel inside: nothing crosses the ellipse (a face of its
+    own, where it reaches a larger face's rim)."""
+    return not ev.occluded_ends and not ev.interior_edge_px
+
+
+def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether ``inner``'s whole outline (INSIDE_SAMPLES points) lies inside ``face`` by more
+    than ``margin_px``."""
+    return bool(face.inside(inner.points(INSIDE_SAMPLES), margin_px).all())
+
+
+def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
+    """Whether ``inner``'s centre lies inside ``outer``."""
+    t = math.radians(outer.angle_deg)
+    du, dv = inner.cx - outer.cx, inner.cy - outer.cy
+    x = (math.cos(t) * du + math.sin(t) * dv) / outer.a
+    y = (-math.sin(t) * du + math.cos(t) * dv) / outer.b
+    return x * x + y * y < 1.0
