@@ -560,6 +560,13 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     if markings is not None:
         found = find_markings(ellipses, evidence, markings, radius_of)
         inner, marked = found.markings, found.marked
+        if marked:
+            # A face whose interior edges all lie in its rim band is a fit too large for its
+            # face (see RIM_BAND_PX), not a face with markings across it.
+            order = sorted(marked)
+            rimmed = rim_only([ellipses[i] for i in order], [evidence[i] for i in order],
+                              edge_points)
+            marked = marked - {order[k] for k in rimmed}
     candidates = [i for i, ev in enumerate(evidence)
                   if (not ev.occluded or i in marked) and i not in inner]
     if not candidates:
