@@ -98,26 +98,35 @@ def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
     marked: set[int] = set()
     for f in faces:
         face = ellipses[f]
-        # Smaller ellipses centred on the face: an object on it, or its markings.
-        inner = [i for i, e in enumerate(ellipses)
-                 if i != f and e.a < face.a and holds_centre(face, e)]
         face_depth = depth(face, large, test.rim_radius_of)
+        own: list[int] = []  # its markings if nothing lies on it
         blocked = False
-        for i in inner:
-            farther = depth(ellipses[i], small, radius_of) >= test.depth_ratio * face_depth
-            if farther and _inside(ellipses[i], face, test.margin_px):
+        for i, e in enumerate(ellipses):
+            if i == f:
+                continue
+            passes = not evidence[i].occluded
+            if not (e.a < face.a and holds_centre(face, e)):
+                # A face of its own reaching into it lies on it.
+                blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
+                continue
+            farther = depth(e, small, radius_of) >= test.depth_ratio * face_depth
+            wholly = _inside(e, face, test.margin_px)
+            if farther and wholly:
                 markings.add(i)
-            elif not farther or _clear(evidence[i]):
-                blocked = True  # an object nearer than it, or a clear face across its rim
+            elif passes or wholly:
+                blocked = True  # a face of its own on it, or an object nearer than it
+            else:
+                own.append(i)  # a fit across its whole outline: no object's
         if not blocked:
             marked.add(f)
+            markings.update(own)
     return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
 
 
-def _clear(ev: OcclusionEvidence) -> bool:
-    """No T-junction end and no edge pixel inside: nothing crosses the ellipse (a face of its
-    own, where it reaches a larger face's rim)."""
-    return not ev.occluded_ends and not ev.interior_edge_px
+def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether any of ``other``'s outline (INSIDE_SAMPLES points) lies inside ``face`` by more
+    than ``margin_px``."""
+    return bool(face.inside(other.points(INSIDE_SAMPLES), margin_px).any())
 
 
 def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
