@@ -13,15 +13,25 @@ face whose outline shows whole (support >= TOP_MIN_SUPPORT, no T-junction end) h
 across its outline: whatever lies on it lies wholly inside it, and an object resting on it is
 nearer the camera than it, by about its own height. A face's depth from its image size is
 proportional to r / a (its radius r, from its colour when the object kinds' colours are known,
-and its semi-major axis a, px). An ellipse lying inside the whole face by more than the
-interior-edge margin, whose depth so read is not nearer than the face's (``depth_ratio`` of
-it or more, with its own kind's radius, else the smallest), is not an object on it: a marking
-or relief in the face's plane, whose radius is smaller than any kind's at that depth. Such an
-ellipse is no candidate for the top. A whole face that fails the rule on interior edges alone
-and holds no ellipse that could be an object on it (every ellipse inside it is a marking) has
-only its own markings inside: it is a candidate.
+and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
 
-Both tests read only ellipses, their evidence and radii: no image pass (cheap).
+* one lying wholly inside it by more than the interior-edge margin whose depth so read is not
+  nearer than the face's (``depth_ratio`` of it or more, with its own kind's radius, else the
+  smallest) is not an object on it: a marking or relief in the face's plane, whose radius is
+  smaller than any kind's at that depth. It is no candidate for the top;
+* one that passes the top rule itself, or lies wholly inside it and reads nearer, is a face
+  on it: the face is under it;
+* one that fails the rule and runs across the face's whole outline is a fit on its markings
+  and outline together, when nothing else lies on the face.
+
+A whole face that fails the rule on interior edges alone, with no face on it and no other
+ellipse that passes the rule reaching into it, has only its own markings inside: it is a
+candidate, and the ellipses of the third kind are no candidates either. (A face whose interior
+edges all lie in its rim band is left to the rule's rim fallbacks: :func:`~stackpick_sim.
+vision.occlusion.rim_only`.)
+
+The tests read only ellipses, their evidence and the faces' colours (a few pixels each): no
+image pass (cheap).
 """
 
 from __future__ import annotations

@@ -34,6 +34,10 @@ only interior edges lie within RIM_BAND_PX of its outline (its own faint rim, fi
 same-colour lower face's sliver beyond it). Such a face can also lie on the face the rule
 chose: :func:`select_resting_rimmed` (called by the detector on a choice) takes it when its
 cylinder, refitted on its innermost edge, rests on the chosen one's.
+Given the object kinds' radii (the detector's ``markings`` settings), an ellipse that is a
+marking or relief inside a larger face's outline (printed artwork, a can end's groove) is no
+candidate, and a face whose outline shows whole and whose interior edges are only its own
+markings is one (:mod:`~stackpick_sim.vision.markings`).
 The rule needs only a list of ellipses and an edge map, so it applies to any detector's
 ellipses.
 """
