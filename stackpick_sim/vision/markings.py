@@ -90,47 +90,52 @@ def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
                   ) -> Markings:
     """The markings and marked faces among ``ellipses`` (see the module docstring), given
     their top-rule ``evidence``, the ``test``'s settings and, when known, each ellipse's radius
-    by its colour (``radius_of``). Without the colours (or where they give None) an inner
-    ellipse is read with the smallest radius and a face with the largest: the reading most in
-    favour of an object. A face's radius is read from its rim band, not its middle, which an
-    object lying on it can cover."""
-    faces = [i for i, ev in enumerate(evidence) if whole_with_edges_inside(ev)]
-    if not faces:
-        return Markings(markings=frozenset(), marked=frozenset())
-    small, large = min(test.radii), max(test.radii)
-
-    def depth(e: Ellipse, default: float, read: Callable[[Ellipse], float | None] | None
-              ) -> float:
-        r = read(e) if read is not None else None
-        return (default if r is None else r) / e.a
-
+    by its colour (``radius_of``)."""
     markings: set[int] = set()
     marked: set[int] = set()
-    for f in faces:
-        face = ellipses[f]
-        face_depth = depth(face, large, test.rim_radius_of)
-        own: list[int] = []  # its markings if nothing lies on it
-        blocked = False
-        for i, e in enumerate(ellipses):
-            if i == f:
-                continue
-            passes = not evidence[i].occluded
-            if not (e.a < face.a and holds_centre(face, e)):
-                # A face of its own reaching into it lies on it.
-                blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
-                continue
-            farther = depth(e, small, radius_of) >= test.depth_ratio * face_depth
-            wholly = _inside(e, face, test.margin_px)
-            if farther and wholly:
-                markings.add(i)
-            elif passes or wholly:
-                blocked = True  # a face of its own on it, or an object nearer than it
-            else:
-                own.append(i)  # a fit across its whole outline: no object's
-        if not blocked:
-            marked.add(f)
+    for f, ev in enumerate(evidence):
+        if whole_with_edges_inside(ev):
+            own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
             markings.update(own)
+            if not blocked:
+                marked.add(f)
+                markings.update(loose)
     return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
+
+
+def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+           test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
+           ) -> tuple[list[int], list[int], bool]:
+    """For the whole face ``f``: its markings (wholly inside, not nearer), the failed fits
+    across its outline (its markings too if nothing lies on it), and whether a face lies on
+    it. Without the colours (or where they give None) an inner ellipse is read with the
+    smallest radius and the face with the largest: the reading most in favour of an object.
+    The face's radius is read from its rim band, not its middle, which an object lying on it
+    can cover."""
+    face = ellipses[f]
+    rim = None if test.rim_radius_of is None else test.rim_radius_of(face)
+    face_depth = (max(test.radii) if rim is None else rim) / face.a
+    own: list[int] = []
+    loose: list[int] = []
+    blocked = False
+    for i, e in enumerate(ellipses):
+        if i == f:
+            continue
+        passes = not evidence[i].occluded
+        if not (e.a < face.a and holds_centre(face, e)):
+            # A face of its own reaching into it lies on it.
+            blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
+            continue
+        r = None if radius_of is None else radius_of(e)
+        farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
+        wholly = _inside(e, face, test.margin_px)
+        if farther and wholly:
+            own.append(i)
+        elif passes or wholly:
+            blocked = True  # a face of its own on it, or an object nearer than it
+        else:
+            loose.append(i)  # a failed fit across its whole outline: no object's
+    return own, loose, blocked
 
 
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:

@@ -512,6 +512,24 @@ def unobstructed(ev: OcclusionEvidence) -> bool:
             and ev.support >= FALLBACK_MIN_SUPPORT)
 
 
+def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+              edge_points: NDArray[np.float64], test: MarkingTest | None,
+              radius_of: Callable[[Ellipse], float | None] | None
+              ) -> tuple[frozenset[int], frozenset[int]]:
+    """(markings, marked faces) of :func:`~stackpick_sim.vision.markings.find_markings`
+    (both empty without a ``test``), less the marked faces whose interior edges all lie in
+    their rim band: a fit too large for its face (see RIM_BAND_PX), not a face with markings
+    across it."""
+    if test is None:
+        return frozenset(), frozenset()
+    found = find_markings(ellipses, evidence, test, radius_of)
+    order = sorted(found.marked)
+    if not order:
+        return found.markings, found.marked
+    rimmed = rim_only([ellipses[i] for i in order], [evidence[i] for i in order], edge_points)
+    return found.markings, found.marked - {order[k] for k in rimmed}
+
+
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
@@ -559,18 +577,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         vv, uu = np.nonzero(binary)
         edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
     evidence = evidence_all(ellipses, edge_points, support, gradients)
-    inner: frozenset[int] = frozenset()
-    marked: frozenset[int] = frozenset()
-    if markings is not None:
-        found = find_markings(ellipses, evidence, markings, radius_of)
-        inner, marked = found.markings, found.marked
-        if marked:
-            # A face whose interior edges all lie in its rim band is a fit too large for its
-            # face (see RIM_BAND_PX), not a face with markings across it.
-            order = sorted(marked)
-            rimmed = rim_only([ellipses[i] for i in order], [evidence[i] for i in order],
-                              edge_points)
-            marked = marked - {order[k] for k in rimmed}
+    inner, marked = _markings(ellipses, evidence, edge_points, markings, radius_of)
     candidates = [i for i, ev in enumerate(evidence)
                   if (not ev.occluded or i in marked) and i not in inner]
     if not candidates:
