@@ -118,6 +118,7 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
     depth: tuple[float, float] | None = None
     limits = WorkLimits()
     marking_depth_ratio = VisionCfg.marking_depth_ratio
+    marking_min_edge_share = VisionCfg.marking_min_edge_share
     if args.scene is not None or args.overrides:
         scene = load_scene(args.scene or "paper", args.overrides)
         fovy = scene.camera.fovy_deg
@@ -127,6 +128,7 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
         depth = face_depth_range(scene.camera.look_height, scene.objects.max_face_height)
         limits = WorkLimits.of(scene.vision)
         marking_depth_ratio = scene.vision.marking_depth_ratio
+        marking_min_edge_share = scene.vision.marking_min_edge_share
     if args.radii is not None:  # other radii: the scene's colours and heights no longer apply
         radii, colours, heights = tuple(args.radii), None, None
     return DetectorConfig(
@@ -134,7 +136,7 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
                                               width, height),
         radii_m=radii, kind_colours=colours, heights_m=heights,
         depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits,
-        marking_depth_ratio=marking_depth_ratio)
+        marking_depth_ratio=marking_depth_ratio, marking_min_edge_share=marking_min_edge_share)
 
 
 def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,

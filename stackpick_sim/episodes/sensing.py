@@ -267,7 +267,8 @@ class Sensor:
                               kind_colours=colours, heights_m=heights,
                               depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)),
                               limits=WorkLimits.of(cfg.vision),
-                              marking_depth_ratio=cfg.vision.marking_depth_ratio)
+                              marking_depth_ratio=cfg.vision.marking_depth_ratio,
+                              marking_min_edge_share=cfg.vision.marking_min_edge_share)
 
 
 def ellipse_inside(e: Ellipse, k: CameraIntrinsics, margin_px: float = 0.0) -> bool:

@@ -174,8 +174,9 @@ class DetectorConfig:
     colours it lets the top rule rebuild the candidates' cylinders and reject one another
     rests on (:mod:`~stackpick_sim.vision.resting`). ``limits``: caps on the work done on any
     image and an optional time budget (:class:`~stackpick_sim.vision.limits.WorkLimits`).
-    ``marking_depth_ratio``: the top rule's test for a marking or relief inside a face (ratio;
-    the scene's ``vision.marking_depth_ratio``, see :mod:`~stackpick_sim.vision.markings`).
+    ``marking_depth_ratio``, ``marking_min_edge_share``: the top rule's test for a marking or
+    relief inside a face (ratios; the scene's ``vision`` keys of those names, see
+    :mod:`~stackpick_sim.vision.markings`).
     """
 
     intrinsics: CameraIntrinsics | None = None
@@ -185,6 +186,7 @@ class DetectorConfig:
     heights_m: tuple[float, ...] | None = None
     limits: WorkLimits = field(default_factory=WorkLimits)
     marking_depth_ratio: float = VisionCfg.marking_depth_ratio
+    marking_min_edge_share: float = VisionCfg.marking_min_edge_share
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -202,6 +204,9 @@ class DetectorConfig:
         if not 0.5 <= self.marking_depth_ratio <= 2.0:
             raise ConfigError("marking_depth_ratio must lie in 0.5 to 2, got "
                               f"{self.marking_depth_ratio}")
+        if not 0.0 <= self.marking_min_edge_share <= 10.0:
+            raise ConfigError("marking_min_edge_share must lie in 0 to 10, got "
+                              f"{self.marking_min_edge_share}")
         if self.heights_m is not None and (len(self.heights_m) != len(self.radii_m)
                                            or any(not h > 0 for h in self.heights_m)):
             raise ConfigError("heights_m must give one positive height (m) per radius in "
@@ -402,6 +407,7 @@ class TopObjectDetector:
                                           face_colours(rgb, RIM_SAMPLE_SCALE)))
         markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
                                depth_ratio=self.config.marking_depth_ratio,
+                               min_edge_share=self.config.marking_min_edge_share,
                                margin_px=INTERIOR_MARGIN_PX)
         return _Cues(k_crop=k_crop, rgb=rgb,
                      belt=None if found.roi.belt is None else np.array(found.roi.belt),

@@ -24,7 +24,12 @@ and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
 * one that fails the rule and runs across the face's whole outline is a fit on its markings
   and outline together, when nothing else lies on the face.
 
-A whole face that fails the rule on interior edges alone, with no face on it and no other
+Markings across a face (a word, a stripe, a logo, a can end's rings) leave interior edges
+along about its perimeter or more; a plain face that fails on interior edges shows a stray
+edge entering it (an occluder's, where the occluder's own fit is missing), a fraction of its
+perimeter. So only faces with at least ``min_edge_share`` interior edge pixels per perimeter
+pixel are judged. A whole face that fails the rule on interior edges alone, with no face on
+it and no other
 ellipse that passes the rule reaching into it, has only its own markings inside: it is a
 candidate, and the ellipses of the third kind are no candidates either. (A face whose interior
 edges all lie in its rim band is left to the rule's rim fallbacks: :func:`~stackpick_sim.
@@ -60,12 +65,15 @@ class MarkingTest:
     """What the test reads besides the ellipses: the object kinds' ``radii`` (m); a face's
     radius by the colour of its rim band (``rim_radius_of``, None when the kinds' colours are
     unknown; see RIM_SAMPLE_SCALE); ``depth_ratio``: an inner ellipse whose depth reads at
-    least this multiple of the face's is a marking (ratio); ``margin_px``: how far (px)
+    least this multiple of the face's is a marking (ratio); ``min_edge_share``: the interior
+    edge pixels, per pixel of its perimeter, a face holds at least for them to be read as
+    markings across it; ``margin_px``: how far (px)
     inside the face a marking's whole outline lies (the margin of the interior-edge count)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
     depth_ratio: float
+    min_edge_share: float
     margin_px: float
 
 
@@ -94,7 +102,8 @@ def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
     markings: set[int] = set()
     marked: set[int] = set()
     for f, ev in enumerate(evidence):
-        if whole_with_edges_inside(ev):
+        if (whole_with_edges_inside(ev)
+                and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px):
             own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
             markings.update(own)
             if not blocked:
