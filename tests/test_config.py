@@ -136,6 +136,8 @@ def test_cli_bad_input_is_one_line_and_exit_2(argv: list[str], tmp_path: Path,
 
 def test_choice_keys_accept_only_their_choices() -> None:
     assert load_scene("paper", ["episode.detector=oracle"]).episode.detector == "oracle"
-    with pytest.raises(ConfigError, match=r"episode.detector = 'magic' is not allowed; "
-                                          r"choose one of 'ours', 'oracle'"):
+    with pytest.raises(ConfigError, match=r"episode.detector = 'magic' is out of range; "
+                                          r"allowed: ours, oracle, rht, findellipses"):
         load_scene("paper", ["episode.detector=magic"])
+    with pytest.raises(ConfigError, match=r"episode.estimator = 'magic' .* allowed: belt, image"):
+        load_scene("paper", ["episode.estimator=magic"])

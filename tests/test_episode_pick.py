@@ -272,7 +272,7 @@ def test_a_tool_at_its_goal_is_left_there_whatever_the_standoff(standoff: float)
     axis = tool[:3, 2]
     target = TargetState(centre=tool[:3, 3] + standoff * axis, velocity=np.zeros(3),
                          normal=axis)
-    qdot, err = arm.servo_rate(target, standoff, 0.0, 0.01)
+    qdot, err = arm.servo_rate(target, standoff, 0.0, 0.01), arm.servo_errors(target, standoff)
     assert err.lateral < 1e-9 and abs(err.depth) < 1e-9
     assert np.max(np.abs(qdot)) < 1e-6
 

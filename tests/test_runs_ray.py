@@ -11,7 +11,7 @@ import pytest
 import ray
 from runs_fakes import CRASH_SEED, RAISE_SEED, fake_record, fake_task
 
-from stackpick_sim.episodes.record import WALL_CLOCK_KEYS, Record
+from stackpick_sim.episodes.record import WALL_CLOCK_KEYS, EpisodeRecord, Record
 from stackpick_sim.runs import RunJob, RunSpec, read_records, run_batch, run_dirs
 from stackpick_sim.runs.ray_backend import RayExecutor
 
@@ -51,3 +51,20 @@ def test_ray_crash_and_exception_are_failed_records(local_ray: None, tmp_path: P
     assert records[RAISE_SEED].failure == "error"
     assert records[1] == fake_record(1) and records[2] == fake_record(2)
     assert "scripted failure" in (tmp_path / "run.log").read_text()
+
+
+def test_a_plugin_detector_loads_in_ray_workers(local_ray: None,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """`examples.hough_detector:HoughDetector` from the repository root: each Ray worker
+    imports it (the driver's working directory travels with the task); same records as the
+    local workers."""
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    spec = RunSpec(scene="paper",
+                   overrides=("episode.detector=examples.hough_detector:HoughDetector",))
+    on_ray = run_batch(spec, [2], backend="ray")
+    local = run_batch(spec, [2], workers=1)
+    rec = on_ray[0]
+    assert isinstance(rec, EpisodeRecord)
+    assert rec.detector == "examples.hough_detector:HoughDetector"
+    assert rec.failure != "error", rec.failure_detail
+    assert [_strip(r) for r in on_ray] == [_strip(r) for r in local]

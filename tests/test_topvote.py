@@ -135,7 +135,8 @@ def _logic(max_retargets: int = MAX_RETARGETS) -> tuple[PhaseLogic, Any]:
     cfg = load_scene("paper", (f"episode.max_retargets={max_retargets}",))
     cell = SimpleNamespace(cfg=cfg, world_T_cam=lambda: WORLD_T_CAM)
     ep = SimpleNamespace(scene=SimpleNamespace(cell=cell), estimator=_Estimator(),
-                         sensor=SimpleNamespace(detector="ours", period=1 / cfg.camera.fps),
+                         sensor=SimpleNamespace(detector=SimpleNamespace(exact=False),
+                                                period=1 / cfg.camera.fps),
                          record=EpisodeRecord(seed=0, scene="paper", detector="ours",
                                               tracker_frame="belt", belt_speed=0.1))
     logic = PhaseLogic(ep)  # type: ignore[arg-type]
@@ -155,12 +156,12 @@ def test_outvoted_approach_detects_the_rival_again() -> None:
     # The detection frame after the re-target: the old face named top again is passed over
     # while the rival is waited for; the rival named top is taken.
     logic._now = logic.phase_start + 0.04
-    assert logic._first_candidate(_tracked_top(0.15), None) is None  # type: ignore[arg-type]
-    rival = logic._first_candidate(_rival_top(0.15), None)  # type: ignore[arg-type]
+    assert logic._first_candidate(_tracked_top(0.15)) is None
+    rival = logic._first_candidate(_rival_top(0.15))
     assert rival is not None and rival.is_top and rival.ellipse == RIVAL_E
     # Past the wait, the detector's top face is taken whatever it is.
     logic._now = logic.phase_start + (RETARGET_WAIT_FRAMES + 0.5) * ep.sensor.period
-    old = logic._first_candidate(_tracked_top(0.3), None)  # type: ignore[arg-type]
+    old = logic._first_candidate(_tracked_top(0.3))
     assert old is not None and old.ellipse == TRACKED_E
 
 

@@ -13,9 +13,10 @@ from stackpick_sim.cli.common import (
     parse_seeds,
     positive_int,
 )
-from stackpick_sim.config.scene_config import DETECTORS, TRACKER_FRAMES
+from stackpick_sim.config.scene_config import TRACKER_FRAMES
 from stackpick_sim.episodes.record import Record, SceneErrorRecord
 from stackpick_sim.episodes.summary import summary_markdown
+from stackpick_sim.registry import KINDS, check, known
 from stackpick_sim.runs.progress import Progress
 from stackpick_sim.runs.runner import RunJob, default_workers, make_executor, run_dirs
 from stackpick_sim.runs.spec import RunSpec
@@ -74,9 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "'stackpick replay'; OUT/run.log has the tracebacks of failed workers.")
     add_scene_args(p)
     p.add_argument("--seeds", default=DEFAULT_SEEDS, metavar="SEEDS", help=SEEDS_HELP)
-    p.add_argument("--detector", choices=DETECTORS, default=None,
-                   help="ours: the vision pipeline; oracle: ground-truth top object and pose "
-                   "(default: the scene's episode.detector)")
+    add_stage_args(p)
     p.add_argument("--tracker", choices=TRACKER_FRAMES, default=None,
                    help="Kalman frame: belt (back-projected) or image (the paper's); default: "
                    "the scene's episode.tracker_frame")
@@ -85,11 +84,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def add_stage_args(p: argparse.ArgumentParser) -> None:
+    """--detector, --estimator, --controller: pipeline stages by name."""
+    p.add_argument("--detector", default=None, metavar="NAME",
+                   help=f"{', '.join(known('detector'))} (ours: the vision pipeline; oracle: "
+                   "ground-truth top object and pose; rht, findellipses: baseline ellipse "
+                   "detectors) or a plug-in module:attr (default: the scene's "
+                   "episode.detector)")
+    p.add_argument("--estimator", default=None, metavar="NAME",
+                   help=f"{', '.join(known('estimator'))} (the Kalman tracker in that frame) or "
+                   "module:attr (default: the scene's episode.estimator)")
+    p.add_argument("--controller", default=None, metavar="NAME",
+                   help=f"{', '.join(known('controller'))} or module:attr (default: the "
+                   "scene's episode.controller)")
+
+
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
-    """The scene and overrides to run, the --detector/--tracker shortcuts included."""
+    """The scene and overrides to run, the stage and --tracker shortcuts included; the
+    stages are checked here (PluginError, one line) before any worker starts."""
     overrides = list(args.overrides)
-    if getattr(args, "detector", None) is not None:
-        overrides.append(f"episode.detector={args.detector}")
+    for kind in KINDS:
+        name = getattr(args, kind, None)
+        if name is not None:
+            check(kind, name)
+            overrides.append(f"episode.{kind}={name}")
     if getattr(args, "tracker", None) is not None:
         overrides.append(f"episode.tracker_frame={args.tracker}")
     return RunSpec(scene=args.scene, overrides=tuple(overrides))

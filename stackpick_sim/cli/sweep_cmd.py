@@ -7,8 +7,12 @@ import json
 from pathlib import Path
 
 from stackpick_sim.cli.common import DEFAULT_SEEDS, SEEDS_HELP, add_scene_args, parse_seeds
-from stackpick_sim.cli.run_cmd import add_execution_args, executor_from_args, spec_from_args
-from stackpick_sim.config.scene_config import DETECTORS
+from stackpick_sim.cli.run_cmd import (
+    add_execution_args,
+    add_stage_args,
+    executor_from_args,
+    spec_from_args,
+)
 from stackpick_sim.files import write_text
 from stackpick_sim.runs.lock import RunLock
 from stackpick_sim.runs.runner import run_dirs
@@ -36,8 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "product, e.g. --param conveyor.speed=0.05,0.1,0.2,0.3")
     p.add_argument("--seeds", default=DEFAULT_SEEDS, metavar="SEEDS",
                    help=f"{SEEDS_HELP}; every cell runs them")
-    p.add_argument("--detector", choices=DETECTORS, default=None,
-                   help="ours or oracle (default: the scene's episode.detector)")
+    add_stage_args(p)
     p.add_argument("--out", type=Path, required=True, help="output directory (created)")
     add_execution_args(p)
     p.set_defaults(func=run)

@@ -435,9 +435,8 @@ class VisionCfg:
 MIN_VISION_PIXELS = 64 * 48
 
 
-#: Detectors an episode can use: the vision pipeline, or ground truth (isolates control).
-Detector = Literal["ours", "oracle"]
-DETECTORS: tuple[str, ...] = typing.get_args(Detector)
+#: Built-in detectors an episode can use (stackpick_sim/registry.py; plug-ins by name too).
+DETECTORS: tuple[str, ...] = ("ours", "oracle", "rht", "findellipses")
 #: Frames the Kalman tracker can estimate in (stackpick_sim.estimation.kalman).
 TrackerFrame = Literal["belt", "image"]
 TRACKER_FRAMES: tuple[str, ...] = typing.get_args(TrackerFrame)
@@ -470,8 +469,16 @@ class EpisodeCfg:
     hardware; each is what the name says, in SI units.
     """
 
-    detector: Detector = "ours"
-    """``ours`` (the vision pipeline) or ``oracle`` (ground-truth top object and pose)."""
+    detector: str = "ours"
+    """``ours`` (the vision pipeline), ``oracle`` (ground-truth top object and pose), ``rht``
+    or ``findellipses`` (baseline ellipse detectors with our top rule and pose), or a
+    plug-in: ``module:attr`` or an entry point of ``stackpick_sim.detectors``."""
+    estimator: str = ""
+    """``belt`` or ``image`` (the Kalman tracker in that frame) or a plug-in (``module:attr``,
+    entry point of ``stackpick_sim.estimators``); empty: ``tracker_frame``'s."""
+    controller: str = "ibvs"
+    """``ibvs`` (differential-IK approach, image-based visual servo) or a plug-in
+    (``module:attr``, entry point of ``stackpick_sim.controllers``)."""
     tracker_frame: TrackerFrame = "belt"
     """Kalman state frame: ``belt`` (back-projected, metres) or ``image`` (paper, pixels)."""
     control_period: float = 0.01
@@ -537,8 +544,14 @@ class EpisodeCfg:
     slowest will not (a longer one only makes a failing episode take minutes)."""
 
     def __post_init__(self) -> None:
-        _require(self.detector in DETECTORS, "episode.detector", self.detector,
-                 ", ".join(DETECTORS))
+        from stackpick_sim.registry import known
+
+        for kind in ("detector", "estimator", "controller"):
+            name = getattr(self, kind)
+            if kind == "estimator" and name == "":
+                continue  # tracker_frame's
+            _require(isinstance(name, str) and (":" in name or name in known(kind)),
+                     f"episode.{kind}", name, f"{', '.join(known(kind))} or module:attr")
         _require(self.tracker_frame in TRACKER_FRAMES, "episode.tracker_frame",
                  self.tracker_frame, ", ".join(TRACKER_FRAMES))
         _require(math.isfinite(self.control_period) and 1e-3 <= self.control_period <= 0.1,

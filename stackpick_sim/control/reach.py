@@ -11,7 +11,7 @@ out: tilt 30 deg needs J5 = 2.06 rad at a 0.15 m standoff, and no solution at 0.
 at the face itself J5 = 1.47 rad).
 
 The wrist also meets itself before J5 meets its range end: the J4 link's capsule touches
-the J6 link at J5 = 1.84 rad (paper scene seed 5, the servo then stalls), and the camera
+the J6 link at J5 = 1.84 rad (the servo then stalls against that contact), and the camera
 and bracket on the flange come closer with J6. The check therefore also requires a
 clearance between the forearm links and the flange-side bodies (:data:`SELF_CLEARANCE`).
 

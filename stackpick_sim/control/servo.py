@@ -36,10 +36,10 @@ GAIN_SLOPE_AT_ZERO = 30.0
 #: exactly. Units of J's singular values: feature units per rad (features are dimensionless).
 #: On the VS-060 with the circle-pose features sigma_min is 0.34-0.47 at ordinary servo poses
 #: and falls roughly in proportion to J5 near the wrist singularity (0.136 at J5 = 0.35 rad,
-#: 0.016 at 0.047 rad: paper scene seed 31, a face tilted 38 deg towards the robot). With
-#: eps = 0.02 the undamped inverse spun J4 at its speed limit chasing the last degrees of
-#: tilt while the lateral error grew to 25 mm; eps = 0.1 (J5 ~ 0.25 rad) and rho_max = 0.05
-#: give up a little tilt there instead. Tuned in simulation on dev seeds, not on hardware.
+#: 0.016 at 0.047 rad, servoing to a paper-scene face tilted 38 deg towards the robot). With
+#: eps = 0.02 the undamped inverse spins J4 at its speed limit chasing the last degrees of
+#: tilt while the lateral error grows to 25 mm; eps = 0.1 (J5 ~ 0.25 rad) and rho_max = 0.05
+#: give up a little tilt there instead. Tuned in simulation on paper scenes, not on hardware.
 DAMPING_THRESHOLD = 0.1
 MAX_DAMPING = 0.05
 
@@ -150,9 +150,9 @@ def saturated_servo_velocity(jacobian: FloatArray, error: FloatArray, config: Se
     (Siciliano & Slotine 1991). When the joints cannot follow both, the secondary task's
     share is cut first, down to nothing, and only then the primary one (scaled as a whole):
     scaling the whole law instead (as :meth:`JointVelocityExecutor.feasible_velocity` does)
-    slowed the tool's translation with its turn, and near the wrist singularity, where the
-    normal asks J4 for several times its speed, the tool fell behind a face on a
-    0.3 m/s belt by 35 mm (fast_belt seed 6). ``jacobian`` (k, n), ``error`` (k,),
+    slows the tool's translation with its turn, and near the wrist singularity, where the
+    normal asks J4 for several times its speed, the tool falls behind a face on a
+    0.3 m/s belt (the fast_belt scene) by 35 mm. ``jacobian`` (k, n), ``error`` (k,),
     ``error_rate_hat`` (k,) as for :func:`servo_velocity`.
     """
     j = np.asarray(jacobian, dtype=float)

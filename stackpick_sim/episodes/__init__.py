@@ -4,7 +4,7 @@ Running many episodes (batches, run directories, workers) is :mod:`stackpick_sim
 which depends on this package and never the reverse.
 """
 
-from stackpick_sim.episodes.episode import EpisodeHooks, TickInfo, run_episode
+from stackpick_sim.episodes.episode import EpisodeHooks, EpisodeRun, TickInfo, run_episode
 from stackpick_sim.episodes.record import (
     FAILURES,
     MIN_LIFT_M,
@@ -27,6 +27,7 @@ __all__ = [
     "EpisodeError",
     "EpisodeHooks",
     "EpisodeRecord",
+    "EpisodeRun",
     "Record",
     "RecordError",
     "ReplayResult",

@@ -34,7 +34,7 @@ from stackpick_sim.control import (
     target_feature_rate,
 )
 from stackpick_sim.control.reach import tool_pose_on_axis
-from stackpick_sim.episodes.target import TargetState
+from stackpick_sim.pipeline import TargetState
 from stackpick_sim.sim.cell import Cell
 from stackpick_sim.sim.robot import ARM_JOINTS, CAMERA, TOOL_SITE, VELOCITY_LIMITS
 
@@ -136,8 +136,8 @@ class ArmController:
                           .as_matrix())
 
     def servo_rate(self, target: TargetState, standoff: float, standoff_rate: float,
-                   dt: float) -> tuple[FloatArray, ServoErrors]:
-        """(6,) joint rates of the servo law and the current errors.
+                   dt: float) -> FloatArray:
+        """(6,) joint rates of the servo law.
 
         ``u = -lambda J^+ e - J^+ (de/dt_target - ds*/dt)`` with ``J = L cVe eJe`` at the
         measured joint angles, ``e = s - s*``; ``s*`` puts the tool axis on the face normal
@@ -163,15 +163,22 @@ class ArmController:
         limit = self.executor.speed_limit
         if np.any(np.abs(qdot) > limit):  # the face centre first, the tool's turn after it
             qdot = saturated_servo_velocity(jac, error, self.servo, limit, rate)
-        feasible = self.executor.feasible_velocity(self.full_qpos(), qdot, dt)
+        return self.executor.feasible_velocity(self.full_qpos(), qdot, dt)
+
+    def servo_errors(self, target: TargetState, standoff: float) -> ServoErrors:
+        """Where the tool stands relative to the face ``target`` at ``standoff`` m."""
+        data = self.cell.data
+        world_T_cam = self.eih.world_T_cam(data)
+        r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
+        s = circle_pose_features(r.T @ (target.centre - p), r.T @ target.normal)
+        error = s - desired_circle_pose_features(self.cam_T_tool, standoff)
         tool = self.eih.world_T_ee(data)
         c_tool = invert_transform(tool) @ np.r_[target.centre, 1.0]
         cos = float(np.clip(tool[:3, 2] @ target.normal, -1.0, 1.0))
-        errors = ServoErrors(lateral=float(np.hypot(c_tool[0], c_tool[1])),
-                             depth=float(c_tool[2] - standoff),
-                             tilt_deg=math.degrees(math.acos(cos)),
-                             feature_norm=float(np.max(np.abs(error))))
-        return feasible, errors
+        return ServoErrors(lateral=float(np.hypot(c_tool[0], c_tool[1])),
+                           depth=float(c_tool[2] - standoff),
+                           tilt_deg=math.degrees(math.acos(cos)),
+                           feature_norm=float(np.max(np.abs(error))))
 
 
 def approach_pose(target: TargetState, standoff: float, world_T_tool: FloatArray) -> FloatArray:

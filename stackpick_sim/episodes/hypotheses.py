@@ -1,7 +1,8 @@
 """Radius hypotheses: one tracked-face estimator per cylinder size, the consistent one acts.
 
 See :class:`RadiusHypotheses`; each hypothesis is a
-:class:`~stackpick_sim.episodes.target.TargetEstimator`.
+:class:`~stackpick_sim.episodes.target.TargetEstimator`. The built-in estimators ``belt``
+and ``image`` (:class:`stackpick_sim.pipeline.Estimator`) are this in the two Kalman frames.
 """
 
 from __future__ import annotations
@@ -29,16 +30,22 @@ class RadiusHypotheses:
     """
 
     def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
-                 radii: tuple[float, ...]) -> None:
+                 radii: tuple[float, ...], frame: str | None = None) -> None:
         self._radii = radii
         self._args = (cfg, intrinsics, oracle)
-        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in radii]
+        self.frame = frame or cfg.episode.tracker_frame
+        self.name = self.frame
+        self.hypotheses = self._fresh()
         self.active = self.hypotheses[0]
+
+    def _fresh(self) -> list[TargetEstimator]:
+        cfg, intrinsics, oracle = self._args
+        return [TargetEstimator(cfg, intrinsics, oracle=oracle, frame=self.frame)
+                for _ in self._radii]
 
     def reset(self) -> None:
         """Forget the face: back to the state before :meth:`start`."""
-        cfg, intrinsics, oracle = self._args
-        self.hypotheses = [TargetEstimator(cfg, intrinsics, oracle=oracle) for _ in self._radii]
+        self.hypotheses = self._fresh()
         self.active = self.hypotheses[0]
 
     def start(self, obs: Observation, cand: Candidate) -> None:
@@ -118,3 +125,24 @@ class RadiusHypotheses:
     @property
     def last_fused_time(self) -> float | None:
         return self.active.last_fused_time
+
+
+def kalman_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics, exact: bool,
+                     frame: str) -> RadiusHypotheses:
+    """The built-in tracker in ``frame``: one radius hypothesis per object kind, or the exact
+    detector's own radius (``exact``: ground truth, trusted as such)."""
+    radii = sorted({t.radius for t in cfg.object_types.values()}, reverse=True)
+    return RadiusHypotheses(cfg, intrinsics, oracle=exact,
+                            radii=(0.0,) if exact else tuple(radii), frame=frame)
+
+
+def belt_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics,
+                   exact: bool) -> RadiusHypotheses:
+    """``belt``: the Kalman filter on the belt plane, back-projected detections (metres)."""
+    return kalman_estimator(cfg, intrinsics, exact, "belt")
+
+
+def image_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics,
+                    exact: bool) -> RadiusHypotheses:
+    """``image``: the paper's Kalman filter on the image pixel, carried through camera moves."""
+    return kalman_estimator(cfg, intrinsics, exact, "image")

@@ -6,30 +6,20 @@ logged in sim time; the record is filled in as the phases pass.
 
 from __future__ import annotations
 
-import time
+from collections.abc import Generator
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stackpick_sim.episodes.arm import ServoErrors
-from stackpick_sim.episodes.outcome import (
-    axis_turn_deg,
-    match_object,
-)
-from stackpick_sim.episodes.pick import ArmPhases
-from stackpick_sim.episodes.record import FAILURES, PHASES, PoseErrors
-from stackpick_sim.episodes.sensing import (
-    Candidate,
-    Observation,
-    ellipse_inside,
-    oracle_candidate,
-)
+from stackpick_sim.episodes.audit import DETECTION_PHASES
+from stackpick_sim.episodes.pick import ArmPhases, Command
+from stackpick_sim.episodes.record import ERROR_REASON, FAILURES, PHASES
+from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
 from stackpick_sim.episodes.topvote import TopVote, posed_top
-from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.exceptions import EpisodeError
-from stackpick_sim.geometry import Ellipse, project_circle, tilt_angles
-from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth
+from stackpick_sim.geometry import Ellipse, project_circle
+from stackpick_sim.pipeline import Hints
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -37,8 +27,6 @@ if TYPE_CHECKING:
 #: Longest time without a fused detection while the face should be in view, s (track,
 #: approach, servo; the descent may go blind).
 MAX_BLIND_S = 0.4
-#: A target whose axis turned more than this since detection has toppled, deg (record only).
-TOPPLED_DEG = 10.0
 #: A first detection that no later frame confirms (associates within the start gate) for
 #: this many frame periods is dropped and the top object detected again, at most
 #: MAX_REDETECTIONS times. Three frames: latency and one missed frame are normal.
@@ -66,16 +54,17 @@ class PhaseLogic(ArmPhases):
         self.phase_start = 0.0
         self.failure: str | None = None
         self.done = False
-        self._truths: dict[float, FrameTruth] = {}
-        self._oracle_first: dict[float, dict[str, Candidate | None]] = {}
+        self._detection_frames: set[float] = set()
+        """Capture times of the frames taken while looking for the top (the track starts
+        only from those: frames of an abandoned track are not a new detection)."""
+        self._target: Candidate | None = None
+        self._hint_depth: float | None = None
+        self._hint_normal: np.ndarray | None = None
         self._settled = 0
         self._standoff = episode.scene.cell.cfg.episode.standoff
         self._lift_from: np.ndarray | None = None
         self._lift_base = np.zeros(3)
-        self._start_z: dict[str, float] = {}
-        self._start_axes: dict[str, np.ndarray] = {}
         self._grasped: list[str] = []
-        self._look_T_cam = episode.scene.cell.world_T_cam()
         self._cycle_end: float | None = None
         self._tilt_share = 1.0
         self._face_share = 1.0
@@ -98,9 +87,10 @@ class PhaseLogic(ArmPhases):
         self.phase, self.phase_start = phase, t
 
     def fail(self, reason: str, detail: str) -> None:
-        """End the episode with ``reason`` (one of FAILURES)."""
-        if reason not in FAILURES:
-            raise EpisodeError(f"unknown failure reason {reason!r}; known: {', '.join(FAILURES)}")
+        """End the episode with ``reason`` (one of FAILURES, or ERROR_REASON)."""
+        if reason not in (*FAILURES, ERROR_REASON):
+            raise EpisodeError(f"unknown failure reason {reason!r}; known: "
+                               f"{', '.join((*FAILURES, ERROR_REASON))}")
         if self.failure is None:
             self.failure = reason
             self.ep.record.failure = reason
@@ -113,33 +103,19 @@ class PhaseLogic(ArmPhases):
         rec.phases[self.phase] = round(rec.phases.get(self.phase, 0.0)
                                        + (self._now - self.phase_start), 6)
         rec.cycle_time_s = self._cycle_end
-        if self.done:
-            judge(self.ep, self._start_z, self._grasped)
-        if rec.failure is not None and rec.target_object in self._start_axes:
-            # Ground truth, for the record only: a pile that collapsed under its own weight
-            # on the running belt is a different story from a controller's miss.
-            obj = next(o for o in self.ep.scene.cell.objects if o.name == rec.target_object)
-            turn = axis_turn_deg(self.ep.scene.cell, obj, self._start_axes[obj.name])
-            if turn > TOPPLED_DEG:
-                rec.failure_detail += (f"; the target toppled: its axis turned {turn:.0f} deg "
-                                       "since detection")
+        self.ep.audit.on_finish(self.done, self._grasped)
 
     def before_capture(self, t: float) -> None:
-        """Decide whether the frame is worth processing; ground truth of detection frames."""
+        """Decide whether the frame is worth processing and what the detector is told."""
         self.ep.sensor.process = self._frame_needed()
-        self.ep.sensor.expected_ellipse = (self._predicted_ellipse()
-                                           if self.phase not in ("look", "detect") else None)
-        if self.phase in ("look", "detect"):
-            start = time.perf_counter()
-            assert self.ep.camera is not None
-            truth = frame_truth(self.ep.scene.cell, self.ep.camera.segmentation())
-            self._truths[t] = truth
-            if self.ep.sensor.detector == "oracle":  # the oracle's pose must be of capture time
-                cell = self.ep.scene.cell
-                cam = self.ep.arm.eih.world_T_cam(cell.data)
-                self._oracle_first[t] = {o.name: oracle_candidate(cell, o, cam)
-                                         for o in cell.objects if o.name in truth.top_objects}
-            self.ep.wall["truth"] += time.perf_counter() - start
+        looking = self.phase in DETECTION_PHASES
+        if looking:
+            self._detection_frames.add(t)
+        self.ep.sensor.hints = Hints(
+            expected_depth_m=self._hint_depth, reference_normal_cam=self._hint_normal,
+            expected_ellipse=None if looking else self._predicted_ellipse(),
+            target=None if looking else self._target)
+        self.ep.audit.on_capture(t, self.phase)
 
     def _frame_needed(self) -> bool:
         """Whether the controller can use a frame captured now (else it is not processed).
@@ -171,8 +147,12 @@ class PhaseLogic(ArmPhases):
             return None
 
     # -- the machine -----------------------------------------------------------------------
-    def tick(self, t: float, dt: float, observations: list[Observation]) -> ServoErrors | None:
-        """Advance the phase machine at sim time ``t`` s; returns the servo errors if servoing."""
+    def tick(self, t: float, dt: float, observations: list[Observation]) -> Command:
+        """Advance the phase machine at sim time ``t`` s; returns the servo errors if servoing.
+
+        A generator: a phase that moves the arm yields its :class:`ControlGoal` and takes
+        back the joint rates to apply, or None for the controller's (see
+        :meth:`~stackpick_sim.episodes.pick.ArmPhases._command`)."""
         self._now = t
         cfg = self.ep.scene.cell.cfg.episode
         if self.phase not in ("look", "detect"):
@@ -185,7 +165,9 @@ class PhaseLogic(ArmPhases):
         if self._retarget_if_outvoted(t):
             return None
         handler = getattr(self, f"_{self.phase}")
-        result: ServoErrors | None = handler(t, dt, observations)
+        result = handler(t, dt, observations)
+        if isinstance(result, Generator):
+            result = yield from result
         self._update_sensor_hints()
         return result
 
@@ -207,28 +189,19 @@ class PhaseLogic(ArmPhases):
     def _detect(self, t: float, dt: float, observations: list[Observation]) -> None:
         self.ep.arm.hold()
         for obs in observations:
-            truth = self._truths.get(obs.capture_time)
-            if truth is None:
+            if obs.capture_time not in self._detection_frames:
                 continue
-            cand = self._first_candidate(obs, truth)
+            cand = self._first_candidate(obs)
             if cand is None:
                 continue
-            self._start(obs, cand, truth)
+            self._start(obs, cand)
             self._enter("track", t)
             return
 
-    def _first_candidate(self, obs: Observation, truth: FrameTruth) -> Candidate | None:
+    def _first_candidate(self, obs: Observation) -> Candidate | None:
+        """The detector's posed top face of ``obs``; after a re-target, only the rival's
+        (until RETARGET_WAIT_FRAMES frame periods have passed)."""
         ep = self.ep
-        if ep.sensor.detector == "oracle":
-            # Oracle policy: the flattest top face (the easiest pick) of those wholly in view
-            # (a face the look view cuts would have the arm wait for it, belt running).
-            in_view = self._oracle_first.get(obs.capture_time, {})
-            tops = [o for o in truth.objects if o.is_top and in_view.get(o.name) is not None]
-            if not tops:
-                return None
-            best = min(tops, key=lambda o: (o.tilt_deg, o.name))
-            ep.sensor.target = next(o for o in ep.scene.cell.objects if o.name == best.name)
-            return in_view[best.name]
         top = posed_top(obs)
         if top is None or self._wanted is None:
             return top
@@ -240,10 +213,13 @@ class PhaseLogic(ArmPhases):
 
     def _count_vote(self, obs: Observation) -> None:
         """Count ``obs``'s vote on the top face while the arm is not committed to it (only
-        when re-targets are allowed: ``episode.max_retargets`` > 0)."""
-        if (self.phase in VOTING_PHASES and self.ep.sensor.detector != "oracle"
-                and self.ep.scene.cell.cfg.episode.max_retargets > 0 and obs.candidates):
-            self._vote.add(obs, self.ep.estimator.expected_ellipse(obs))
+        when re-targets are allowed: ``episode.max_retargets`` > 0, the detector is not
+        exact and the estimator predicts the tracked face's ellipse)."""
+        expected = getattr(self.ep.estimator, "expected_ellipse", None)  # optional
+        if (self.phase in VOTING_PHASES and not self.ep.sensor.detector.exact
+                and self.ep.scene.cell.cfg.episode.max_retargets > 0 and obs.candidates
+                and expected is not None):
+            self._vote.add(obs, expected(obs))
 
     def _retarget_if_outvoted(self, t: float) -> bool:
         """Detect again, arm still, if a rival face outvoted the tracked one; True if so.
@@ -265,34 +241,24 @@ class PhaseLogic(ArmPhases):
         self._enter("detect", t)
         return True
 
-    def _start(self, obs: Observation, cand: Candidate, truth: FrameTruth) -> None:
-        ep, rec = self.ep, self.ep.record
-        cell = ep.scene.cell
-        rec.top_objects = truth.top_objects
-        rec.target_object = match_object(truth, cand.pixel)
-        self._start_z = {o.name: float(cell.data.xpos[o.body_id][2]) for o in cell.objects}
-        self._start_axes = {o.name: cell.data.xmat[o.body_id].reshape(3, 3)[:, 2].copy()
-                            for o in cell.objects}
-        if rec.target_object is not None:
-            t_obj = next(o for o in truth.objects if o.name == rec.target_object)
-            assert cand.normal_cam is not None
-            rec.detection = PoseErrors(
-                estimated=(float(cand.pixel[0]), float(cand.pixel[1]),
-                           *tilt_angles(cand.normal_cam)),
-                actual=(*t_obj.face_center_px, t_obj.theta_x_deg, t_obj.theta_y_deg))
-        ep.estimator.start(obs, cand)
+    def _start(self, obs: Observation, cand: Candidate) -> None:
+        self.ep.audit.on_start(obs.capture_time, cand)
+        self.ep.estimator.start(obs, cand)
+        self._target = cand
         self._vote.start()
         self._wanted = None
 
     def _update_sensor_hints(self) -> None:
+        """The tracked face's depth and normal in the camera now (kept once a track is
+        set, for the next frames' detector)."""
         ep = self.ep
         if not ep.estimator.initialised:
             return
         world_T_cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
         state = ep.estimator.state(self._now, world_T_cam)
         r, p = world_T_cam[:3, :3], world_T_cam[:3, 3]
-        ep.sensor.expected_depth = float((r.T @ (state.centre - p))[2])
-        ep.sensor.reference_normal_cam = r.T @ state.normal
+        self._hint_depth = float((r.T @ (state.centre - p))[2])
+        self._hint_normal = r.T @ state.normal
 
     def _check_track(self, t: float) -> bool:
         est = self.ep.estimator

@@ -13,6 +13,7 @@ base (a grasp at the edge of the reach, on a fast belt, cannot rise straight up)
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -28,13 +29,18 @@ from stackpick_sim.control.reach import (
     tool_pose_on_axis,
 )
 from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
-from stackpick_sim.episodes.outcome import face_in_view, no_seal, touching, view_pose
-from stackpick_sim.episodes.record import PoseErrors
+from stackpick_sim.episodes.outcome import no_seal, touching
 from stackpick_sim.episodes.sensing import Observation
-from stackpick_sim.episodes.target import TargetState
+from stackpick_sim.exceptions import EpisodeError
+from stackpick_sim.pipeline import ControlGoal, TargetState
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
+
+FloatArray = NDArray[np.float64]
+#: A phase that commands the arm: yields its goals (see :meth:`ArmPhases._command`),
+#: returns the servo errors (or None).
+Command = Generator[ControlGoal, FloatArray | None, ServoErrors | None]
 
 #: The approach hands over to the servo within this distance (m) and angle (deg) of its goal.
 APPROACH_DONE = (0.01, 5.0)
@@ -89,7 +95,7 @@ def descent_floor(overtravel: float, face_z: float, lowest_face_z: float, talles
     pile); never above ``previous``, the floor of an earlier tick (m). A monocular height
     errs one way, too high (see
     :attr:`~stackpick_sim.episodes.target.TargetEstimator.lowest_face_z`), so a face not
-    met by then is missed; a face met earlier ends the descent at contact as before.
+    met by then is missed; a face met above the floor ends the descent at contact.
     """
     below = min(max(face_z - lowest_face_z, 0.0), tallest)
     return min(previous, -overtravel - below)
@@ -104,8 +110,8 @@ def descent_missed(depth_error: float, standoff: float, floor: float,
     long the command has rested at the floor with the tool within DESCENT_SETTLED of it. The arm
     follows the commanded descent some millimetres late: a miss is the tool itself past the
     predicted face, or the tool resting near the floor for DESCENT_WAIT. A tool still far
-    above (slowed by the wrist's J5 = 0 singularity, paper seed 242: 10-20 mm behind) is
-    waited for, up to the phase's time-out.
+    above (the wrist swinging through its J5 = 0 singularity leaves the tool 10-20 mm
+    behind the command) is waited for, up to the phase's time-out.
     """
     return depth_error + standoff <= floor + DESCENT_ARRIVED or at_floor > DESCENT_WAIT
 
@@ -144,7 +150,7 @@ class ArmPhases:
     _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
-    _look_T_cam: NDArray[np.float64]
+    phase: str
 
     def fail(self, reason: str, detail: str) -> None:
         raise NotImplementedError
@@ -182,7 +188,8 @@ class ArmPhases:
     def _replan_if_turned(self, t: float) -> None:
         """Plan the reach again once the tracked normal has turned (the consensus of views
         settled on the other solution of the pose's ambiguity)."""
-        n = self.ep.estimator.normal
+        ep = self.ep
+        n = ep.estimator.state(t, ep.arm.eih.world_T_cam(ep.scene.cell.data)).normal
         if float(n @ self._planned_normal) < math.cos(math.radians(REPLAN_TURN_DEG)):
             self._plan_reach(t)
 
@@ -194,39 +201,57 @@ class ArmPhases:
                                    self.ep.scene.cell.cfg.episode.standoff, self._face_share)
         return replace(state, normal=tilted_axis(state.normal, share))
 
-    def _approach(self, t: float, dt: float, obs: list[Observation]) -> None:
+    def _approach(self, t: float, dt: float, obs: list[Observation]) -> Command:
         ep = self.ep
         cfg = ep.scene.cell.cfg.episode
         if not self._check_track(t):
-            return
+            return None
         self._replan_if_turned(t)
         lead = 1.0 / cfg.approach_gain
         now_T_tool = ep.arm.command_world_T_tool()
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
-        goal = approach_pose(self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
-                             cfg.standoff, now_T_tool)
-        ep.arm.apply(ep.arm.pose_rate(goal, cfg.approach_gain, dt), dt)
-        here = approach_pose(self._commanded(ep.estimator.state(t, cam), cfg.standoff),
-                             cfg.standoff, now_T_tool)
+        target = self._commanded(ep.estimator.state(t, cam), cfg.standoff)
+        goal = ControlGoal(phase="approach", target=target,
+                           lead=self._commanded(ep.estimator.state(t + lead, cam), cfg.standoff),
+                           standoff=cfg.standoff, standoff_rate=0.0, dt=dt)
+        ep.arm.apply((yield from self._command(goal)), dt)
+        here = approach_pose(target, cfg.standoff, now_T_tool)
         pos, ang = pose_error(ep.arm.eih.world_T_ee(ep.scene.cell.data), here)
         if pos < APPROACH_DONE[0] and ang < APPROACH_DONE[1]:
             self._enter("servo", t)
+        return None
 
     def _servo_step(self, t: float, dt: float, standoff: float,
-                    rate: float) -> ServoErrors:
+                    rate: float) -> Generator[ControlGoal, FloatArray | None, ServoErrors]:
         ep = self.ep
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
         target = self._commanded(ep.estimator.state(t, cam), standoff)
-        qdot, err = ep.arm.servo_rate(target, standoff, rate, dt)
+        qdot = yield from self._command(ControlGoal(phase=self.phase, target=target, lead=None,
+                                                    standoff=standoff, standoff_rate=rate,
+                                                    dt=dt))
+        err = ep.arm.servo_errors(target, standoff)
         ep.arm.apply(qdot, dt)
         return err
 
-    def _servo(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _command(self, goal: ControlGoal
+                 ) -> Generator[ControlGoal, FloatArray | None, FloatArray]:
+        """(6,) joint rates for ``goal``: the goal is yielded to the episode's driver, which
+        answers with an external policy's action, or None for the controller's command."""
+        ep = self.ep
+        action = yield goal
+        qdot = np.asarray(ep.controller.command(goal, ep.arm) if action is None else action,
+                          dtype=float)
+        if qdot.shape != (6,) or not np.all(np.isfinite(qdot)):
+            raise EpisodeError(f"the {goal.phase} command must be 6 finite joint rates (rad/s); "
+                               f"got {np.round(qdot, 4).tolist()}")
+        return qdot
+
+    def _servo(self, t: float, dt: float, obs: list[Observation]) -> Command:
         cfg = self.ep.scene.cell.cfg.episode
         if not self._check_track(t):
             return None
         self._replan_if_turned(t)
-        err = self._servo_step(t, dt, cfg.standoff, 0.0)
+        err = yield from self._servo_step(t, dt, cfg.standoff, 0.0)
         ok = (err.lateral < cfg.servo_lateral_tol and abs(err.depth) < cfg.servo_depth_tol
               and err.tilt_deg < cfg.servo_tilt_tol_deg)
         self._settled = self._settled + 1 if ok else 0
@@ -235,27 +260,28 @@ class ArmPhases:
             self._enter("descend", t)
         return err
 
-    def _descend(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _descend(self, t: float, dt: float, obs: list[Observation]) -> Command:
         ep = self.ep
         cfg = ep.scene.cell.cfg.episode
         touched = touching(ep.scene.cell, ep.lips)
         if touched:
-            self._pick_moment(t)
-            leak = no_seal(ep.scene.cell, touched)
+            cell = ep.scene.cell
+            ep.audit.on_contact(ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data)))
+            leak = no_seal(cell, touched)
             if leak is not None:  # the vacuum leaks: no lift (sim/suction.py)
                 self.fail("missed_grasp", f"no seal: {leak}")
                 return None
             ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
             self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
             self._enter("grasp", t)
-            return self._servo_step(t, dt, self._standoff, 0.0)
+            return (yield from self._servo_step(t, dt, self._standoff, 0.0))
         floor = self._descent_floor(cfg.overtravel)
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
         speed = cfg.descend_speed if aligned and self._standoff > floor else 0.0
         self._standoff = max(self._standoff - speed * dt, floor)
-        err = self._servo_step(t, dt, self._standoff, -speed)
+        err = yield from self._servo_step(t, dt, self._standoff, -speed)
         self._last_lateral = err.lateral
         self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
         if descent_missed(err.depth, self._standoff, floor, self._at_floor):
@@ -271,23 +297,9 @@ class ArmPhases:
                                     self._floor)
         return self._floor
 
-    def _pick_moment(self, t: float) -> None:
-        ep, rec = self.ep, self.ep.record
-        cell = ep.scene.cell
-        if rec.target_object is None:
-            return
-        obj = next(o for o in cell.objects if o.name == rec.target_object)
-        k = cell.intrinsics
-        actual, centre_w = face_in_view(cell, obj, self._look_T_cam, k)
-        state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
-        estimated = view_pose(state.centre, state.normal, self._look_T_cam, k)
-        rec.pick_estimate = PoseErrors(estimated=estimated, actual=actual)
-        rec.prediction_error_px = rec.pick_estimate.center_error_px
-        rec.prediction_error_mm = 1e3 * float(np.linalg.norm(state.centre - centre_w))
-
-    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> ServoErrors | None:
+    def _grasp(self, t: float, dt: float, obs: list[Observation]) -> Command:
         cfg = self.ep.scene.cell.cfg.episode
-        err = self._servo_step(t, dt, self._standoff, 0.0)
+        err = yield from self._servo_step(t, dt, self._standoff, 0.0)
         if t - self.phase_start >= cfg.grasp_dwell:
             self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
             self._lift_from = self.ep.arm.command_world_T_tool()

@@ -18,7 +18,9 @@ PHASES: tuple[str, ...] = ("look", "detect", "track", "approach", "servo", "desc
                            "lift", "verify")
 
 #: The fixed list of failure reasons. ``dropped`` covers any object falling: the picked one
-#: out of the cup, or another one knocked off the belt (``knocked_off`` names those).
+#: out of the cup, or another one knocked off the belt (``knocked_off`` names those). All but
+#: ``error`` are outcomes of the pick; ``error`` is an unexpected exception (a bug in a
+#: plug-in stage or in the package, or a worker that died), not an outcome.
 FAILURES: tuple[str, ...] = ("no_detection", "wrong_object", "lost_track", "servo_diverged",
                              "missed_grasp", "dropped", "joint_limit", "timeout",
                              "unstable_sim")
@@ -74,7 +76,14 @@ class EpisodeRecord:
     seed: int
     scene: str
     detector: str
+    """The detector's name as selected (built-in, ``module:attr`` or entry point)."""
     tracker_frame: str
+    estimator: str = ""
+    """The estimator's name as selected."""
+    controller: str = ""
+    """The controller's name as selected."""
+    stage_versions: dict[str, str] = field(default_factory=dict)
+    """``version`` of each stage that declares one (plug-ins): detector/estimator/controller."""
     belt_speed: float
     """Nominal belt speed, m/s."""
     success: bool = False

@@ -2,8 +2,9 @@
 
 A run stores the scene and overrides and the states before and after each episode
 (:func:`stackpick_sim.runs.replay.load_replay_source` reads and checks them into a
-:class:`ReplaySource`); the replay regenerates the pile from the seed, compares it with the
-stored start state, runs the episode again (deterministic), and compares the end state too.
+:class:`ReplaySource`, with the detector, estimator and controller the record names); the
+replay regenerates the pile from the seed, compares it with the stored start state, runs the
+episode again (deterministic), and compares the end state too.
 """
 
 from __future__ import annotations

@@ -107,20 +107,32 @@ def _fmt(s: dict[str, Any], unit: str, scale: float = 1.0) -> str:
             f"max {s['max'] * scale:.3g} (n={s['n']})")
 
 
+def _speeds(speeds: list[float]) -> str:
+    """The belt speeds of a batch, m/s: each one, or their range when drawn per seed."""
+    if len(speeds) > 3:
+        return f"{min(speeds):g}-{max(speeds):g} m/s (drawn per seed)"
+    return ", ".join(f"{v:g}" for v in speeds) + " m/s"
+
+
+def _failure_table(failures: dict[str, int]) -> list[str]:
+    """Markdown lines: a table of the failure reasons that occurred, or a line saying none."""
+    rows = [f"| {k} | {v} |" for k, v in failures.items() if v]
+    return ["| failure | count |", "|---|---|", *rows] if rows else ["No failures."]
+
+
 def summary_markdown(s: dict[str, Any]) -> str:
     """Human-readable ``summary.md``."""
     n = s["episodes"]
     lines = [
         f"# Episodes: scene {', '.join(s['scenes'])}, detector {', '.join(s['detector'])}, "
-        f"tracker {', '.join(s['tracker_frame'])}, belt {s['belt_speed']} m/s",
+        f"tracker {', '.join(s['tracker_frame'])}, belt {_speeds(s['belt_speed'])}",
         "",
         f"**Success: {s['successes']}/{n}"
         + (f" = {100 * s['success_rate']:.1f} %" if n else "")
         + f"** (95 % Wilson CI {100 * s['success_ci95'][0]:.1f}-"
         f"{100 * s['success_ci95'][1]:.1f} %)",
         "",
-        "| failure | count |", "|---|---|",
-        *[f"| {k} | {v} |" for k, v in s["failures"].items() if v],
+        *_failure_table(s["failures"]),
         "",
     ]
     if s["scene_errors"]:

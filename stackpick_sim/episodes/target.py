@@ -25,7 +25,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +44,7 @@ from stackpick_sim.estimation import (
     transfer_via_plane,
 )
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
+from stackpick_sim.pipeline import TargetState
 from stackpick_sim.vision import circle_poses
 
 FloatArray = NDArray[np.float64]
@@ -55,12 +56,12 @@ VISION_PIXEL_STD = 0.5
 #: Oracle detections are exact; a tiny R keeps the filter well posed.
 ORACLE_PIXEL_STD = 0.05
 #: Unmodelled motion of a face about its constant-velocity path, m std: the top object of
-#: a pile rocks on the jittering belt (paper scene seed 2: +-0.2 mm in x at ~15 Hz, 9 mm/s
+#: a pile rocks on the jittering belt (on the paper scene +-0.2 mm in x at ~15 Hz, 9 mm/s
 #: peaks), which an exact detector reports and a 0.05 px R would gate out. Added to R.
 #: Measured in simulation, a placeholder for a real pile.
 FACE_WOBBLE_STD = 3e-4
 #: The face height is the median of this many latest detections' heights: a pile settles
-#: under the running belt (paper seed 0: the top face sank 0.5 mm in 0.5 s), so old
+#: under the running belt (measured on the paper scene: a top face sinks 0.5 mm in 0.5 s), so old
 #: heights go stale; the median outvotes single bad depths. Placeholder.
 FACE_Z_WINDOW = 9
 #: Lower bound of the belt speed jitter the filter assumes, m/s: the object can also creep
@@ -69,9 +70,9 @@ FACE_Z_WINDOW = 9
 MIN_SPEED_JITTER = 5e-4
 #: Std of an object's velocity about the belt's nominal one when the track starts, m/s: the
 #: belt's own speed noise is ~2 mm/s (paper scene), but an object can creep or settle in its
-#: pile (paper seed 38: +20 mm/s). Placeholder, not identified. The two-point start alone
-#: gives ~20 mm/s (0.5 px centre noise a frame apart); two different ellipses of one face
-#: in the first two frames (paper seed 45: 3 mm apart) gave 90 mm/s.
+#: pile (+20 mm/s measured on the paper scene). Placeholder, not identified. The two-point start
+#: alone gives ~20 mm/s (0.5 px centre noise a frame apart); two different ellipses of one
+#: face in the first two frames (3 mm apart) give 90 mm/s.
 BELT_VELOCITY_PRIOR_STD = 0.01
 #: Fastest plausible image speed of a face, px/s, for the image frame's two-point start
 #: (the camera's motion is compensated; 1 m/s at the closest ~0.05 m depth, f ~ 290 px).
@@ -86,7 +87,7 @@ EDGE_MARGIN_PX = 2.0
 #: a few times the detector's centre noise.
 INIT_GATE = 0.004
 #: After this many gated-out measurements in a row, the last three are checked for a changed
-#: motion (the object shifted in its pile: paper seed 38, +20 mm/s in 0.1 s): if the third
+#: motion (the object shifts in its pile: +20 mm/s within 0.1 s on the paper scene): if the third
 #: lies within REACQUIRE_TOLERANCE (m) of the line through the other two, and they are
 #: near the prediction (REACQUIRE_GATE, m), the filter restarts from the last two. Three
 #: collinear detections of one face, not clutter.
@@ -102,17 +103,16 @@ ASSOCIATION_MAX = 0.0125
 #: one by more than this share is another face (a smaller one, a side wall, a fragment of an
 #: outline, a fit that took in a neighbour's arc): the major axis is set by the face's radius
 #: and depth, which the track knows to a few per cent. Measured on the whole faces offered
-#: to the right radius hypothesis in 100 cluttered episodes (development seeds 7000-7049,
-#: 10200-10249): the tracked face's own fits (centre within 0.5 px of its true image) differ
-#: by under 3 % in 99 % of frames and by over 10 % in 2 of 1619; of the fits of other
-#: outlines near the prediction (3 px or more off the face, within 10 px of the prediction)
-#: 59 % differ by over 10 %, only 21 % by over 25 %, the earlier share. Such a fit, 3-6 px
-#: off and 12-18 % too large, can lie nearer the prediction than the face itself and pull
-#: the track off it (cluttered seed 10252: fits of a top face that take in the outline of a
-#: face of its colour beside it).
+#: to the right radius hypothesis in 100 cluttered-scene episodes: the tracked face's own
+#: fits (centre within 0.5 px of its true image) differ by under 3 % in 99 % of frames and
+#: by over 10 % in 2 of 1619; of the fits of other outlines near the prediction (3 px or
+#: more off the face, within 10 px of the prediction) 59 % differ by over 10 %, only 21 % by
+#: over 25 % (CUT_SIZE_TOLERANCE's share). Such a fit, 3-6 px off and 12-18 % too large, can
+#: lie nearer the prediction than the face itself and pull the track off it (a fit of a top
+#: face that takes in the outline of a face of its colour beside it).
 SIZE_TOLERANCE = 0.10
-#: The share for a face cut by the image border, fitted on part of its outline (fewer such
-#: frames were measured: the earlier, looser share is kept).
+#: The share for a face cut by the image border, fitted on part of its outline: looser, as
+#: too few such frames were measured to support SIZE_TOLERANCE's tighter share.
 CUT_SIZE_TOLERANCE = 0.25
 #: Once tracked, a face cut by the image border is still used while its ellipse's centre is
 #: in the image, with this many times the pixel noise: a fit on a partial outline, its size
@@ -129,20 +129,13 @@ NORMAL_AGREEMENT_DEG = 10.0
 VOTE_SIGHT_DEG = 5.0
 
 
-@dataclass(frozen=True, kw_only=True)
-class TargetState:
-    """The face at one instant: centre (3,) m, velocity (3,) m/s, unit inward normal (3,)."""
-
-    centre: FloatArray
-    velocity: FloatArray
-    normal: FloatArray
-
-
 class TargetEstimator:
     """Fuses the tracked face's detections; :meth:`state` predicts it at any time."""
 
-    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool) -> None:
-        self.frame = cfg.episode.tracker_frame
+    def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
+                 frame: str | None = None) -> None:
+        self.frame = frame or cfg.episode.tracker_frame
+        """``belt`` or ``image`` (default: the scene's ``episode.tracker_frame``)."""
         self.k = intrinsics
         self.pixel_std = ORACLE_PIXEL_STD if oracle else VISION_PIXEL_STD
         self._belt_v = np.array([0.0, cfg.conveyor.speed])
@@ -207,10 +200,10 @@ class TargetEstimator:
 
         The large errors of a monocular height are one-sided: an outline that takes in more
         than the face (the side wall of the face's colour, seen obliquely as the camera
-        approaches; a neighbour's rim) is larger, so read as nearer: too high. Paper
-        development seeds 633 and 653: the look pose's heights within 0.3 mm, the
-        approach's and servo's 10-18 mm too high; seed 1: a look-pose outline with the wall,
-        20 mm too high. So the face is expected at or above this bound, whatever the median
+        approaches; a neighbour's rim) is larger, so read as nearer: too high. Measured on
+        paper scenes: the look pose's heights within 0.3 mm while the approach's and
+        servo's are 10-18 mm too high; a look-pose outline that takes in the wall, 20 mm
+        too high. So the face is expected at or above this bound, whatever the median
         of the latest heights (:attr:`face_z`) says.
         """
         return min(self._zs) if self._zs else 0.0
@@ -289,8 +282,8 @@ class TargetEstimator:
         the tracked normal (a consensus over frames) this shift is steadier than each
         frame's own pose. Before the filter is set (belt frame) the face is where the belt
         carries the first detection: later frames see a tilted face's ellipse centre
-        several mm off its centre (fast_belt seed 90: the only later views were cut by the
-        border, without a pose of their own, and never associated).
+        several mm off its centre (on a fast belt the later views may all be cut by the
+        border, without a pose of their own, and would then never be associated).
         """
         if self.radius is None:
             return None

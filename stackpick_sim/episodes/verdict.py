@@ -1,6 +1,6 @@
 """The verdict after verify: was the right object picked, held high enough, nothing knocked off.
 
-``success`` (the issue): the picked object was a true top object at detection time, rests
+``success`` is defined as: the picked object was a true top object at detection time, rests
 held by the suction cup at least :data:`MIN_LIFT_M` above its starting height after the
 lift, and no other object was knocked off the belt (objects carried past the belt's end by
 the belt are not "knocked off").

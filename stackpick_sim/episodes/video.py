@@ -9,6 +9,7 @@ through imageio-ffmpeg (the optional extra ``stackpick-sim[video]``, which ships
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -205,7 +206,7 @@ class ReplayFilm:
             self._writer.write(frame)
 
     def _wrist_view(self, info: TickInfo) -> NDArray[np.uint8]:
-        w, h = VIEW_SIZE
+        h = VIEW_SIZE[1]
         obs = self._latest
         if obs is None or obs.image is None:
             # No frame captured yet (the arm moving to the look pose): the camera live.
@@ -214,27 +215,7 @@ class ReplayFilm:
             out = np.ascontiguousarray(live, dtype=np.uint8)
             draw_text(out, "live view: no frame captured yet", (10, h - 14), BANNER_TEXT, 0.55)
             return out
-        k = w / obs.image.shape[1]
-        out = np.ascontiguousarray(cv2.resize(obs.image[..., ::-1], VIEW_SIZE,
-                                              interpolation=cv2.INTER_NEAREST), dtype=np.uint8)
-        for cand in obs.candidates:
-            if cand.ellipse is not None:
-                draw_ellipse(out, scale_ellipse(cand.ellipse, k),
-                             TOP_COLOUR if cand.is_top else OTHER_COLOUR, 3)
-        for ellipse in self._truth.get(round(obs.capture_time, 6), []):
-            draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 2, halo=False,
-                         dashed=True)
-        est = info.episode.estimator
-        if est.initialised:
-            state = est.state(obs.capture_time, obs.world_T_cam)
-            r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
-            c = r.T @ (state.centre - p)
-            if c[2] > 1e-3:
-                u, v = info.episode.scene.cell.intrinsics.project(c)[0]
-                draw_marker(out, ((u + 0.5) * k - 0.5, (v + 0.5) * k - 0.5), ESTIMATE_COLOUR,
-                            18, 2)
-        draw_text(out, f"frame at t = {obs.capture_time:.2f} s", (10, h - 14), BANNER_TEXT, 0.55)
-        return out
+        return wrist_view(obs, info, self._truth.get(round(obs.capture_time, 6), []))
 
     def _compose(self, wrist: NDArray[np.uint8], outside: NDArray[np.uint8], t: float,
                  phase: str, outcome: str | None, final: bool = False) -> NDArray[np.uint8]:
@@ -255,3 +236,33 @@ class ReplayFilm:
                   + "    |    outside view following the pile")
         draw_text(frame, legend, (12, BANNER_HEIGHT + h + 21), BANNER_TEXT, 0.45)
         return frame
+
+
+def wrist_view(obs: Observation, info: TickInfo,
+               truth: Sequence[Ellipse] = ()) -> NDArray[np.uint8]:
+    """(VIEW_SIZE) BGR view of ``obs``'s wrist frame (it must hold an image): its candidates
+    (green the top, orange the others), the ``truth`` ellipses dashed, the tracker's estimate
+    at the capture time (a magenta cross) and the capture time."""
+    assert obs.image is not None, "wrist_view needs an observation with its image"
+    w, h = VIEW_SIZE
+    k = w / obs.image.shape[1]
+    out = np.ascontiguousarray(cv2.resize(obs.image[..., ::-1], VIEW_SIZE,
+                                          interpolation=cv2.INTER_NEAREST), dtype=np.uint8)
+    for cand in obs.candidates:
+        if cand.ellipse is not None:
+            draw_ellipse(out, scale_ellipse(cand.ellipse, k),
+                         TOP_COLOUR if cand.is_top else OTHER_COLOUR, 3)
+    for ellipse in truth:
+        draw_ellipse(out, scale_ellipse(ellipse, k), TRUTH_COLOUR, 2, halo=False,
+                     dashed=True)
+    est = info.episode.estimator
+    if est.initialised:
+        state = est.state(obs.capture_time, obs.world_T_cam)
+        r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        c = r.T @ (state.centre - p)
+        if c[2] > 1e-3:
+            u, v = info.episode.scene.cell.intrinsics.project(c)[0]
+            draw_marker(out, ((u + 0.5) * k - 0.5, (v + 0.5) * k - 0.5), ESTIMATE_COLOUR,
+                        18, 2)
+    draw_text(out, f"frame at t = {obs.capture_time:.2f} s", (10, h - 14), BANNER_TEXT, 0.55)
+    return out

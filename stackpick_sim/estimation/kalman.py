@@ -313,11 +313,11 @@ class ConstantVelocityTracker:
         if prior_v is not None and check_prior:
             # Two detections of one face moving with the belt imply its velocity to within
             # their covariance and the prior's. Beyond the gate, one of the two is not where
-            # the face was (two different ellipses of one face, paper seed 45: 3 mm apart a
-            # frame apart): which one is unknown, so the older is dropped and the newer
-            # pairs with the next; a wrong newer one is dropped there in turn. Fusing the
-            # pair instead started the filter a few mm off with a tight covariance, and the
-            # right detections that followed were gated out.
+            # the face was (two different ellipses of one face, 3 mm apart a frame apart):
+            # which one is unknown, so the older is dropped and the newer pairs with the
+            # next; a wrong newer one is dropped there in turn. Fusing the pair instead
+            # would start the filter a few mm off with a tight covariance, and the right
+            # detections that follow would be gated out.
             dv = v - np.asarray(prior_v, dtype=float)
             s_v = p[2:, 2:] + np.eye(2) * self.config.prior_velocity_std**2
             d2 = float(dv @ np.linalg.solve(s_v, dv))

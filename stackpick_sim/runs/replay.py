@@ -15,9 +15,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.episodes.episode import estimator_name
 from stackpick_sim.episodes.record import EpisodeRecord, SceneErrorRecord
 from stackpick_sim.episodes.replay import ReplayResult, ReplaySource, replay_episode
 from stackpick_sim.exceptions import EpisodeError
+from stackpick_sim.registry import KINDS, PluginError, load
 from stackpick_sim.runs.journal import RESULTS_FILE, read_records
 from stackpick_sim.runs.spec import RunSpec, episode_dir, seed_ranges
 
@@ -63,12 +66,32 @@ def load_state(path: Path) -> NDArray[np.float64]:
     return state
 
 
+def recorded_stages(record: EpisodeRecord) -> list[str]:
+    """``--set`` overrides naming the detector, estimator and controller ``record`` ran with
+    (none for a name the record leaves empty: the run's own overrides then decide)."""
+    return [f"episode.{kind}={getattr(record, kind)}" for kind in KINDS
+            if getattr(record, kind)]
+
+
+def check_stages_load(cfg: SceneConfig, context: str) -> None:
+    """PluginError (one line, starting with ``context``) when a stage ``cfg`` names does not
+    load here (a plug-in that is not installed)."""
+    for kind in KINDS:
+        name = estimator_name(cfg) if kind == "estimator" else getattr(cfg.episode, kind)
+        try:
+            load(kind, name)
+        except PluginError as exc:
+            raise PluginError(f"{context}: its {kind} {name!r} does not load here "
+                              f"({exc})") from None
+
+
 def load_replay_source(out_dir: Path, seed: int) -> ReplaySource:
     """What ``stackpick replay DIR SEED`` re-runs, every input checked (EpisodeError or
     RunFileError, one line, otherwise)."""
     spec = RunSpec.from_dir(out_dir)
     record = _recorded(out_dir, seed)
-    cfg = load_scene(spec.scene, spec.overrides)
+    cfg = load_scene(spec.scene, (*spec.overrides, *recorded_stages(record)))
+    check_stages_load(cfg, f"cannot replay seed {seed} of {out_dir}")
     if cfg.name != record.scene:
         raise EpisodeError(f"{out_dir}/run.json names scene {cfg.name!r}, but seed {seed} was "
                            f"recorded on scene {record.scene!r}: run.json does not describe "

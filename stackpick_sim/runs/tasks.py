@@ -7,12 +7,17 @@ directory has one writer.
 
 An exception inside an episode becomes a failed record with reason ``error`` and the
 traceback in :attr:`TaskResult.log`; the run goes on.
+
+The pipeline stages are named in the spec's overrides and loaded here, in the worker
+(:mod:`stackpick_sim.registry`); ``module:attr`` stages are imported with the driver's
+working directory on the import path (:attr:`EpisodeTask.import_paths`).
 """
 
 from __future__ import annotations
 
 import io
 import os
+import sys
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.episodes.episode import run_episode
+from stackpick_sim.episodes.episode import EpisodeRun, estimator_name
 from stackpick_sim.episodes.record import ERROR_REASON, EpisodeRecord, Record, SceneErrorRecord
 from stackpick_sim.exceptions import SceneGenerationError
 from stackpick_sim.runs.spec import RunSpec
@@ -38,6 +43,9 @@ class EpisodeTask:
     spec: RunSpec
     seed: int
     key: str = ""
+    import_paths: tuple[str, ...] = field(default_factory=lambda: (os.getcwd(),))
+    """Directories appended to the worker's import path (default: the driver's working
+    directory, so that ``examples.x:Y`` stages load in every worker as in the driver)."""
 
 
 @dataclass(kw_only=True)
@@ -68,6 +76,9 @@ def run_task(task: EpisodeTask) -> TaskResult:
     Audit files: ``scene.xml`` (compiled scene), ``initial_qpos.npy`` (the settled pile) and
     ``final_qpos.npy`` (after verify), (nq,) float64 each.
     """
+    for path in task.import_paths:
+        if path not in sys.path:
+            sys.path.append(path)
     cfg = load_scene(task.spec.scene, task.spec.overrides)
     try:
         scene = generate_scene(cfg, task.seed)
@@ -75,10 +86,15 @@ def run_task(task: EpisodeTask) -> TaskResult:
         return TaskResult(task=task, record=SceneErrorRecord(seed=task.seed, scene=cfg.name,
                                                              error=str(exc)))
     initial = scene.cell.data.qpos.copy()
-    record = run_episode(scene)
+    run = EpisodeRun(cfg)
+    run.start(scene)
+    while run.step():
+        pass
+    record = run.finish()
     audit = {"scene.xml": scene.cell.spec_xml.encode(), "initial_qpos.npy": _npy(initial),
              "final_qpos.npy": _npy(scene.cell.data.qpos.copy())}
-    return TaskResult(task=task, record=record, audit=audit)
+    log = f"{record.failure_detail}\n{run.traceback}" if run.traceback else ""
+    return TaskResult(task=task, record=record, audit=audit, log=log)
 
 
 def failure_record(task: EpisodeTask, reason: str, detail: str) -> EpisodeRecord:
@@ -86,6 +102,7 @@ def failure_record(task: EpisodeTask, reason: str, detail: str) -> EpisodeRecord
     try:
         cfg = load_scene(task.spec.scene, task.spec.overrides)
         rec = EpisodeRecord(seed=task.seed, scene=cfg.name, detector=cfg.episode.detector,
+                            estimator=estimator_name(cfg), controller=cfg.episode.controller,
                             tracker_frame=cfg.episode.tracker_frame,
                             belt_speed=cfg.conveyor.speed)
     except Exception:  # the config itself is broken: still one record for the seed
