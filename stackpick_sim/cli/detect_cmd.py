@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.loader import available_scenes, load_scene
+from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics, check_fovy, face_depth_range
 from stackpick_sim.image_io import read_image, write_image
@@ -116,6 +117,8 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
     heights: tuple[float, ...] | None = None
     depth: tuple[float, float] | None = None
     limits = WorkLimits()
+    marking_depth_ratio = VisionCfg.marking_depth_ratio
+    marking_min_edge_share = VisionCfg.marking_min_edge_share
     if args.scene is not None or args.overrides:
         scene = load_scene(args.scene or "paper", args.overrides)
         fovy = scene.camera.fovy_deg
@@ -124,13 +127,16 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
         radii, colours, heights = object_kinds(kinds)
         depth = face_depth_range(scene.camera.look_height, scene.objects.max_face_height)
         limits = WorkLimits.of(scene.vision)
+        marking_depth_ratio = scene.vision.marking_depth_ratio
+        marking_min_edge_share = scene.vision.marking_min_edge_share
     if args.radii is not None:  # other radii: the scene's colours and heights no longer apply
         radii, colours, heights = tuple(args.radii), None, None
     return DetectorConfig(
         intrinsics=CameraIntrinsics.from_fovy(fovy if args.fovy is None else args.fovy,
                                               width, height),
         radii_m=radii, kind_colours=colours, heights_m=heights,
-        depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits)
+        depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits,
+        marking_depth_ratio=marking_depth_ratio, marking_min_edge_share=marking_min_edge_share)
 
 
 def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,

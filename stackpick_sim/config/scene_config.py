@@ -400,6 +400,18 @@ class VisionCfg:
     276 pairs)."""
     max_refits: int = 8
     """Ellipses the top rule's contrast retry refits, best-supported first."""
+    marking_depth_ratio: float = 1.0
+    """The top rule's test for a marking or relief inside a face (printed artwork, a can
+    end's groove): an ellipse lying inside a face whose outline shows whole is a marking, not
+    an object resting on the face, when its depth read from its size and its kind's radius is
+    at least this multiple of the face's (1: not nearer than the face; an object resting on
+    it is nearer by about its height). Ratio."""
+    marking_min_edge_share: float = 0.75
+    """The same test judges only faces with at least this many interior edge pixels per
+    pixel of their perimeter: markings across a face (a word, a stripe, a can end's rings)
+    leave about its perimeter or more, a stray edge entering a plain face a fraction of it
+    (0.06-0.63 on rendered paper-scene frames, 0.8-3 on realistic-scene faces with
+    markings). Ratio."""
     time_budget_ms: float = 0.0
     """Wall-clock budget of one detection, ms; 0: none. When it runs out the detection is a
     miss naming the stage. Depends on the machine's load: results under a budget are not
@@ -411,6 +423,10 @@ class VisionCfg:
         for key in ("max_chains", "max_fits", "max_ellipses", "max_arcs", "max_refits"):
             value = getattr(self, key)
             _require(1 <= value <= 100_000, f"vision.{key}", value, "1 to 100000")
+        _require(0.5 <= self.marking_depth_ratio <= 2.0, "vision.marking_depth_ratio",
+                 self.marking_depth_ratio, "0.5 to 2")
+        _require(0.0 <= self.marking_min_edge_share <= 10.0, "vision.marking_min_edge_share",
+                 self.marking_min_edge_share, "0 to 10")
         _require(math.isfinite(self.time_budget_ms) and self.time_budget_ms >= 0,
                  "vision.time_budget_ms", self.time_budget_ms, "0 (none) or a number > 0 ms")
 

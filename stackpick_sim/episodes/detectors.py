@@ -62,7 +62,9 @@ def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
     return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
                           heights_m=heights,
                           depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)),
-                          limits=WorkLimits.of(cfg.vision))
+                          limits=WorkLimits.of(cfg.vision),
+                          marking_depth_ratio=cfg.vision.marking_depth_ratio,
+                          marking_min_edge_share=cfg.vision.marking_min_edge_share)
 
 
 def detection_candidates(det: Detection) -> tuple[FaceCandidate, ...]:

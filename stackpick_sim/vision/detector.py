@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
@@ -65,6 +66,7 @@ from stackpick_sim.vision.limits import (
     scaled_intrinsics,
     upscaled,
 )
+from stackpick_sim.vision.markings import RIM_SAMPLE_SCALE, MarkingTest
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_shares,
@@ -73,6 +75,7 @@ from stackpick_sim.vision.merging import (
     support_shares,
 )
 from stackpick_sim.vision.occlusion import (
+    INTERIOR_MARGIN_PX,
     OcclusionEvidence,
     TopChoice,
     clearly_nearest,
@@ -100,7 +103,7 @@ from stackpick_sim.vision.regroup import (
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.undistort import undistort
-from stackpick_sim.vision.wall import face_colour
+from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
@@ -171,6 +174,9 @@ class DetectorConfig:
     colours it lets the top rule rebuild the candidates' cylinders and reject one another
     rests on (:mod:`~stackpick_sim.vision.resting`). ``limits``: caps on the work done on any
     image and an optional time budget (:class:`~stackpick_sim.vision.limits.WorkLimits`).
+    ``marking_depth_ratio``, ``marking_min_edge_share``: the top rule's test for a marking or
+    relief inside a face (ratios; the scene's ``vision`` keys of those names, see
+    :mod:`~stackpick_sim.vision.markings`).
     """
 
     intrinsics: CameraIntrinsics | None = None
@@ -179,6 +185,8 @@ class DetectorConfig:
     kind_colours: tuple[tuple[float, float, float], ...] | None = None
     heights_m: tuple[float, ...] | None = None
     limits: WorkLimits = field(default_factory=WorkLimits)
+    marking_depth_ratio: float = VisionCfg.marking_depth_ratio
+    marking_min_edge_share: float = VisionCfg.marking_min_edge_share
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -193,6 +201,12 @@ class DetectorConfig:
                        for c in self.kind_colours)):
             raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
                               f"radius in radii_m, got {self.kind_colours}")
+        if not 0.5 <= self.marking_depth_ratio <= 2.0:
+            raise ConfigError("marking_depth_ratio must lie in 0.5 to 2, got "
+                              f"{self.marking_depth_ratio}")
+        if not 0.0 <= self.marking_min_edge_share <= 10.0:
+            raise ConfigError("marking_min_edge_share must lie in 0 to 10, got "
+                              f"{self.marking_min_edge_share}")
         if self.heights_m is not None and (len(self.heights_m) != len(self.radii_m)
                                            or any(not h > 0 for h in self.heights_m)):
             raise ConfigError("heights_m must give one positive height (m) per radius in "
@@ -257,6 +271,7 @@ class _Cues:
     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
     radius_of: Callable[[Ellipse], float | None] | None
     height_of: Callable[[float], float | None] | None
+    markings: MarkingTest
 
 
 class TopObjectDetector:
@@ -383,20 +398,28 @@ class TopObjectDetector:
         rgb = work if work.ndim == 3 else None
         # Each candidate's face colour once, for its radius and the rest test's wall bands.
         colour_of = None if rgb is None else face_colours(rgb)
-        radius_of = (None if self.config.kind_colours is None else
-                     radius_by_colour(work, self.config.radii_m, self.config.kind_colours,
-                                      colour_of))
+        colours = self.config.kind_colours
+        radius_of = (None if colours is None else
+                     radius_by_colour(work, self.config.radii_m, colours, colour_of))
+        # A face's kind from its rim band, for the marking test (see markings).
+        rim_radius_of = (None if colours is None or rgb is None else
+                         radius_by_colour(work, self.config.radii_m, colours,
+                                          face_colours(rgb, RIM_SAMPLE_SCALE)))
+        markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
+                               depth_ratio=self.config.marking_depth_ratio,
+                               min_edge_share=self.config.marking_min_edge_share,
+                               margin_px=INTERIOR_MARGIN_PX)
         return _Cues(k_crop=k_crop, rgb=rgb,
                      belt=None if found.roi.belt is None else np.array(found.roi.belt),
                      colour_of=colour_of, radius_of=radius_of,
-                     height_of=self.config.height_of())
+                     height_of=self.config.height_of(), markings=markings)
 
     def _select(self, ellipses: list[Ellipse], found: _Found, cues: _Cues) -> TopChoice:
         """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every
         cue."""
         return select_top(ellipses, found.grad, cues.k_crop, cues.radius_of,
                           edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
-                          colour_of=cues.colour_of, belt=cues.belt)
+                          colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
 
     def _top_stage(self, found: _Found, cues: _Cues, clock: _Clock
                    ) -> tuple[list[MergedEllipse], TopChoice]:
@@ -618,16 +641,18 @@ def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
     return radius_of
 
 
-def face_colours(image: NDArray[np.uint8]) -> Callable[[Ellipse], NDArray[np.float64]]:
+def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
+                 ) -> Callable[[Ellipse], NDArray[np.float64]]:
     """Ellipse -> its face's (3,) colour in the (H, W, 3) RGB ``image`` (:func:`~stackpick_sim.
-    vision.wall.face_colour`; the array is shared: not to be modified), each face's once (its
-    radius and the rest test's wall bands both read it)."""
+    vision.wall.face_colour` on the ellipse of ``scale`` times its semi-axes; the array is
+    shared: not to be modified), each face's once (its radius and the rest test's wall bands
+    both read it)."""
     known: dict[Ellipse, NDArray[np.float64]] = {}
 
     def colour_of(ellipse: Ellipse) -> NDArray[np.float64]:
         colour = known.get(ellipse)
         if colour is None:
-            colour = known[ellipse] = face_colour(ellipse, image)
+            colour = known[ellipse] = face_colour(ellipse, image, scale)
         return colour
 
     return colour_of

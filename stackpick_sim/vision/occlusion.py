@@ -34,6 +34,10 @@ only interior edges lie within RIM_BAND_PX of its outline (its own faint rim, fi
 same-colour lower face's sliver beyond it). Such a face can also lie on the face the rule
 chose: :func:`select_resting_rimmed` (called by the detector on a choice) takes it when its
 cylinder, refitted on its innermost edge, rests on the chosen one's.
+Given the object kinds' radii (the detector's ``markings`` settings), an ellipse that is a
+marking or relief inside a larger face's outline (printed artwork, a can end's groove) is no
+candidate, and a face whose outline shows whole and whose interior edges are only its own
+markings is one (:mod:`~stackpick_sim.vision.markings`).
 The rule needs only a list of ellipses and an edge map, so it applies to any detector's
 ellipses.
 """
@@ -57,6 +61,7 @@ from stackpick_sim.vision.contrast import (
     refit_on_contrast,
 )
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
@@ -378,15 +383,6 @@ def _row_pairs(rows: NDArray[np.float64], low: NDArray[np.float64], high: NDArra
     return query, point
 
 
-def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
-    """Whether ``inner``'s centre lies inside ``outer``."""
-    t = math.radians(outer.angle_deg)
-    du, dv = inner.cx - outer.cx, inner.cy - outer.cy
-    x = (math.cos(t) * du + math.sin(t) * dv) / outer.a
-    y = (-math.sin(t) * du + math.cos(t) * dv) / outer.b
-    return x * x + y * y < 1.0
-
-
 def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                      radius_of: Callable[[Ellipse], float | None]) -> int | None:
     """Index of the face nearer the camera than every other by DEPTH_TIE_M (face-centre
@@ -516,6 +512,24 @@ def unobstructed(ev: OcclusionEvidence) -> bool:
             and ev.support >= FALLBACK_MIN_SUPPORT)
 
 
+def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+              edge_points: NDArray[np.float64], test: MarkingTest | None,
+              radius_of: Callable[[Ellipse], float | None] | None
+              ) -> tuple[frozenset[int], frozenset[int]]:
+    """(markings, marked faces) of :func:`~stackpick_sim.vision.markings.find_markings`
+    (both empty without a ``test``), less the marked faces whose interior edges all lie in
+    their rim band: a fit too large for its face (see RIM_BAND_PX), not a face with markings
+    across it."""
+    if test is None:
+        return frozenset(), frozenset()
+    found = find_markings(ellipses, evidence, test, radius_of)
+    order = sorted(found.marked)
+    if not order:
+        return found.markings, found.marked
+    rimmed = rim_only([ellipses[i] for i in order], [evidence[i] for i in order], edge_points)
+    return found.markings, found.marked - {order[k] for k in rimmed}
+
+
 def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                intrinsics: CameraIntrinsics | None = None,
                radius_of: Callable[[Ellipse], float | None] | None = None, *,
@@ -523,7 +537,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                image: NDArray[np.uint8] | None = None,
                height_of: Callable[[float], float | None] | None = None,
                colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
-               belt: NDArray[np.float64] | None = None) -> TopChoice:
+               belt: NDArray[np.float64] | None = None,
+               markings: MarkingTest | None = None) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -544,7 +559,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     map's pixels (M, 2) (u, v) in ``np.nonzero`` order, when the caller has them already;
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
     face_colour`), when the caller keeps them; ``belt``: the bare belt's colour in ``image``
-    (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands.
+    (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands. With
+    ``markings`` (its settings), an ellipse that is a marking or relief inside a whole face is
+    no candidate, and a whole face that holds only such markings is one
+    (:mod:`~stackpick_sim.vision.markings`).
     """
     gradients = edges if isinstance(edges, EdgeImage) else None
     edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
@@ -559,14 +577,16 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         vv, uu = np.nonzero(binary)
         edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
     evidence = evidence_all(ellipses, edge_points, support, gradients)
-    candidates = [i for i, ev in enumerate(evidence) if not ev.occluded]
+    inner, marked = _markings(ellipses, evidence, edge_points, markings, radius_of)
+    candidates = [i for i, ev in enumerate(evidence)
+                  if (not ev.occluded or i in marked) and i not in inner]
     if not candidates:
         return TopChoice(index=None, evidence=evidence,
                          reason=f"all {len(ellipses)} ellipses occluded")
     # The depth test also hears faces that failed on support alone with nothing crossing
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
-                         if ev.occluded and unobstructed(ev)]
+                         if ev.occluded and unobstructed(ev) and i not in marked | inner]
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     if intrinsics is not None and len(pool) > 1:

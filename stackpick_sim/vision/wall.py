@@ -113,12 +113,14 @@ class WallEvidence:
     share: float
 
 
-def face_colour(ellipse: Ellipse, image: NDArray[np.uint8]) -> NDArray[np.float64]:
-    """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image."""
+def face_colour(ellipse: Ellipse, image: NDArray[np.uint8],
+                scale: float = FACE_SAMPLE_SCALE) -> NDArray[np.float64]:
+    """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image, on
+    the ellipse of ``scale`` times its semi-axes."""
     ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
     c, s = math.cos(th), math.sin(th)
-    x, y = FACE_SAMPLE_SCALE * ellipse.a * ct, FACE_SAMPLE_SCALE * ellipse.b * st
+    x, y = scale * ellipse.a * ct, scale * ellipse.b * st
     # Rows u, v: (cx + c x) - s y and (cy + s x) + c y, as (2, n) arrays.
     q = np.array([[ellipse.cx], [ellipse.cy]]) + np.array([[c], [s]]) * x
     q += np.array([[-s], [c]]) * y

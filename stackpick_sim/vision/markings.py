@@ -1,0 +1,168 @@
+"""Markings and relief inside a face: the top rule's evidence that a face's inner outlines are
+its own.
+
+Failure class: *an ellipse that is a marking or relief inside a larger face's outline*.
+Printed lids carry artwork (a word, a stripe, a logo's ring) and a tinplate can end a raised
+rim round a groove and a countersunk panel. Their edges lie inside the face's outline, so the
+face fails the top rule on interior edges, and a closed inner outline (a groove, a ring, a fit
+on the artwork) shows no T-junction and nothing inside it: it passes the rule and is taken for
+an unoccluded top face lying inside the true one.
+
+What tells such an outline from a smaller object lying on the face is where it would lie. A
+face whose outline shows whole (support >= TOP_MIN_SUPPORT, no T-junction end) has nothing
+across its outline: whatever lies on it lies wholly inside it, and an object resting on it is
+nearer the camera than it, by about its own height. A face's depth from its image size is
+proportional to r / a (its radius r, from its colour when the object kinds' colours are known,
+and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
+
+* one lying wholly inside it by more than the interior-edge margin whose depth so read is not
+  nearer than the face's (``depth_ratio`` of it or more, with its own kind's radius, else the
+  smallest) is not an object on it: a marking or relief in the face's plane, whose radius is
+  smaller than any kind's at that depth. It is no candidate for the top;
+* one that passes the top rule itself, or lies wholly inside it and reads nearer, is a face
+  on it: the face is under it;
+* one that fails the rule and runs across the face's whole outline is a fit on its markings
+  and outline together, when nothing else lies on the face.
+
+Markings across a face (a word, a stripe, a logo, a can end's rings) leave interior edges
+along about its perimeter or more; a plain face that fails on interior edges shows a stray
+edge entering it (an occluder's, where the occluder's own fit is missing), a fraction of its
+perimeter. So only faces with at least ``min_edge_share`` interior edge pixels per perimeter
+pixel are judged. A whole face that fails the rule on interior edges alone, with no face on
+it and no other
+ellipse that passes the rule reaching into it, has only its own markings inside: it is a
+candidate, and the ellipses of the third kind are no candidates either. (A face whose interior
+edges all lie in its rim band is left to the rule's rim fallbacks: :func:`~stackpick_sim.
+vision.occlusion.rim_only`.)
+
+The tests read only ellipses, their evidence and the faces' colours (a few pixels each): no
+image pass (cheap).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from stackpick_sim.geometry import Ellipse
+
+if TYPE_CHECKING:  # the top rule (occlusion) calls this module
+    from stackpick_sim.vision.occlusion import OcclusionEvidence
+
+#: Outline samples per ellipse for the "wholly inside" test.
+INSIDE_SAMPLES = 32
+#: A face's rim band, whose colour gives its kind: the ellipse at this share of its
+#: semi-axes. An object lying wholly inside the face (inside by the interior-edge margin) can
+#: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
+#: most of this band; a can end's rim (its outer 12 %) lies on it.
+RIM_SAMPLE_SCALE = 0.94
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkingTest:
+    """What the test reads besides the ellipses: the object kinds' ``radii`` (m); a face's
+    radius by the colour of its rim band (``rim_radius_of``, None when the kinds' colours are
+    unknown; see RIM_SAMPLE_SCALE); ``depth_ratio``: an inner ellipse whose depth reads at
+    least this multiple of the face's is a marking (ratio); ``min_edge_share``: the interior
+    edge pixels, per pixel of its perimeter, a face holds at least for them to be read as
+    markings across it; ``margin_px``: how far (px)
+    inside the face a marking's whole outline lies (the margin of the interior-edge count)."""
+
+    radii: tuple[float, ...]
+    rim_radius_of: Callable[[Ellipse], float | None] | None
+    depth_ratio: float
+    min_edge_share: float
+    margin_px: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Markings:
+    """The outcome of :func:`find_markings`: ``markings``, indices of ellipses that are a
+    marking or relief inside a whole face; ``marked``, indices of whole faces that failed the
+    rule on interior edges alone and hold only markings."""
+
+    markings: frozenset[int]
+    marked: frozenset[int]
+
+
+def whole_with_edges_inside(ev: OcclusionEvidence) -> bool:
+    """No T-junction end, support >= TOP_MIN_SUPPORT, more interior edges than allowed: a
+    face whose outline shows whole and that failed on interior edges alone."""
+    return not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside
+
+
+def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
+                  ) -> Markings:
+    """The markings and marked faces among ``ellipses`` (see the module docstring), given
+    their top-rule ``evidence``, the ``test``'s settings and, when known, each ellipse's radius
+    by its colour (``radius_of``)."""
+    markings: set[int] = set()
+    marked: set[int] = set()
+    for f, ev in enumerate(evidence):
+        if (whole_with_edges_inside(ev)
+                and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px):
+            own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
+            markings.update(own)
+            if not blocked:
+                marked.add(f)
+                markings.update(loose)
+    return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
+
+
+def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+           test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
+           ) -> tuple[list[int], list[int], bool]:
+    """For the whole face ``f``: its markings (wholly inside, not nearer), the failed fits
+    across its outline (its markings too if nothing lies on it), and whether a face lies on
+    it. Without the colours (or where they give None) an inner ellipse is read with the
+    smallest radius and the face with the largest: the reading most in favour of an object.
+    The face's radius is read from its rim band, not its middle, which an object lying on it
+    can cover."""
+    face = ellipses[f]
+    rim = None if test.rim_radius_of is None else test.rim_radius_of(face)
+    face_depth = (max(test.radii) if rim is None else rim) / face.a
+    own: list[int] = []
+    loose: list[int] = []
+    blocked = False
+    for i, e in enumerate(ellipses):
+        if i == f:
+            continue
+        passes = not evidence[i].occluded
+        if not (e.a < face.a and holds_centre(face, e)):
+            # A face of its own reaching into it lies on it.
+            blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
+            continue
+        r = None if radius_of is None else radius_of(e)
+        farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
+        wholly = _inside(e, face, test.margin_px)
+        if farther and wholly:
+            own.append(i)
+        elif passes or wholly:
+            blocked = True  # a face of its own on it, or an object nearer than it
+        else:
+            loose.append(i)  # a failed fit across its whole outline: no object's
+    return own, loose, blocked
+
+
+def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether any of ``other``'s outline (INSIDE_SAMPLES points) lies inside ``face`` by more
+    than ``margin_px``."""
+    return bool(face.inside(other.points(INSIDE_SAMPLES), margin_px).any())
+
+
+def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether ``inner``'s whole outline (INSIDE_SAMPLES points) lies inside ``face`` by more
+    than ``margin_px``."""
+    return bool(face.inside(inner.points(INSIDE_SAMPLES), margin_px).all())
+
+
+def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
+    """Whether ``inner``'s centre lies inside ``outer``."""
+    t = math.radians(outer.angle_deg)
+    du, dv = inner.cx - outer.cx, inner.cy - outer.cy
+    x = (math.cos(t) * du + math.sin(t) * dv) / outer.a
+    y = (-math.sin(t) * du + math.cos(t) * dv) / outer.b
+    return x * x + y * y < 1.0

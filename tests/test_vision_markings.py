@@ -1,0 +1,63 @@
+"""The top rule on faces with markings or relief inside their outline (see vision.markings)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou
+from stackpick_sim.vision.detector import DetectorConfig, detect
+
+SHAPE = (240, 320)
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+LARGE, SMALL = 0.035, 0.025
+ORANGE, BLUE = (0.85, 0.6, 0.25), (0.3, 0.6, 0.85)
+CONFIG = DetectorConfig(intrinsics=K, radii_m=(LARGE, SMALL), kind_colours=(ORANGE, BLUE),
+                        heights_m=(0.03, 0.025), depth_range_m=(0.15, 0.30))
+#: The large face, square on at ~0.25 m (f r / a).
+FACE = Ellipse(cx=160, cy=120, a=40, b=40, angle_deg=0)
+
+
+def _image(layers: list[tuple[Ellipse, tuple[float, float, float], bool]]) -> np.ndarray:
+    """RGB frame: dark belt, then each (ellipse, colour, ring) painted in order: a filled
+    face, or with ``ring`` a 2 px line (a printed or embossed ring) on what lies under it."""
+    rng = np.random.default_rng(4)
+    image = np.full((*SHAPE, 3), 30.0)
+    for ellipse, colour, ring in layers:
+        if ring:
+            outer = Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=ellipse.a + 1, b=ellipse.b + 1,
+                            angle_deg=ellipse.angle_deg)
+            inner = Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=ellipse.a - 1, b=ellipse.b - 1,
+                            angle_deg=ellipse.angle_deg)
+            mask = outer.mask(SHAPE) & ~inner.mask(SHAPE)
+        else:
+            mask = ellipse.mask(SHAPE)
+        image[mask] = 255.0 * np.asarray(colour)
+    image += rng.normal(0.0, 1.5, image.shape)
+    return np.clip(np.round(image), 0, 255).astype(np.uint8)
+
+
+def _top_iou(image: np.ndarray, truth: Ellipse, config: DetectorConfig = CONFIG) -> float:
+    found = detect(image, config)
+    assert found.top_ellipse is not None, found.reason
+    return mask_iou(found.top_ellipse, truth, SHAPE)
+
+
+def test_a_face_with_a_concentric_ring_is_the_top_not_its_ring() -> None:
+    # A ring printed at 0.7 of the radius: a closed inner outline with nothing inside it.
+    ring = Ellipse(cx=160, cy=120, a=28, b=28, angle_deg=0)
+    dark = tuple(0.45 * c for c in ORANGE)
+    image = _image([(FACE, ORANGE, False), (ring, dark, True)])
+    assert _top_iou(image, FACE) > 0.9
+    # Read as an object on the face (its depth ratio threshold above the ring's, 1 / 0.7),
+    # the ring is the top: the setting decides.
+    strict = DetectorConfig(intrinsics=K, radii_m=(LARGE, SMALL), kind_colours=(ORANGE, BLUE),
+                            heights_m=(0.03, 0.025), depth_range_m=(0.15, 0.30),
+                            marking_depth_ratio=2.0)
+    assert _top_iou(image, ring, strict) > 0.8
+
+
+def test_a_small_object_lying_wholly_on_a_large_face_is_still_the_top() -> None:
+    # The small kind lying flat on the large face: 2.5 cm nearer, so f r / z = 31.8 px.
+    small = Ellipse(cx=163, cy=118, a=31.8, b=31.8, angle_deg=0)
+    image = _image([(FACE, ORANGE, False), (small, BLUE, False)])
+    assert _top_iou(image, small) > 0.9
