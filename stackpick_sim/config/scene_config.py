@@ -28,14 +28,6 @@ def _require(ok: bool, key: str, value: object, allowed: str) -> None:
         raise ConfigError(f"{key} = {value!r} is out of range; allowed: {allowed}")
 
 
-def _positive(key: str, value: float) -> None:
-    _require(math.isfinite(value) and value > 0, key, value, "a finite number > 0")
-
-
-def _non_negative(key: str, value: float) -> None:
-    _require(math.isfinite(value) and value >= 0, key, value, "a finite number >= 0")
-
-
 def _within(key: str, value: float, lo: float, hi: float, unit: str) -> None:
     """ConfigError unless ``lo <= value <= hi`` (and finite), naming the range with its unit."""
     _require(math.isfinite(value) and lo <= value <= hi, key, value,
@@ -86,10 +78,8 @@ class ConveyorCfg:
         _within("conveyor.length", self.length, 0.2, 10.0, "m")
         _within("conveyor.friction", self.friction, 0.05, 5.0, "")
         _require(0 <= self.clutter <= 12, "conveyor.clutter", self.clutter, "0 to 12 items")
-        _require(math.isfinite(self.top_z) and 0.02 <= self.top_z <= 0.5, "conveyor.top_z",
-                 self.top_z, "0.02 to 0.5 m")
-        _require(math.isfinite(self.x) and 0.3 <= self.x <= 0.6, "conveyor.x", self.x,
-                 "0.3 to 0.6 m (the arm's pick zone)")
+        _within("conveyor.top_z", self.top_z, 0.02, 0.5, "m")
+        _within("conveyor.x", self.x, 0.3, 0.6, "m (the arm's pick zone)")
 
 
 #: Kinds of object (``object_types.*.kind``): what their caps look like and how a cup seals.
@@ -190,12 +180,9 @@ class ObjectsCfg:
         _require(len(self.types) >= 1, "objects.types", list(self.types), "at least one type name")
         _require(math.isfinite(self.max_tilt_deg) and 0 < self.max_tilt_deg <= 80,
                  "objects.max_tilt_deg", self.max_tilt_deg, "0 < tilt <= 80 degrees")
-        _require(math.isfinite(self.pile_radius) and 0 <= self.pile_radius <= 0.1,
-                 "objects.pile_radius", self.pile_radius, "0 to 0.1 m")
-        _require(math.isfinite(self.centre_jitter) and 0 <= self.centre_jitter <= 0.05,
-                 "objects.centre_jitter", self.centre_jitter, "0 to 0.05 m")
-        _require(math.isfinite(self.max_face_height) and 0.01 <= self.max_face_height <= 0.5,
-                 "objects.max_face_height", self.max_face_height, "0.01 to 0.5 m")
+        _within("objects.pile_radius", self.pile_radius, 0, 0.1, "m")
+        _within("objects.centre_jitter", self.centre_jitter, 0, 0.05, "m")
+        _within("objects.max_face_height", self.max_face_height, 0.01, 0.5, "m")
 
 
 #: How motion blur is rendered (``camera.blur``).
@@ -262,18 +249,12 @@ class CameraCfg:
     def __post_init__(self) -> None:
         _require(16 <= self.width <= 4096, "camera.width", self.width, "16 to 4096 px")
         _require(16 <= self.height <= 4096, "camera.height", self.height, "16 to 4096 px")
-        _require(math.isfinite(self.fovy_deg) and 10 <= self.fovy_deg <= 120, "camera.fovy_deg",
-                 self.fovy_deg, "10 to 120 degrees")
-        _require(math.isfinite(self.look_height) and 0.15 <= self.look_height <= 0.6,
-                 "camera.look_height", self.look_height, "0.15 to 0.6 m")
-        _require(math.isfinite(self.noise_std) and 0 <= self.noise_std <= 50,
-                 "camera.noise_std", self.noise_std, "0 to 50 grey levels")
-        _require(math.isfinite(self.fps) and 1 <= self.fps <= 240, "camera.fps", self.fps,
-                 "1 to 240 Hz")
-        _require(math.isfinite(self.latency_s) and 0 <= self.latency_s <= 1.0,
-                 "camera.latency_s", self.latency_s, "0 to 1 s")
-        _require(math.isfinite(self.exposure_s) and 0 <= self.exposure_s <= 0.05,
-                 "camera.exposure_s", self.exposure_s, "0 to 0.05 s")
+        _within("camera.fovy_deg", self.fovy_deg, 10, 120, "degrees")
+        _within("camera.look_height", self.look_height, 0.15, 0.6, "m")
+        _within("camera.noise_std", self.noise_std, 0, 50, "grey levels")
+        _within("camera.fps", self.fps, 1, 240, "Hz")
+        _within("camera.latency_s", self.latency_s, 0, 1.0, "s")
+        _within("camera.exposure_s", self.exposure_s, 0, 0.05, "s")
         _require(self.blur in BLUR_MODES, "camera.blur", self.blur, ", ".join(BLUR_MODES))
         _require(2 <= self.blur_subframes <= 64, "camera.blur_subframes",
                  self.blur_subframes, "2 to 64")
@@ -282,12 +263,9 @@ class CameraCfg:
         _require(self.full_well == 0 or (math.isfinite(self.full_well)
                                          and 100 <= self.full_well <= 1e6),
                  "camera.full_well", self.full_well, "0 (off) or 100 to 1e6 electrons")
-        _require(math.isfinite(self.read_noise) and 0 <= self.read_noise <= 100,
-                 "camera.read_noise", self.read_noise, "0 to 100 electrons")
-        _require(math.isfinite(self.gain) and 1 <= self.gain <= 64, "camera.gain", self.gain,
-                 "1 to 64")
-        _require(math.isfinite(self.vignetting) and 0 <= self.vignetting <= 0.8,
-                 "camera.vignetting", self.vignetting, "0 to 0.8")
+        _within("camera.read_noise", self.read_noise, 0, 100, "electrons")
+        _within("camera.gain", self.gain, 1, 64, "")
+        _within("camera.vignetting", self.vignetting, 0, 0.8, "")
         _require(0 <= self.jpeg_quality <= 100, "camera.jpeg_quality", self.jpeg_quality,
                  "0 (off) or 1 to 100")
 
@@ -320,15 +298,12 @@ class LightsCfg:
     """Side of each casting lamp's shadow map, px (cost grows with it and with the lamps)."""
 
     def __post_init__(self) -> None:
-        _require(math.isfinite(self.intensity) and 0 <= self.intensity <= 5, "lights.intensity",
-                 self.intensity, "0 to 5")
+        _within("lights.intensity", self.intensity, 0, 5, "")
         _require(1 <= len(self.ring) <= 16 and all(0 <= v <= 5 for v in self.ring), "lights.ring",
                  list(self.ring), "1 to 16 intensities, each 0 to 5")
-        _require(math.isfinite(self.ring_radius) and 0.01 <= self.ring_radius <= 0.2,
-                 "lights.ring_radius", self.ring_radius, "0.01 to 0.2 m")
+        _within("lights.ring_radius", self.ring_radius, 0.01, 0.2, "m")
         _require(0 <= self.ambient <= 1, "lights.ambient", self.ambient, "0 to 1")
-        _require(math.isfinite(self.jitter) and 0 <= self.jitter <= 0.5, "lights.jitter",
-                 self.jitter, "0 to 0.5")
+        _within("lights.jitter", self.jitter, 0, 0.5, "")
         _require(0 <= self.shadow_lamps <= len(self.ring), "lights.shadow_lamps",
                  self.shadow_lamps, f"0 (all) to {len(self.ring)} (the ring's lamps)")
         _require(64 <= self.shadow_map_px <= 8192, "lights.shadow_map_px", self.shadow_map_px,
@@ -352,10 +327,8 @@ class SuctionCfg:
     across a can's raised rim leaks)."""
 
     def __post_init__(self) -> None:
-        _require(math.isfinite(self.compliance_deg) and 0 <= self.compliance_deg <= 45,
-                 "suction.compliance_deg", self.compliance_deg, "0 to 45 degrees")
-        _require(math.isfinite(self.flatness_tol) and 0 <= self.flatness_tol <= 0.01,
-                 "suction.flatness_tol", self.flatness_tol, "0 to 0.01 m")
+        _within("suction.compliance_deg", self.compliance_deg, 0, 45, "degrees")
+        _within("suction.flatness_tol", self.flatness_tol, 0, 0.01, "m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -372,8 +345,7 @@ class SimCfg:
     def __post_init__(self) -> None:
         _require(math.isfinite(self.timestep) and 1e-4 <= self.timestep <= 0.01, "sim.timestep",
                  self.timestep, "1e-4 to 0.01 s")
-        _require(math.isfinite(self.settle_time) and 0.2 <= self.settle_time <= 10,
-                 "sim.settle_time", self.settle_time, "0.2 to 10 s")
+        _within("sim.settle_time", self.settle_time, 0.2, 10, "s")
         _require(1 <= self.max_attempts <= 10_000, "sim.max_attempts", self.max_attempts,
                  "1 to 10000")
 
@@ -554,16 +526,14 @@ class EpisodeCfg:
                      f"episode.{kind}", name, f"{', '.join(known(kind))} or module:attr")
         _require(self.tracker_frame in TRACKER_FRAMES, "episode.tracker_frame",
                  self.tracker_frame, ", ".join(TRACKER_FRAMES))
-        _require(math.isfinite(self.control_period) and 1e-3 <= self.control_period <= 0.1,
-                 "episode.control_period", self.control_period, "0.001 to 0.1 s")
+        _within("episode.control_period", self.control_period, 1e-3, 0.1, "s")
         _require(0 <= self.max_retargets <= 3, "episode.max_retargets", self.max_retargets,
                  "an integer 0-3")
         _require(2 <= self.track_frames <= 30, "episode.track_frames", self.track_frames,
                  "2 to 30 frames")
         for key, (lo, hi, unit) in EPISODE_RANGES.items():
             _within(f"episode.{key}", getattr(self, key), lo, hi, unit)
-        _require(math.isfinite(self.lift_retreat) and 0 <= self.lift_retreat <= 0.3,
-                 "episode.lift_retreat", self.lift_retreat, "0 to 0.3 m")
+        _within("episode.lift_retreat", self.lift_retreat, 0, 0.3, "m")
         for key in ("look", "detect", "track", "approach", "servo", "descend", "grasp", "lift",
                     "verify"):
             _within(f"episode.timeout_{key}", getattr(self, f"timeout_{key}"), 0.0,
