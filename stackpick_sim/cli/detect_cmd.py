@@ -6,13 +6,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.loader import available_scenes, load_scene
-from stackpick_sim.config.scene_config import VisionCfg
+from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import FOVY_RANGE_DEG, CameraIntrinsics, check_fovy, face_depth_range
 from stackpick_sim.image_io import read_image, write_image
@@ -23,11 +24,9 @@ from stackpick_sim.vision.detector import (
     DEFAULT_RADII_M,
     DetectorConfig,
     detect,
-    object_kinds,
 )
 from stackpick_sim.vision.edges import as_rgb_or_gray
 from stackpick_sim.vision.ellipses import find_ellipses
-from stackpick_sim.vision.limits import WorkLimits
 
 
 def register(subparsers: Any) -> None:
@@ -112,31 +111,21 @@ def draw_overlay(image: NDArray, detection: Detection,
 def detector_config(args: argparse.Namespace, width: int, height: int) -> DetectorConfig:
     """The detector's settings for a ``width`` x ``height`` image from ``--scene``/``--set``
     (when given) and the explicit options, which take precedence."""
-    fovy, radii = DEFAULT_FOVY_DEG, DEFAULT_RADII_M
-    colours: tuple[tuple[float, float, float], ...] | None = None
-    heights: tuple[float, ...] | None = None
-    depth: tuple[float, float] | None = None
-    limits = WorkLimits()
-    marking_depth_ratio = VisionCfg.marking_depth_ratio
-    marking_min_edge_share = VisionCfg.marking_min_edge_share
     if args.scene is not None or args.overrides:
         scene = load_scene(args.scene or "paper", args.overrides)
-        fovy = scene.camera.fovy_deg
-        kinds = [(t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
-                 for name, t in scene.object_types.items() if name in scene.objects.types]
-        radii, colours, heights = object_kinds(kinds)
-        depth = face_depth_range(scene.camera.look_height, scene.objects.max_face_height)
-        limits = WorkLimits.of(scene.vision)
-        marking_depth_ratio = scene.vision.marking_depth_ratio
-        marking_min_edge_share = scene.vision.marking_min_edge_share
+        fovy = scene.camera.fovy_deg if args.fovy is None else args.fovy
+        config = scene_detector_config(
+            scene, CameraIntrinsics.from_fovy(fovy, width, height),
+            face_depth_range(scene.camera.look_height, scene.objects.max_face_height))
+    else:
+        fovy = DEFAULT_FOVY_DEG if args.fovy is None else args.fovy
+        config = DetectorConfig(intrinsics=CameraIntrinsics.from_fovy(fovy, width, height),
+                                radii_m=DEFAULT_RADII_M)
     if args.radii is not None:  # other radii: the scene's colours and heights no longer apply
-        radii, colours, heights = tuple(args.radii), None, None
-    return DetectorConfig(
-        intrinsics=CameraIntrinsics.from_fovy(fovy if args.fovy is None else args.fovy,
-                                              width, height),
-        radii_m=radii, kind_colours=colours, heights_m=heights,
-        depth_range_m=tuple(args.depth_range) if args.depth_range else depth, limits=limits,
-        marking_depth_ratio=marking_depth_ratio, marking_min_edge_share=marking_min_edge_share)
+        config = replace(config, radii_m=tuple(args.radii), kind_colours=None, heights_m=None)
+    if args.depth_range:
+        config = replace(config, depth_range_m=tuple(args.depth_range))
+    return config
 
 
 def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,

@@ -48,23 +48,30 @@ MIN_TRACKED_AXIS_PX = 8.0
 TRACKED_DEPTH_MARGIN = 0.25
 
 
-def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
-                    hints: Hints) -> DetectorConfig:
-    """What the scene and the track tell the vision pipeline: object kinds (radii, colours,
-    heights) and the depth range of the face (at the look pose, or around the tracked one)."""
+def scene_detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
+                          depth_range_m: tuple[float, float] | None) -> DetectorConfig:
+    """The vision pipeline's settings from a scene: its object kinds (radii, colours, heights)
+    and ``[vision]`` table, for a top face expected at ``depth_range_m`` (min, max) m."""
     types = [cfg.object_types[name] for name in cfg.objects.types]
     radii, colours, heights = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])
+    return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
+                          heights_m=heights, depth_range_m=depth_range_m,
+                          limits=WorkLimits.of(cfg.vision),
+                          marking_depth_ratio=cfg.vision.marking_depth_ratio,
+                          marking_min_edge_share=cfg.vision.marking_min_edge_share)
+
+
+def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
+                    hints: Hints) -> DetectorConfig:
+    """What the scene and the track tell the vision pipeline: the scene's settings
+    (:func:`scene_detector_config`) and the depth range of the face (at the look pose, or
+    around the tracked one)."""
     if hints.expected_depth_m is None:  # at the look pose
         depth = face_depth_range(cfg.camera.look_height, cfg.objects.max_face_height)
     else:
         d = hints.expected_depth_m
         depth = (d * (1 - TRACKED_DEPTH_MARGIN), d * (1 + TRACKED_DEPTH_MARGIN))
-    return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
-                          heights_m=heights,
-                          depth_range_m=(max(depth[0], 1e-3), max(depth[1], 2e-3)),
-                          limits=WorkLimits.of(cfg.vision),
-                          marking_depth_ratio=cfg.vision.marking_depth_ratio,
-                          marking_min_edge_share=cfg.vision.marking_min_edge_share)
+    return scene_detector_config(cfg, intrinsics, (max(depth[0], 1e-3), max(depth[1], 2e-3)))
 
 
 def detection_candidates(det: Detection) -> tuple[FaceCandidate, ...]:
