@@ -23,6 +23,7 @@ import cv2
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.record import EpisodeRecord, SceneErrorRecord
 from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.files import write_text
 from stackpick_sim.runs.journal import RESULTS_FILE
 from stackpick_sim.runs.report import (
     MAX_FAILED_LISTED,
@@ -257,5 +258,5 @@ def report_html(data: ReportData, frames: FrameSource = look_frame_png) -> str:
 def write_html(data: ReportData, frames: FrameSource = look_frame_png) -> Path:
     """Write ``report.html`` into the report's directory; returns its path."""
     path = data.directory / HTML_FILE
-    path.write_text(report_html(data, frames), encoding="utf-8")
+    write_text(path, report_html(data, frames))
     return path

@@ -17,6 +17,7 @@ from typing import Any
 from stackpick_sim.episodes.record import EpisodeRecord, Record, episodes_of
 from stackpick_sim.episodes.summary import summarize, summary_markdown
 from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.files import write_text
 from stackpick_sim.runs import plots
 from stackpick_sim.runs.journal import RESULTS_FILE, read_records
 from stackpick_sim.runs.sweep import SWEEP_FILE, cell_rows, load_sweep, sweep_markdown
@@ -194,5 +195,5 @@ def write_report(directory: Path) -> ReportData:
     data = load_report_data(directory)
     data = ReportData(directory=data.directory, runs=data.runs, sweep=data.sweep,
                       rows=data.rows, plots=write_plots(data))
-    (directory / REPORT_FILE).write_text(report_markdown(data))
+    write_text(directory / REPORT_FILE, report_markdown(data))
     return data

@@ -19,6 +19,7 @@ from typing import Any
 from stackpick_sim.episodes.record import EpisodeRecord, Record
 from stackpick_sim.episodes.summary import summarize, summary_markdown
 from stackpick_sim.exceptions import StackpickError
+from stackpick_sim.files import write_bytes, write_text
 from stackpick_sim.runs.journal import Journal
 from stackpick_sim.runs.lock import RunLock
 from stackpick_sim.runs.spec import RUN_FILE, RunSpec, episode_dir, seed_ranges
@@ -31,8 +32,8 @@ LOG_FILE = "run.log"
 def write_summaries(out: Path, records: list[Record]) -> dict[str, Any]:
     """Write summary.json and summary.md for ``records``; returns the summary."""
     summary = summarize(records)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    (out / "summary.md").write_text(summary_markdown(summary))
+    write_text(out / "summary.json", json.dumps(summary, indent=1))
+    write_text(out / "summary.md", summary_markdown(summary))
     return summary
 
 
@@ -49,7 +50,7 @@ class RunDir:
         except BaseException:
             self.lock.release()
             raise
-        (path / RUN_FILE).write_text(json.dumps(spec.as_dict(), indent=1))
+        write_text(path / RUN_FILE, json.dumps(spec.as_dict(), indent=1))
         if self.journal.repair_note:
             self.log(f"repaired: {self.journal.repair_note}")
         for d in self.journal.dropped:
@@ -118,7 +119,7 @@ class RunDir:
             d = episode_dir(self.path, result.task.seed)
             d.mkdir(parents=True, exist_ok=True)
             for name, data in result.audit.items():
-                (d / name).write_bytes(data)
+                write_bytes(d / name, data)
         if result.log:
             self.log(f"seed {result.task.seed} on {result.worker}:\n{result.log}")
         self.journal.append(result.record)

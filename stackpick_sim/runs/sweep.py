@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from stackpick_sim.exceptions import ConfigError, StackpickError
+from stackpick_sim.files import write_text
 from stackpick_sim.runs.jsonfile import read_json
 from stackpick_sim.runs.runner import RunJob
 from stackpick_sim.runs.spec import RunSpec
@@ -116,7 +117,7 @@ def sweep_jobs(out: Path, scene: str, overrides: tuple[str, ...], params: list[P
                                  f"{old.get('params')}; --resume must use the same")
         desc["seeds"] = sorted(set(old["seeds"]) | set(seeds))
     out.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(desc, indent=1))
+    write_text(path, json.dumps(desc, indent=1))
     # Every cell runs the sweep's seeds so far: a resume with new seeds extends the sweep.
     return [RunJob(key=c.name, spec=RunSpec(scene=scene, overrides=(*overrides, *c.overrides)),
                    seeds=desc["seeds"], out=out / "cells" / c.name) for c in cells]
