@@ -132,7 +132,8 @@ def _ellipses_only(image: NDArray[np.uint8], config: DetectorConfig,
                    args: argparse.Namespace) -> int:
     """``--ellipses-only``: print the scored ellipses (text or JSON); exit 0."""
     found = find_ellipses(image, min_axis_px=args.min_axis, max_axis_px=args.max_axis,
-                          min_support=args.min_support, limits=config.limits)
+                          min_support=args.min_support, limits=config.limits,
+                          params=config.ellipses)
     if args.overlay:
         shown = Detection(ellipses=tuple(
             DetectedEllipse(ellipse=s.ellipse, segments=(), residual_px=s.residual_px,

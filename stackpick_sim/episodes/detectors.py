@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.config.vision_params import sections_of
 from stackpick_sim.episodes.audit import CellTruth
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 from stackpick_sim.pipeline import Detections, FaceCandidate, Frame, Hints
@@ -51,14 +52,16 @@ TRACKED_DEPTH_MARGIN = 0.25
 def scene_detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
                           depth_range_m: tuple[float, float] | None) -> DetectorConfig:
     """The vision pipeline's settings from a scene: its object kinds (radii, colours, heights)
-    and ``[vision]`` table, for a top face expected at ``depth_range_m`` (min, max) m."""
+    and ``[vision]`` table (limits, marking test, the stages' sections), for a top face
+    expected at ``depth_range_m`` (min, max) m."""
     types = [cfg.object_types[name] for name in cfg.objects.types]
     radii, colours, heights = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])
     return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
                           heights_m=heights, depth_range_m=depth_range_m,
                           limits=WorkLimits.of(cfg.vision),
                           marking_depth_ratio=cfg.vision.marking_depth_ratio,
-                          marking_min_edge_share=cfg.vision.marking_min_edge_share)
+                          marking_min_edge_share=cfg.vision.marking_min_edge_share,
+                          **sections_of(cfg.vision))
 
 
 def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,

@@ -1,27 +1,19 @@
-"""The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
+"""The top-object detector: an ordered tuple of named stages (:mod:`~stackpick_sim.vision.
+stages`) from the image to the top face's pose.
 
-Given a depth range, refined ellipses too small or too large for any face radius in it are
-dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
-no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
-select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run (a face
-from the last stage's arc pairs, below, that passes the rule and lies clearly nearer than the
-refit it chose takes the choice: :func:`_nearer_arc_face`); failing that, a whole face whose
-interior edges all lie in a band along its outline is taken (its own faint rim inside a
-same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.select_rimmed`);
-failing that, ellipses fitted to pairs of arcs the merge never joined
-(:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
-T-junction and no edge inside, most of its outline showing; the very last are the pairs that
-also take in the edge chains no fit was kept for and the parts of the chains cut at their
-junctions (:func:`last_resort_arcs`), through the rule and else its own last resorts
-(select_unobstructed, then select_rimmed). One face fitted twice is reported once
-(DUPLICATE_SHARE), nor are the top face's refits on other outlines too (MISFIT_SHARE), and a
-cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
-
-When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
-(:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
-the chosen face's takes the choice instead (:func:`~stackpick_sim.vision.occlusion.
-select_resting_rimmed`): nothing may rest on a top object.
+The built-in stages, :data:`STAGES`, in order: ``roi`` (the box around the pile,
+:mod:`~stackpick_sim.vision.roi`), ``edges`` (:mod:`~stackpick_sim.vision.edges`),
+``segments`` (edge chains, :mod:`~stackpick_sim.vision.segments`), ``fitting`` (an ellipse per
+chain, :mod:`~stackpick_sim.vision.fitting`), ``merging`` (:mod:`~stackpick_sim.vision.
+merging`), ``refine`` (each ellipse refitted on the edge pixels along it, :mod:`~stackpick_sim.
+vision.refine`), ``gate`` (with a depth range, ellipses of no face's size dropped), ``top``
+(the top rule, :func:`~stackpick_sim.vision.occlusion.select_top`, its rest check and its
+fallbacks, each named by the failure class it handles: :class:`~stackpick_sim.config.
+vision_params.TopParams`) and ``pose`` (the reported ellipses, each face once, and the top
+face's final fit and pose, :mod:`~stackpick_sim.vision.pose`). ``roi``, ``refine`` and
+``gate`` may be skipped (:meth:`DetectorConfig.without`); any stage may be replaced by name
+(:meth:`DetectorConfig.with_stage`). Each stage's tuned settings are a section of
+:class:`DetectorConfig` (:mod:`~stackpick_sim.config.vision_params`).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -40,6 +32,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
+from stackpick_sim.config.vision_params import (
+    EllipsesParams,
+    GateParams,
+    PoseParams,
+    ReportParams,
+    RoiParams,
+    TopParams,
+)
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
@@ -86,7 +86,7 @@ from stackpick_sim.vision.occlusion import (
     select_unobstructed,
     unobstructed,
 )
-from stackpick_sim.vision.pose import estimate_pose
+from stackpick_sim.vision.pose import Pose, estimate_pose
 from stackpick_sim.vision.refine import (
     PROFILE_REACH_PX,
     edge_points,
@@ -102,61 +102,30 @@ from stackpick_sim.vision.regroup import (
 )
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
+from stackpick_sim.vision.stages import (
+    Cues,
+    OutOfTime,
+    Stage,
+    StageError,
+    State,
+    check_time,
+    run_stages,
+)
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
-#: Ellipses whose outline shows consistent edge contrast along less than this share are not
-#: reported (they are arcs of two outlines fitted together, or far rims): a real face at
-#: least half visible keeps about its visible share, and the scoring counts faces >= 50%
-#: visible. Placeholder chosen on rendered paper-scene frames, not tuned further.
-MIN_REPORTED_SUPPORT = 0.6
-#: Size gate (with a depth range): a face of radius r at depth z images with a semi-major
-#: axis of at least f r / z px (perspective only enlarges it: up to 4% on the paper scene's
-#: frames). Ellipses smaller than this share of the smallest such axis for the farthest depth,
-#: or larger than this multiple of the largest for the nearest, are not faces of the pile
-#: (arcs of rims, walls and shading fitted together). The slack covers fits on partial arcs.
-SIZE_GATE_SLACK = (0.9, 1.25)
-#: Two reported ellipses are one face fitted twice when each outline lies within this
-#: distance (px) of the other along DUPLICATE_SHARE of it: the edge refit's first collection
-#: tolerance (refine.TOLERANCES_PX), within which it pulls a fit onto the face's edge.
-DUPLICATE_TOLERANCE_PX = 2.5
-DUPLICATE_SHARE = 0.9
-#: Only ellipses whose centres and semi-axes each differ by at most this (px) are compared
-#: outline to outline (the cost of the comparison is in its array passes): two outlines
-#: within DUPLICATE_TOLERANCE_PX of each other along nearly all their length differ by about
-#: that much, twice it at most (measured on 400 rendered paper-scene frames: the duplicates
-#: found differ by <= 1.3 px, and 89% of the compared pairs by more than this).
-DUPLICATE_NEAR_PX = 2.0 * DUPLICATE_TOLERANCE_PX
-#: A reported ellipse whose outline lies within DUPLICATE_TOLERANCE_PX of the top face's along
-#: at least this share of its own is the top face fitted again on arcs of its outline and of
-#: another (a lower face's silhouette beyond it), not a face of its own: where a face shows,
-#: its outline lies outside the whole top face, and two faces' outlines cross at points; they
-#: run together along an arc only where a face of the top's size lies nearly in line under it,
-#: hidden. On 4000 rendered paper-scene frames and 200 cluttered-scene frames, 350 ellipses
-#: besides the top reach this share, 4 of which match a true face (two equal faces stacked
-#: in line).
-MISFIT_SHARE = 0.5
-#: A reported ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
-#: behind its face), not a face, when it has a better-supported face's size within this
-#: share...
-RIM_SIZE_TOLERANCE = 0.1
-#: ...and is shifted from it along that face's minor axis (the image of the cylinder's axis,
-#: within RIM_ANGLE_DEG) by this range of shares of its semi-major axis: a height h rim of a
-#: face of radius r tilted by t lies (h / r) sin t semi-axes away; the paper scene's h <= r and
-#: t <= 45 deg give <= 0.71, the upper end adds perspective and fit error, the lower end keeps
-#: near-concentric ellipses (two faces stacked in line, square on) out of the test.
-RIM_OFFSET_RANGE = (0.15, 0.9)
-RIM_ANGLE_DEG = 20.0
-#: Margin (px) beyond the profile search of the window whose unblurred gradients the top
-#: face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour.
-PROFILE_WINDOW_MARGIN_PX = 3
 #: Object kinds whose colours' chromaticities (r, g, b over their sum) differ by less than
 #: this (L1 distance) cannot be told apart by colour: the radius is then not read from it.
 MIN_KIND_CHROMA_DISTANCE = 0.1
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
+#: The stages a detection cannot do without (the others, ``roi``, ``refine`` and ``gate``,
+#: may be skipped: the whole frame, the merged fits, no size gate).
+REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "top", "pose")
+#: The report settings' defaults (the helpers' default argument).
+DEFAULT_REPORT = ReportParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -177,6 +146,13 @@ class DetectorConfig:
     ``marking_depth_ratio``, ``marking_min_edge_share``: the top rule's test for a marking or
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
+
+    ``roi``, ``gate``, ``top``, ``report``, ``pose``: each stage's tuned settings (the
+    scene's ``[vision.SECTION]`` tables, :mod:`~stackpick_sim.config.vision_params`);
+    ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
+    ellipse stages alone).
+    ``stages``: the stages run, in order (default :data:`STAGES`; see :meth:`without` and
+    :meth:`with_stage`).
     """
 
     intrinsics: CameraIntrinsics | None = None
@@ -187,6 +163,13 @@ class DetectorConfig:
     limits: WorkLimits = field(default_factory=WorkLimits)
     marking_depth_ratio: float = VisionCfg.marking_depth_ratio
     marking_min_edge_share: float = VisionCfg.marking_min_edge_share
+    roi: RoiParams = field(default_factory=RoiParams)
+    gate: GateParams = field(default_factory=GateParams)
+    top: TopParams = field(default_factory=TopParams)
+    report: ReportParams = field(default_factory=ReportParams)
+    pose: PoseParams = field(default_factory=PoseParams)
+    ellipses: EllipsesParams = field(default_factory=EllipsesParams)
+    stages: tuple[Stage, ...] = field(default_factory=lambda: STAGES)
 
     def __post_init__(self) -> None:
         if not self.radii_m or any(not r > 0 for r in self.radii_m):
@@ -195,18 +178,23 @@ class DetectorConfig:
             lo, hi = self.depth_range_m
             if not 0 < lo <= hi:
                 raise ConfigError(f"depth_range_m must be 0 < min <= max, got {self.depth_range_m}")
-        if self.kind_colours is not None and (
-                len(self.kind_colours) != len(self.radii_m)
-                or any(len(c) != 3 or not all(0.0 <= x <= 1.0 for x in c)
-                       for c in self.kind_colours)):
-            raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
-                              f"radius in radii_m, got {self.kind_colours}")
+        self._check_kinds()
         if not 0.5 <= self.marking_depth_ratio <= 2.0:
             raise ConfigError("marking_depth_ratio must lie in 0.5 to 2, got "
                               f"{self.marking_depth_ratio}")
         if not 0.0 <= self.marking_min_edge_share <= 10.0:
             raise ConfigError("marking_min_edge_share must lie in 0 to 10, got "
                               f"{self.marking_min_edge_share}")
+        _check_stages(self.stages)
+
+    def _check_kinds(self) -> None:
+        """ConfigError unless the kinds' colours and heights match the radii."""
+        if self.kind_colours is not None and (
+                len(self.kind_colours) != len(self.radii_m)
+                or any(len(c) != 3 or not all(0.0 <= x <= 1.0 for x in c)
+                       for c in self.kind_colours)):
+            raise ConfigError("kind_colours must give one RGB colour (components 0-1) per "
+                              f"radius in radii_m, got {self.kind_colours}")
         if self.heights_m is not None and (len(self.heights_m) != len(self.radii_m)
                                            or any(not h > 0 for h in self.heights_m)):
             raise ConfigError("heights_m must give one positive height (m) per radius in "
@@ -219,59 +207,39 @@ class DetectorConfig:
             return None
         return dict(zip(self.radii_m, self.heights_m, strict=True)).get
 
+    def without(self, *names: str) -> DetectorConfig:
+        """This config with the stages ``names`` skipped; ConfigError for a stage it does
+        not run or one of REQUIRED_STAGES."""
+        present = {s.name for s in self.stages}
+        for name in names:
+            if name not in present:
+                raise ConfigError(f"no stage {name!r} to skip; the stages are "
+                                  f"{', '.join(s.name for s in self.stages)}")
+            if name in REQUIRED_STAGES:
+                raise ConfigError(f"the {name} stage cannot be skipped (required: "
+                                  f"{', '.join(REQUIRED_STAGES)}); replace it instead")
+        return replace(self, stages=tuple(s for s in self.stages if s.name not in names))
 
-class _Clock:
-    """Stage times (ms, into ``timings``) and the time budget's checks."""
-
-    def __init__(self, t0: float, deadline: Deadline, timings: dict[str, float]) -> None:
-        self.t, self.deadline, self.timings = t0, deadline, timings
-
-    def lap(self, name: str) -> None:
-        """Record stage ``name`` as ending now; raise _OutOfTime past the deadline."""
-        now = time.perf_counter()
-        self.timings[name] = (now - self.t) * 1e3
-        self.t = now
-        self.check(name)
-
-    def check(self, name: str) -> None:
-        """Raise _OutOfTime (within stage ``name``) past the deadline."""
-        if self.deadline.expired():
-            raise _OutOfTime(name)
-
-
-@dataclass(frozen=True, kw_only=True)
-class _Found:
-    """The ellipse stages' output, in the region of interest's pixels: ``roi`` and its
-    ``work`` crop of ``crop`` (H, W); edges and gradients ``grad``; the edge chains
-    ``segments``; the fitted ``pieces`` (and the chain indices ``fitted`` they came from);
-    ``chains``, the pieces then the segments; the refined ``merged`` ellipses within the size
-    ``gate``; the edge pixels ``points`` and their unit gradients ``grads``."""
-
-    roi: Roi
-    work: NDArray[np.uint8]
-    crop: tuple[int, int]
-    grad: EdgeImage
-    segments: tuple[NDArray[np.int32], ...]
-    pieces: list[NDArray[np.int32]]
-    fitted: set[int]
-    chains: tuple[NDArray[np.int32], ...]
-    merged: list[MergedEllipse]
-    points: NDArray[np.float64]
-    grads: NDArray[np.float64]
-    gate: tuple[float, float] | None
+    def with_stage(self, name: str, run: Callable[[State, DetectorConfig], State]
+                   ) -> DetectorConfig:
+        """This config with stage ``name``'s function replaced by ``run`` (same place, same
+        timing key); ConfigError for a stage it does not run."""
+        if name not in {s.name for s in self.stages}:
+            raise ConfigError(f"no stage {name!r} to replace; the stages are "
+                              f"{', '.join(s.name for s in self.stages)}")
+        return replace(self, stages=tuple(Stage(name, run) if s.name == name else s
+                                          for s in self.stages))
 
 
-@dataclass(frozen=True, kw_only=True)
-class _Cues:
-    """What the top rule reads besides the ellipses (see :meth:`TopObjectDetector._cues`)."""
-
-    k_crop: CameraIntrinsics
-    rgb: NDArray[np.uint8] | None
-    belt: NDArray[np.float64] | None
-    colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
-    radius_of: Callable[[Ellipse], float | None] | None
-    height_of: Callable[[float], float | None] | None
-    markings: MarkingTest
+def _check_stages(stages: tuple[Stage, ...]) -> None:
+    """ConfigError unless ``stages`` are Stages with distinct names, every required one."""
+    if not all(isinstance(s, Stage) for s in stages):
+        raise ConfigError("stages must be Stage(name, run) values")
+    names = [s.name for s in stages]
+    missing = [n for n in REQUIRED_STAGES if n not in names]
+    if missing or len(set(names)) != len(names):
+        raise ConfigError(f"stages must have distinct names and include {', '.join(missing)}; "
+                          f"got {', '.join(names)}")
 
 
 class TopObjectDetector:
@@ -286,15 +254,9 @@ class TopObjectDetector:
         return CameraIntrinsics.from_fovy(DEFAULT_FOVY_DEG, shape[1], shape[0])
 
     def _axis_range(self, k: CameraIntrinsics) -> tuple[float, float] | None:
-        """(min, max) semi-major axis (px) of a face given the depth range, or None without
-        one (see SIZE_GATE_SLACK)."""
-        if self.config.depth_range_m is None:
-            return None
-        near, far = self.config.depth_range_m
-        radii = self.config.radii_m
-        lo = SIZE_GATE_SLACK[0] * min(k.fx, k.fy) * min(radii) / far
-        hi = SIZE_GATE_SLACK[1] * max(k.fx, k.fy) * max(radii) / near
-        return lo, hi
+        """(min, max) semi-major axis (px) of a face given the depth range (see
+        :func:`axis_range`)."""
+        return axis_range(k, self.config)
 
     def detect(self, image: NDArray) -> Detection:
         """Detect ellipses, the top object and its pose in an (H, W[, C]) image.
@@ -322,232 +284,290 @@ class TopObjectDetector:
         return _upscaled_detection(found, factor)
 
     def _detect(self, img: NDArray[np.uint8], t0: float, deadline: Deadline) -> Detection:
-        """:meth:`detect` of a validated image within the pixel limit."""
+        """:meth:`detect` of a validated image within the pixel limit: the configured stages
+        in order, each timed into the detection's ``timings_ms``."""
         timings: dict[str, float] = {}
+        shape = (int(img.shape[0]), int(img.shape[1]))
+        state = State(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
+                      roi=Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), work=img, crop=shape)
         try:
-            return self._stages(img, t0, deadline, timings)
-        except _OutOfTime as out:
+            state = run_stages(self.config.stages, state, self.config, t0, timings)
+        except OutOfTime as out:
             timings["total"] = (time.perf_counter() - t0) * 1e3
             return Detection(timings_ms=timings,
                              reason=f"time budget of {deadline.budget_ms:g} ms ran out after "
                                     f"the {out.stage} stage")
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        if state.detection is None:
+            raise StageError("no stage made a detection (the pose stage makes it)")
+        return state.detection
 
-    def _stages(self, img: NDArray[np.uint8], t0: float, deadline: Deadline,
-                timings: dict[str, float]) -> Detection:
-        """The stages of :meth:`detect` in order (roi, edges, segments, fitting, merging,
-        refine: :meth:`_ellipse_stages`; top: :meth:`_top_stage`; pose:
-        :meth:`_pose_stage`), each timed into ``timings``; raises _OutOfTime after a stage
-        that ends past the ``deadline``."""
-        clock = _Clock(t0, deadline, timings)
-        shape = (int(img.shape[0]), int(img.shape[1]))
-        k = self._intrinsics(shape)
-        found = self._ellipse_stages(img, self._axis_range(k), clock)
-        cues = self._cues(found, k)
-        merged, choice = self._top_stage(found, cues, clock)
-        detection = self._pose_stage(found, merged, choice, img, k, cues, timings)
-        clock.lap("pose")
-        timings["total"] = (clock.t - t0) * 1e3
-        return detection
 
-    def _ellipse_stages(self, img: NDArray[np.uint8], gate: tuple[float, float] | None,
-                        clock: _Clock) -> _Found:
-        """roi, edges, segments, fitting, merging and refine (each within its cap of
-        ``limits``; after the refit, ellipses outside the size ``gate`` are dropped)."""
-        limits = self.config.limits
-        roi = find_roi(img)
-        work = np.ascontiguousarray(roi.crop(img))
-        if min(work.shape[:2]) < MIN_SIDE_PX:
-            roi, work = Roi(u0=0, v0=0, u1=int(img.shape[1]), v1=int(img.shape[0])), img
-        crop = (int(work.shape[0]), int(work.shape[1]))
-        clock.lap("roi")
-        grad = edge_image(work)
-        edges = grad.edges
-        clock.lap("edges")
-        segments = link_segments(edges, limits.max_chains).chains
-        if len(segments) > limits.max_chains:
-            segments = tuple(segments[i] for i in longest(segments, limits.max_chains))
-        clock.lap("segments")
-        found = fit_all(segments, crop)
-        found = [found[i] for i in longest([f[1] for f in found], limits.max_fits)]
-        pieces = [points for _, points, _, _ in found]
-        chains = tuple(pieces) + segments
-        clock.lap("fitting")
-        merged = merge_segments(chains, [(i, f[2]) for i, f in enumerate(found)], edges,
-                                [f[3] for f in found])
-        merged = _best_supported(merged, limits.max_ellipses)
-        clock.lap("merging")
-        points, grads = edge_points(grad)
-        refined = refine_all([m.ellipse for m in merged], points, grads, crop)
-        merged = [MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
-                                support=m.support) for m, e in zip(merged, refined, strict=True)]
-        # After the refit: a fit on a few short arcs can be far smaller than its face.
-        merged = _within_gate(merged, gate)
-        clock.lap("refine")
-        return _Found(roi=roi, work=work, crop=crop, grad=grad, segments=segments,
-                      pieces=pieces, fitted={c for c, _, _, _ in found}, chains=chains,
-                      merged=merged, points=points, grads=grads, gate=gate)
+def axis_range(k: CameraIntrinsics, config: DetectorConfig) -> tuple[float, float] | None:
+    """(min, max) semi-major axis (px) of a face given the depth range, or None without one
+    (see :attr:`GateParams.slack <stackpick_sim.config.vision_params.GateParams.slack>`)."""
+    if config.depth_range_m is None:
+        return None
+    near, far = config.depth_range_m
+    radii = config.radii_m
+    lo = config.gate.slack[0] * min(k.fx, k.fy) * min(radii) / far
+    hi = config.gate.slack[1] * max(k.fx, k.fy) * max(radii) / near
+    return lo, hi
 
-    def _cues(self, found: _Found, k: CameraIntrinsics) -> _Cues:
-        """What the top rule reads besides the ellipses: the crop's intrinsics, colours,
-        the belt's colour and the radius and height of each candidate's kind."""
-        du, dv = found.roi.offset
-        # Built directly: dataclasses.replace costs several times the constructor.
-        k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
-                                  height=k.height)
-        work = found.work
-        rgb = work if work.ndim == 3 else None
-        # Each candidate's face colour once, for its radius and the rest test's wall bands.
-        colour_of = None if rgb is None else face_colours(rgb)
-        colours = self.config.kind_colours
-        radius_of = (None if colours is None else
-                     radius_by_colour(work, self.config.radii_m, colours, colour_of))
-        # A face's kind from its rim band, for the marking test (see markings).
-        rim_radius_of = (None if colours is None or rgb is None else
-                         radius_by_colour(work, self.config.radii_m, colours,
-                                          face_colours(rgb, RIM_SAMPLE_SCALE)))
-        markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
-                               depth_ratio=self.config.marking_depth_ratio,
-                               min_edge_share=self.config.marking_min_edge_share,
-                               margin_px=INTERIOR_MARGIN_PX)
-        return _Cues(k_crop=k_crop, rgb=rgb,
-                     belt=None if found.roi.belt is None else np.array(found.roi.belt),
-                     colour_of=colour_of, radius_of=radius_of,
-                     height_of=self.config.height_of(), markings=markings)
 
-    def _select(self, ellipses: list[Ellipse], found: _Found, cues: _Cues) -> TopChoice:
-        """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every
-        cue."""
-        return select_top(ellipses, found.grad, cues.k_crop, cues.radius_of,
-                          edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
-                          colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+def roi_stage(state: State, config: DetectorConfig) -> State:
+    """The box around the pile (:func:`~stackpick_sim.vision.roi.find_roi`) and its crop;
+    the whole frame when the box is too small to work on."""
+    roi = find_roi(state.image, config.roi)
+    work = np.ascontiguousarray(roi.crop(state.image))
+    if min(work.shape[:2]) < MIN_SIDE_PX:
+        return state
+    return replace(state, roi=roi, work=work, crop=(int(work.shape[0]), int(work.shape[1])))
 
-    def _top_stage(self, found: _Found, cues: _Cues, clock: _Clock
-                   ) -> tuple[list[MergedEllipse], TopChoice]:
-        """The top rule, then, when it chose a face, the rest test's correction, and when
-        it chose none, its fallbacks (:meth:`_fallbacks`)."""
-        merged = found.merged
-        choice = self._select([m.ellipse for m in merged], found, cues)
-        if (choice.index is not None and cues.radius_of is not None
-                and cues.height_of is not None and cues.rgb is not None):
-            # A whole lower face that a top face rests on, that face's fit taking in a
-            # same-colour sliver beyond it.
-            above = select_resting_rimmed([m.ellipse for m in merged], choice, found.grad,
-                                          found.points, cues.k_crop, cues.radius_of,
-                                          cues.height_of, cues.rgb, cues.belt)
-            if above is not None:
-                choice = replace(choice, index=above)
-        if choice.index is None:
-            merged, choice = self._fallbacks(found, merged, choice, cues, clock)
-        clock.lap("top")
-        return merged, choice
 
-    def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
-                   cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
-        """When no ellipse passed the top rule, in order, until one gives a face: the
-        unobstructed face, the contrast retry (and a clearly nearer face of arc pairs beside
-        its choice), a face with its own rim inside, arc pairs of the fitted pieces, the
-        retry's spare refit, arc pairs of every arc (see the module docstring)."""
-        limits, crop, gate, grad = self.config.limits, found.crop, found.gate, found.grad
-        edge_pixels = (found.points, found.grads)
-        spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
-        # Before the contrast retry: a refit of a lower face can shrink past the outline
-        # crossing it and pass.
-        fallback = select_unobstructed(choice.evidence)
-        if fallback is not None:
-            return merged, replace(choice, index=fallback, reason="")
-        clock.check("top")
+def edges_stage(state: State, config: DetectorConfig) -> State:
+    """The crop's edge image (:func:`~stackpick_sim.vision.edges.edge_image`) and its edge
+    pixels with their unit gradients (:func:`~stackpick_sim.vision.refine.edge_points`)."""
+    grad = edge_image(state.work)
+    points, grads = edge_points(grad)
+    return replace(state, grad=grad, points=points, grads=grads)
+
+
+def segments_stage(state: State, config: DetectorConfig) -> State:
+    """The edge chains (:func:`~stackpick_sim.vision.segments.link_segments`), the
+    ``limits.max_chains`` longest."""
+    cap = config.limits.max_chains
+    segments = link_segments(state.edges("segments").edges, cap).chains
+    if len(segments) > cap:
+        segments = tuple(segments[i] for i in longest(segments, cap))
+    return replace(state, segments=segments)
+
+
+def fitting_stage(state: State, config: DetectorConfig) -> State:
+    """An ellipse per chain (:func:`~stackpick_sim.vision.fitting.fit_all`), the
+    ``limits.max_fits`` on the longest arcs."""
+    found = fit_all(state.segments, state.crop)
+    found = [found[i] for i in longest([f[1] for f in found], config.limits.max_fits)]
+    return replace(state, fits=tuple(found))
+
+
+def merging_stage(state: State, config: DetectorConfig) -> State:
+    """The fits of one ellipse merged (:func:`~stackpick_sim.vision.merging.merge_segments`),
+    the ``limits.max_ellipses`` best-supported."""
+    fits = state.fits
+    merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
+                            state.edges("merging").edges, [f[3] for f in fits])
+    return replace(state, merged=_best_supported(merged, config.limits.max_ellipses))
+
+
+def refine_stage(state: State, config: DetectorConfig) -> State:
+    """Each ellipse refitted on the edge pixels along it (:func:`~stackpick_sim.vision.
+    refine.refine_all`)."""
+    merged = state.merged
+    refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop)
+    return replace(state, merged=[
+        MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
+                      support=m.support) for m, e in zip(merged, refined, strict=True)])
+
+
+def gate_stage(state: State, config: DetectorConfig) -> State:
+    """With a depth range, the size gate (:func:`axis_range`) and the ellipses within it (after
+    the refit: a fit on a few short arcs can be far smaller than its face); the arc pairs of
+    the top rule's fallbacks are held to it too."""
+    gate = axis_range(state.intrinsics, config)
+    return replace(state, gate=gate, merged=_within_gate(state.merged, gate))
+
+
+def top_stage(state: State, config: DetectorConfig) -> State:
+    """The top rule with every cue, then, when it chose a face, the rest check
+    (``top.rest_check``), and when it chose none, its fallbacks (``top.fallbacks``)."""
+    cues = _cues(state, config)
+    merged = list(state.merged)
+    choice = _select([m.ellipse for m in merged], state, cues)
+    if (config.top.rest_check and choice.index is not None and cues.radius_of is not None
+            and cues.height_of is not None and cues.rgb is not None):
+        # A whole lower face that a top face rests on, that face's fit taking in a
+        # same-colour sliver beyond it.
+        above = select_resting_rimmed([m.ellipse for m in merged], choice,
+                                      state.edges("top"), state.points, cues.k_crop,
+                                      cues.radius_of, cues.height_of, cues.rgb, cues.belt)
+        if above is not None:
+            choice = replace(choice, index=above)
+    if choice.index is None:
+        merged, choice = _fallbacks(state, merged, choice, cues, config)
+    return replace(state, cues=cues, merged=merged, choice=choice)
+
+
+def pose_stage(state: State, config: DetectorConfig) -> State:
+    """The detection: the reported ellipses (supported, each face once, in frame pixels:
+    :func:`_distinct`), and the top face's final fit (sub-pixel, then on the unblurred
+    edge profile) and pose (:func:`~stackpick_sim.vision.pose.estimate_pose`)."""
+    choice = state.choice
+    if choice is None:
+        raise StageError("the pose stage needs the top rule's choice: no top stage ran "
+                         "before it")
+    merged = state.merged
+    du, dv = state.roi.offset
+    keep = _distinct([i for i, ev in enumerate(choice.evidence)
+                      if ev.support >= config.report.min_support or i == choice.index],
+                     [m.ellipse for m in merged], choice, config.report)
+    ellipses = tuple(
+        DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
+                        segments=merged[i].segments, residual_px=merged[i].residual_px,
+                        support=merged[i].support, evidence=choice.evidence[i])
+        for i in keep)
+    chains = state.chains
+    frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv], np.int32))
+    if choice.index is None:
+        return replace(state, detection=Detection(ellipses=ellipses, segments=frame_chains,
+                                                  reason=choice.reason))
+    pose = _top_pose(state, merged[choice.index].ellipse, config)
+    return replace(state, detection=Detection(ellipses=ellipses, segments=frame_chains,
+                                              top=keep.index(choice.index), pose=pose,
+                                              reason=choice.reason))
+
+
+def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
+    """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
+    work, grad = state.work, state.edges("pose")
+    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop)
+    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose.profile_window_margin_px)
+    # The face's colour once, for its radius and the pose's wall test (the same pixels in the
+    # crop and in the frame while the face's interior lies in the crop).
+    face = face_colour(top_ellipse, work) if work.ndim == 3 else None
+    colours = config.kind_colours
+    radius = (None if colours is None or face is None
+              else _nearest_kind(face, _chromaticities(colours), config.radii_m))
+    du, dv = state.roi.offset
+    img = state.image
+    return estimate_pose(_moved(top_ellipse, du, dv), state.intrinsics,
+                         config.radii_m if radius is None else (radius,), None,
+                         config.depth_range_m, image=img if img.ndim == 3 else None,
+                         face_rgb=face, belt=None if state.cues is None else state.cues.belt)
+
+
+#: The built-in stages, in order (see the module docstring).
+STAGES: tuple[Stage, ...] = (
+    Stage("roi", roi_stage), Stage("edges", edges_stage), Stage("segments", segments_stage),
+    Stage("fitting", fitting_stage), Stage("merging", merging_stage),
+    Stage("refine", refine_stage), Stage("gate", gate_stage), Stage("top", top_stage),
+    Stage("pose", pose_stage))
+
+
+def _cues(state: State, config: DetectorConfig) -> Cues:
+    """What the top rule reads besides the ellipses: the crop's intrinsics, colours, the
+    belt's colour and the radius and height of each candidate's kind."""
+    k = state.intrinsics
+    du, dv = state.roi.offset
+    # Built directly: dataclasses.replace costs several times the constructor.
+    k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
+                              height=k.height)
+    work = state.work
+    rgb = work if work.ndim == 3 else None
+    # Each candidate's face colour once, for its radius and the rest test's wall bands.
+    colour_of = None if rgb is None else face_colours(rgb)
+    colours = config.kind_colours
+    radius_of = (None if colours is None else
+                 radius_by_colour(work, config.radii_m, colours, colour_of))
+    # A face's kind from its rim band, for the marking test (see markings).
+    rim_radius_of = (None if colours is None or rgb is None else
+                     radius_by_colour(work, config.radii_m, colours,
+                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
+    markings = MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
+                           depth_ratio=config.marking_depth_ratio,
+                           min_edge_share=config.marking_min_edge_share,
+                           margin_px=INTERIOR_MARGIN_PX)
+    return Cues(k_crop=k_crop, rgb=rgb,
+                belt=None if state.roi.belt is None else np.array(state.roi.belt),
+                colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
+                markings=markings)
+
+
+def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
+    """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every cue."""
+    return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
+                      edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
+                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+
+
+def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+               config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """When no ellipse passed the top rule, in order, until one gives a face, those of the
+    ``top.fallbacks`` named (:class:`~stackpick_sim.config.vision_params.TopParams`): the
+    unobstructed face, the contrast retry (and a clearly nearer face of arc pairs beside its
+    choice), then :func:`_arc_fallbacks`."""
+    use, limits = config.top.fallbacks, config.limits
+    grad = found.edges("top")
+    spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
+    # Before the contrast retry: a refit of a lower face can shrink past the outline
+    # crossing it and pass.
+    fallback = select_unobstructed(choice.evidence) if "unobstructed" in use else None
+    if fallback is not None:
+        return merged, replace(choice, index=fallback, reason="")
+    check_time(found.deadline, "top")
+    retried = False
+    if "contrast" in use:
         # Only then: a refit that passes next to a passing face is more often a lower,
         # nearly whole face than the top.
-        merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, crop,
-                                                    gate, limits.max_refits)
-        if retried:
-            choice = self._select([m.ellipse for m in merged], found, cues)
-        if retried and choice.index is not None and cues.radius_of is not None:
-            # A face clearly nearer than such a refit is above it (a top face the merge never
-            # fitted beside a lower, nearly whole face of its colour).
-            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
-            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-            return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
-                                    edge_pixels, crop, gate, cues.k_crop, cues.radius_of)
-        if choice.index is None:
-            # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
-            rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
-            if rimmed is not None:
-                return merged, replace(choice, index=rimmed, reason="")
-            # Last: a face the merge never fitted, from pairs of its arcs (see regroup).
-            clock.check("top")
-            merged, choice = _regroup_arcs(
-                merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
-                                              limits.max_arcs),
-                found.chains, grad, edge_pixels, crop, gate)
-        if choice.index is None and spare is not None:
-            # The very last: a contrast refit with no T-junction and no edge inside, most of
-            # its outline showing (select_unobstructed's evidence: a top face over a lower
-            # face of its colour, fitted with part of that one's outline, refits onto its own
-            # faint boundary).
-            i, refit, refit_evidence = spare
-            merged[i] = replace(merged[i], ellipse=refit)
-            return merged, TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
-                                                        *choice.evidence[i + 1:]))
-        if choice.index is None:
-            # After all: pairs that take in the chains no fit was kept for and the parts of
-            # chains cut at junctions too (see regroup), else the one with nothing crossing
-            # it (its boundary with a lower face of its colour shows no contrast), else one
-            # with its own rim inside. Last, as the least constrained.
-            clock.check("top")
-            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
-            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-            merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
-                                           edge_pixels, crop, gate, unobstructed=True,
-                                           arc_chains=arc_chains)
-        return merged, choice
-
-    def _pose_stage(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
-                    img: NDArray[np.uint8], k: CameraIntrinsics, cues: _Cues,
-                    timings: dict[str, float]) -> Detection:
-        """The reported ellipses (distinct, supported, in frame pixels) and the top face's
-        final fit and pose (``timings``: the stage times, shared with the caller, which
-        adds this stage's)."""
-        du, dv = found.roi.offset
-        keep = _distinct([i for i, ev in enumerate(choice.evidence)
-                          if ev.support >= MIN_REPORTED_SUPPORT or i == choice.index],
-                         [m.ellipse for m in merged], choice)
-        ellipses = tuple(
-            DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
-                            segments=merged[i].segments, residual_px=merged[i].residual_px,
-                            support=merged[i].support, evidence=choice.evidence[i])
-            for i in keep)
-        chains = found.chains
-        frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv],
-                                                                               np.int32))
-        if choice.index is None:
-            return Detection(ellipses=ellipses, segments=frame_chains, timings_ms=timings,
-                             reason=choice.reason)
-        work, grad = found.work, found.grad
-        top_ellipse = refine_subpixel(merged[choice.index].ellipse, grad, found.points,
-                                      found.grads, found.crop)
-        top_ellipse = _profile_refit(top_ellipse, work, grad)
-        # The face's colour once, for its radius and the pose's wall test (the same pixels
-        # in the crop and in the frame while the face's interior lies in the crop).
-        face = face_colour(top_ellipse, work) if work.ndim == 3 else None
-        colours = self.config.kind_colours
-        radius = (None if colours is None or face is None
-                  else _nearest_kind(face, _chromaticities(colours), self.config.radii_m))
-        pose = estimate_pose(_moved(top_ellipse, du, dv), k,
-                             self.config.radii_m if radius is None else (radius,), None,
-                             self.config.depth_range_m,
-                             image=img if img.ndim == 3 else None, face_rgb=face,
-                             belt=cues.belt)
-        return Detection(ellipses=ellipses, segments=frame_chains, top=keep.index(choice.index),
-                         pose=pose, timings_ms=timings, reason=choice.reason)
+        merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, found.crop,
+                                                    found.gate, limits.max_refits,
+                                                    config.report.min_support)
+    if retried:
+        choice = _select([m.ellipse for m in merged], found, cues)
+    if retried and choice.index is not None:
+        if "nearer_arcs" not in use or cues.radius_of is None:
+            return merged, choice
+        # A face clearly nearer than such a refit is above it (a top face the merge never
+        # fitted beside a lower, nearly whole face of its colour).
+        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
+        arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+        return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
+                                (found.points, found.grads), found.crop, found.gate,
+                                cues.k_crop, cues.radius_of)
+    return _arc_fallbacks(found, merged, choice, spare, config)
 
 
-class _OutOfTime(Exception):
-    """The time budget ran out after (or within) ``stage``."""
-
-    def __init__(self, stage: str) -> None:
-        super().__init__(stage)
-        self.stage = stage
+def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
+                   spare: tuple[int, Ellipse, OcclusionEvidence] | None,
+                   config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The fallbacks after the contrast retry, those of ``top.fallbacks`` named, until one
+    gives a face: a face with its own rim inside, arc pairs of the fitted pieces, the retry's
+    ``spare`` refit, arc pairs of every arc."""
+    use, limits, grad = config.top.fallbacks, config.limits, found.edges("top")
+    edge_pixels = (found.points, found.grads)
+    if choice.index is None and "rimmed" in use:
+        # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
+        rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
+        if rimmed is not None:
+            return merged, replace(choice, index=rimmed, reason="")
+    if choice.index is None and "arc_pairs" in use:
+        # A face the merge never fitted, from pairs of its arcs (see regroup).
+        check_time(found.deadline, "top")
+        merged, choice = _regroup_arcs(
+            merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
+                                          limits.max_arcs),
+            found.chains, grad, edge_pixels, found.crop, found.gate)
+    if choice.index is None and spare is not None and "spare_refit" in use:
+        # A contrast refit with no T-junction and no edge inside, most of its outline
+        # showing (select_unobstructed's evidence: a top face over a lower face of its
+        # colour, fitted with part of that one's outline, refits onto its own faint
+        # boundary).
+        i, refit, refit_evidence = spare
+        merged[i] = replace(merged[i], ellipse=refit)
+        return merged, TopChoice(index=i, evidence=(*choice.evidence[:i], refit_evidence,
+                                                    *choice.evidence[i + 1:]))
+    if choice.index is None and "all_arcs" in use:
+        # After all: pairs that take in the chains no fit was kept for and the parts of
+        # chains cut at junctions too (see regroup), else the one with nothing crossing
+        # it (its boundary with a lower face of its colour shows no contrast), else one
+        # with its own rim inside. Last, as the least constrained.
+        check_time(found.deadline, "top")
+        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
+        arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+        merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
+                                       edge_pixels, found.crop, found.gate, unobstructed=True,
+                                       arc_chains=arc_chains)
+    return merged, choice
 
 
 def _best_supported(merged: list[MergedEllipse], cap: int) -> list[MergedEllipse]:
@@ -684,12 +704,13 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
-                       gate: tuple[float, float] | None = None, max_refits: int = 8
+                       gate: tuple[float, float] | None = None, max_refits: int = 8,
+                       min_support: float = ReportParams.min_support
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
     each ellipse that failed the top rule on support or interior edges only (no T-junction,
-    support at least MIN_REPORTED_SUPPORT), on the strongest and else on the innermost
+    support at least ``min_support``), on the strongest and else on the innermost
     consistent edge (at most ``max_refits`` ellipses, the best-supported: each refit reads
     profiles along its whole outline); keep a refit where it passes the rule. Returns the
     ellipses, whether any changed, and, when none passed, the refit
@@ -697,7 +718,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
     refits, refit, its evidence), else None."""
     todo = [i for i, ev in enumerate(evidence)
-            if ev.occluded and not ev.occluded_ends and ev.support >= MIN_REPORTED_SUPPORT]
+            if ev.occluded and not ev.occluded_ends and ev.support >= min_support]
     if len(todo) > max_refits:  # the best-supported, in their order
         best = sorted(todo, key=lambda i: (-evidence[i].support, i))[:max_refits]
         todo = sorted(best)
@@ -825,16 +846,18 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
 
 
-def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
+def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice,
+              params: ReportParams = DEFAULT_REPORT) -> list[int]:
     """``indices`` without duplicates, in their order: an ellipse whose outline lies within
-    DUPLICATE_TOLERANCE_PX of an ellipse already kept, along at least DUPLICATE_SHARE of it
+    ``duplicate_tolerance_px`` of an ellipse already kept, along at least ``duplicate_share``
+    of it (``params``)
     (and the other way round), is the same face fitted twice (two arcs the merge kept apart
     refine to one outline). The top face is kept first, then the better supported. Refits of
     the top face on other outlines too (:func:`_top_misfits`) and far rims of better-supported
     faces (:func:`_far_rim`) are dropped too."""
     order = sorted(indices, key=lambda i: (i != choice.index, -choice.evidence[i].support))
-    same = _same_outlines(ellipses, order)
-    misfits = _top_misfits(ellipses, order, choice.index)
+    same = _same_outlines(ellipses, order, params)
+    misfits = _top_misfits(ellipses, order, choice.index, params)
     kept: list[int] = []
     for i in order:
         if i not in misfits and not any((i, j) in same for j in kept):
@@ -842,15 +865,17 @@ def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) ->
     # Far rims: only of better-supported faces, never the top.
     return sorted(i for i in kept if i == choice.index or not any(
         choice.evidence[j].support > choice.evidence[i].support
-        and _far_rim(ellipses[i], ellipses[j]) for j in kept if j != i))
+        and _far_rim(ellipses[i], ellipses[j], params) for j in kept if j != i))
 
 
-def _top_misfits(ellipses: list[Ellipse], indices: list[int], top: int | None) -> set[int]:
+def _top_misfits(ellipses: list[Ellipse], indices: list[int], top: int | None,
+                 params: ReportParams = DEFAULT_REPORT) -> set[int]:
     """Those of ``indices`` (other than ``top``) whose outline lies within
-    DUPLICATE_TOLERANCE_PX of the top ellipse's along at least MISFIT_SHARE of it (see
-    MISFIT_SHARE), all in one array pass; empty without a top. Only ellipses whose centre
-    lies within the top's semi-major axis of its centre are compared (the cost is in the
-    array pass): a refit of the top on half its own outline keeps its centre near the top's."""
+    ``duplicate_tolerance_px`` of the top ellipse's along at least ``misfit_share`` of it
+    (``params``, see ReportParams.misfit_share), all in one array pass; empty without a
+    top. Only ellipses whose centre lies within the top's semi-major axis of its centre are
+    compared (the cost is in the array pass): a refit of the top on half its own outline
+    keeps its centre near the top's."""
     if top is None:
         return set()
     face = ellipses[top]
@@ -859,59 +884,64 @@ def _top_misfits(ellipses: list[Ellipse], indices: list[int], top: int | None) -
     if not others:
         return set()
     shares = boundary_shares([(ellipses[i], ellipses[top]) for i in others],
-                             DUPLICATE_TOLERANCE_PX)
-    return {i for i, share in zip(others, shares, strict=True) if share >= MISFIT_SHARE}
+                             params.duplicate_tolerance_px)
+    return {i for i, share in zip(others, shares, strict=True) if share >= params.misfit_share}
 
 
-def _far_rim(rim: Ellipse, face: Ellipse) -> bool:
+def _far_rim(rim: Ellipse, face: Ellipse, params: ReportParams = DEFAULT_REPORT) -> bool:
     """Whether ``rim`` is the far rim of the cylinder whose face is ``face``: the same size
-    (within RIM_SIZE_TOLERANCE), shifted along the face's minor axis (the projected cylinder
-    axis, within RIM_ANGLE_DEG) by RIM_OFFSET_RANGE of its semi-major axis."""
-    if (abs(rim.a - face.a) > RIM_SIZE_TOLERANCE * face.a
-            or abs(rim.b - face.b) > RIM_SIZE_TOLERANCE * face.b):
+    (within ``rim_size_tolerance``), shifted along the face's minor axis (the projected
+    cylinder axis, within ``rim_angle_deg``) by ``rim_offset_range`` of its semi-major axis
+    (``params``)."""
+    tolerance = params.rim_size_tolerance
+    if abs(rim.a - face.a) > tolerance * face.a or abs(rim.b - face.b) > tolerance * face.b:
         return False
     du, dv = rim.cx - face.cx, rim.cy - face.cy
     offset = math.hypot(du, dv)
-    lo, hi = RIM_OFFSET_RANGE
+    lo, hi = params.rim_offset_range
     if not lo * face.a <= offset <= hi * face.a:
         return False
     minor = math.radians(face.angle_deg + 90.0)
     along = abs(du * math.cos(minor) + dv * math.sin(minor)) / offset
-    return along >= math.cos(math.radians(RIM_ANGLE_DEG))
+    return along >= math.cos(math.radians(params.rim_angle_deg))
 
 
-def _same_outlines(ellipses: list[Ellipse], indices: list[int]) -> set[tuple[int, int]]:
+def _same_outlines(ellipses: list[Ellipse], indices: list[int],
+                   params: ReportParams = DEFAULT_REPORT) -> set[tuple[int, int]]:
     """The pairs (i, j), both ways, of ``indices`` whose ellipses have the same outline (see
-    :func:`_distinct`): centres within the larger semi-minor axis and within DUPLICATE_NEAR_PX,
-    semi-axes within DUPLICATE_NEAR_PX, and each outline within DUPLICATE_TOLERANCE_PX of the
-    other along DUPLICATE_SHARE of it, every pair's two shares computed in one array pass."""
+    :func:`_distinct`): centres within the larger semi-minor axis and within
+    ``duplicate_near_px``, semi-axes within ``duplicate_near_px``, and each outline within
+    ``duplicate_tolerance_px`` of the other along ``duplicate_share`` of it (``params``), every
+    pair's two shares computed in one array pass."""
+    near, share = params.duplicate_near_px, params.duplicate_share
     pairs = []
     for k, i in enumerate(indices):
         one = ellipses[i]
         for j in indices[k + 1:]:
             other = ellipses[j]
             gap = math.hypot(one.cx - other.cx, one.cy - other.cy)
-            if (gap <= max(one.b, other.b) and gap <= DUPLICATE_NEAR_PX
-                    and abs(one.a - other.a) <= DUPLICATE_NEAR_PX
-                    and abs(one.b - other.b) <= DUPLICATE_NEAR_PX):
+            if (gap <= max(one.b, other.b) and gap <= near
+                    and abs(one.a - other.a) <= near and abs(one.b - other.b) <= near):
                 pairs.append((i, j))
     if not pairs:
         return set()
     shares = boundary_shares([w for i, j in pairs for w in ((ellipses[i], ellipses[j]),
                                                               (ellipses[j], ellipses[i]))],
-                             DUPLICATE_TOLERANCE_PX)
+                             params.duplicate_tolerance_px)
     same: set[tuple[int, int]] = set()
     for k, (i, j) in enumerate(pairs):
-        if shares[2 * k] >= DUPLICATE_SHARE and shares[2 * k + 1] >= DUPLICATE_SHARE:
+        if shares[2 * k] >= share and shares[2 * k + 1] >= share:
             same.update(((i, j), (j, i)))
     return same
 
 
-def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage) -> Ellipse:
+def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
+                   window_margin_px: int = PoseParams.profile_window_margin_px) -> Ellipse:
     """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
-    gradients of the window of ``work`` around it (the window keeps the cost per face)."""
+    gradients of the window of ``work`` around it (the window keeps the cost per face),
+    ``window_margin_px`` beyond the profile search."""
     u0, v0, u1, v1 = ellipse.bounds()
-    margin = PROFILE_REACH_PX + PROFILE_WINDOW_MARGIN_PX
+    margin = PROFILE_REACH_PX + window_margin_px
     h, w = work.shape[:2]
     c0, r0 = max(0, math.floor(u0 - margin)), max(0, math.floor(v0 - margin))
     c1, r1 = min(w, math.ceil(u1 + margin) + 1), min(h, math.ceil(v1 + margin) + 1)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import EllipsesParams
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
@@ -54,7 +55,8 @@ class ScoredEllipse:
 
 def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
                   max_axis_px: float | None = None, min_support: float = 0.6,
-                  limits: WorkLimits | None = None) -> list[ScoredEllipse]:
+                  limits: WorkLimits | None = None,
+                  params: EllipsesParams | None = None) -> list[ScoredEllipse]:
     """Ellipses in an (H, W) or (H, W, 3) RGB image, best-supported first.
 
     ``min_axis_px``: smallest semi-minor axis, px; ``max_axis_px``: largest semi-major axis,
@@ -62,8 +64,9 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
     a consistent edge along it (see the module docstring); ``limits``: the work caps
     (:class:`~stackpick_sim.vision.limits.WorkLimits`; an image beyond ``max_pixels`` is
     searched downscaled and the ellipses mapped back, the axis bounds applying in the full
-    image's pixels). ConfigError for bounds out of range, ImageError for input that is not
-    an image.
+    image's pixels); ``params``: the scoring's settings (:class:`~stackpick_sim.config.
+    vision_params.EllipsesParams`, the scene's ``[vision.ellipses]``). ConfigError for
+    bounds out of range, ImageError for input that is not an image.
     """
     if not min_axis_px > 0 or (max_axis_px is not None and not max_axis_px >= min_axis_px):
         raise ConfigError(f"find_ellipses: need 0 < min_axis_px <= max_axis_px, got "
@@ -76,7 +79,7 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
     work = img if factor == 1 else downscaled(img, factor)
     if min(work.shape[:2]) < MIN_SIDE_PX:
         return []
-    found = _scored(work, limits)
+    found = _scored(work, limits, params or EllipsesParams())
     if factor > 1:
         found = [ScoredEllipse(ellipse=upscaled(s.ellipse, factor), support=s.support,
                                edge_support=s.edge_support,
@@ -86,25 +89,21 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
             and s.support >= min_support]
 
 
-#: A sample's gradient must lie within this angle of the outline's normal (as its cosine:
-#: 30 deg, as the edge refit's test): texture and glyph edges crossing an outline meet it at
-#: any angle, a rim's gradient runs along its normal.
-MIN_NORMAL_COS = 0.87
-
-
 def _aligned(points: NDArray[np.float64], normals: NDArray[np.float64],
-             gx: NDArray[np.int16], gy: NDArray[np.int16]) -> NDArray[np.bool_]:
-    """(N,) bool per outline sample: the gradient at its pixel lies within the MIN_NORMAL_COS
-    cone of its normal (either way)."""
+             gx: NDArray[np.int16], gy: NDArray[np.int16], min_cos: float
+             ) -> NDArray[np.bool_]:
+    """(N,) bool per outline sample: the gradient at its pixel lies within the cone of its
+    normal (either way) whose half-angle's cosine is ``min_cos``."""
     h, w = gx.shape
     u = np.clip(np.rint(points[:, 0]), 0, w - 1).astype(np.int64)
     v = np.clip(np.rint(points[:, 1]), 0, h - 1).astype(np.int64)
     g0, g1 = gx[v, u].astype(np.float64), gy[v, u].astype(np.float64)
     dot = g0 * normals[:, 0] + g1 * normals[:, 1]
-    return np.asarray(dot * dot >= MIN_NORMAL_COS ** 2 * (g0 * g0 + g1 * g1))
+    return np.asarray(dot * dot >= min_cos ** 2 * (g0 * g0 + g1 * g1))
 
 
-def _scored(work: NDArray[np.uint8], limits: WorkLimits) -> list[ScoredEllipse]:
+def _scored(work: NDArray[np.uint8], limits: WorkLimits, params: EllipsesParams
+            ) -> list[ScoredEllipse]:
     """Every merged and refitted ellipse of ``work`` with its scores, best first."""
     from stackpick_sim.vision.segments import link_segments
 
@@ -124,7 +123,7 @@ def _scored(work: NDArray[np.uint8], limits: WorkLimits) -> list[ScoredEllipse]:
     refined = refine_all([m.ellipse for m in merged], points, grads, shape)
     lines = outlines(refined)
     strong = contrast_profiles(lines, grad) >= contrast_threshold(grad)
-    strong &= _aligned(lines.points, lines.normals, grad.gx, grad.gy)
+    strong &= _aligned(lines.points, lines.normals, grad.gx, grad.gy, params.min_normal_cos)
     shares = np.add.reduceat(strong.astype(np.float64), lines.offsets[:-1])
     sizes = np.diff(lines.offsets)
     out = [ScoredEllipse(ellipse=e, support=float(k / n), edge_support=m.support,

@@ -2,17 +2,17 @@
 
 The belt is a uniform dark grey; the pile covers a fraction of the frame. Working on the box
 around the pile (plus a margin) cuts every per-pixel stage in proportion, and the stages past
-the edges never look outside it. The box is found on a DECIMATION-times smaller copy (area
+the edges never look outside it. The box is found on a ``decimation``-times smaller copy (area
 averages, taken in halving steps): a pixel is foreground when its brightest channel differs
-from the belt's by FOREGROUND_DELTA. The belt's level is the most common brightest-channel
-level of the small copy (its histogram smoothed over BELT_MODE_WINDOW levels): the belt is
+from the belt's by ``foreground_delta``. The belt's level is the most common brightest-channel
+level of the small copy (its histogram smoothed over ``belt_mode_window`` levels): the belt is
 the frame's largest surface. (Not the median over the frame's border: that is taken by
 whatever lies beyond the belt's sides once the camera sees them: from 0.40 m up, the frame's
 top and bottom rows.) The belt's colour (the mean of the small copy's pixels within
-BELT_COLOUR_LEVELS of that level) is kept as well: the side-wall tests tell a grey object's
-wall from bare belt by it (:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
+``belt_colour_levels`` of that level) is kept as well: the side-wall tests tell a grey
+object's wall from bare belt by it (:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
 Anything uncertain (a frame too small, foreground everywhere) falls back to the whole frame.
-"""
+The settings and their reasons: :class:`~stackpick_sim.config.vision_params.RoiParams`."""
 
 from __future__ import annotations
 
@@ -23,24 +23,19 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-#: Side ratio of the small copy the box is found on (area averaging keeps thin walls); a
-#: power of two, reached in halving steps (see :func:`decimate`).
-DECIMATION = 4
-#: Grey levels between a foreground pixel's brightest channel and the belt's. The belt
-#: varies by ~15 levels across the frame under the ring light (measured, 26-41); the
-#: darkest object walls are ~20 levels above it at their brightest channel.
-FOREGROUND_DELTA = 14.0
-#: Margin added around the box, px: covers the decimation's rounding (DECIMATION px), the
-#: edge stage's 5x5 blur and 3x3 Sobel footprint and a dark wall rim missed by the threshold.
-MARGIN_PX = 10
-#: Levels the histogram of brightest-channel levels is smoothed over before its mode is taken:
-#: the belt spreads over ~15 levels (see FOREGROUND_DELTA), a face over a few.
-BELT_MODE_WINDOW = 9
-#: Pixels within this many levels of the belt's level give the belt's colour.
-BELT_COLOUR_LEVELS = 2
-#: Triangular weights of the histogram smoothing: one peak, at the middle of a narrow mode
-#: (a flat window would tie over a mode narrower than itself).
-_MODE_KERNEL = np.bartlett(BELT_MODE_WINDOW + 2)[1:-1]
+from stackpick_sim.config.vision_params import RoiParams
+
+#: The default settings (see RoiParams).
+DEFAULT = RoiParams()
+
+
+def _mode_kernel(window: int) -> NDArray[np.float64]:
+    """Triangular weights of the histogram smoothing over ``window`` levels: one peak, at the
+    middle of a narrow mode (a flat window would tie over a mode narrower than itself)."""
+    return np.asarray(np.bartlett(window + 2)[1:-1], np.float64)
+
+
+_MODE_KERNEL = _mode_kernel(DEFAULT.belt_mode_window)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,9 +59,9 @@ class Roi:
         return image[self.v0:self.v1, self.u0:self.u1]
 
 
-def decimate(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """The DECIMATION-times smaller copy of an (H, W[, C]) uint8 image, each pixel the mean
-    of a block, taken in halving steps of 2x2 area averages.
+def decimate(image: NDArray[np.uint8], factor: int = DEFAULT.decimation) -> NDArray[np.uint8]:
+    """The ``factor``-times smaller copy (a power of two) of an (H, W[, C]) uint8 image, each
+    pixel the mean of a block, taken in halving steps of 2x2 area averages.
 
     Each step rounds, so a pixel can differ by one grey level from the block's mean in one
     step; OpenCV's 2x area reduction costs a third of its 4x one on colour frames (measured
@@ -74,7 +69,7 @@ def decimate(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """
     small = image
     step = 1
-    while step < DECIMATION:
+    while step < factor:
         h, w = small.shape[:2]
         small = cast("NDArray[np.uint8]", cv2.resize(small, (max(1, w // 2), max(1, h // 2)),
                                                      interpolation=cv2.INTER_AREA))
@@ -82,42 +77,46 @@ def decimate(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return small
 
 
-def find_roi(image: NDArray[np.uint8]) -> Roi:
-    """The box around the non-belt pixels of a uint8 (H, W) or (H, W, 3) frame.
+def find_roi(image: NDArray[np.uint8], params: RoiParams = DEFAULT) -> Roi:
+    """The box around the non-belt pixels of a uint8 (H, W) or (H, W, 3) frame (settings:
+    ``params``).
 
     The whole frame when no foreground is found (nothing to crop to: the later stages then
     report the miss) or when the frame is too small to read the belt's level on.
     """
     h, w = image.shape[:2]
-    small = decimate(image)
+    small = decimate(image, params.decimation)
     level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
              if small.ndim == 3 else small)
     if min(level.shape) < 3:
         return Roi(u0=0, v0=0, u1=w, v1=h)
-    belt, belt_colour = belt_level(small, level)
-    fg = cv2.absdiff(level, np.full_like(level, belt)) > FOREGROUND_DELTA
+    belt, belt_colour = belt_level(small, level, params)
+    fg = cv2.absdiff(level, np.full_like(level, belt)) > params.foreground_delta
     # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
     bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
     if bw == 0 or bh == 0:
         return Roi(u0=0, v0=0, u1=w, v1=h, belt=belt_colour)
-    u0 = max(0, bu * DECIMATION - MARGIN_PX)
-    v0 = max(0, bv * DECIMATION - MARGIN_PX)
-    u1 = min(w, (bu + bw) * DECIMATION + MARGIN_PX)
-    v1 = min(h, (bv + bh) * DECIMATION + MARGIN_PX)
+    step, margin = params.decimation, params.margin_px
+    u0 = max(0, bu * step - margin)
+    v0 = max(0, bv * step - margin)
+    u1 = min(w, (bu + bw) * step + margin)
+    v1 = min(h, (bv + bh) * step + margin)
     return Roi(u0=u0, v0=v0, u1=u1, v1=v1, belt=belt_colour)
 
 
-def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8]
-               ) -> tuple[int, tuple[float, ...]]:
+def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8],
+               params: RoiParams = DEFAULT) -> tuple[int, tuple[float, ...]]:
     """The belt's brightest-channel level in the small copy ``small`` (H, W[, C]) whose
     brightest channel is ``level`` (H, W), and its colour (one value per channel): see the
     module docstring."""
     # OpenCV's histogram, range mask and masked mean: a numpy boolean-mask mean of the
     # colours costs ~70 us here, these ~15 us together.
     counts = cv2.calcHist([level], [0], None, [256], [0, 256]).ravel()
-    belt = int(np.argmax(np.convolve(counts, _MODE_KERNEL, mode="same")))
-    near = cv2.inRange(level, max(0, belt - BELT_COLOUR_LEVELS),
-                       min(255, belt + BELT_COLOUR_LEVELS))
+    kernel = (_MODE_KERNEL if params.belt_mode_window == DEFAULT.belt_mode_window
+              else _mode_kernel(params.belt_mode_window))
+    belt = int(np.argmax(np.convolve(counts, kernel, mode="same")))
+    spread = params.belt_colour_levels
+    near = cv2.inRange(level, max(0, belt - spread), min(255, belt + spread))
     channels = 1 if small.ndim == 2 else int(small.shape[2])
     if cv2.countNonZero(near) == 0:  # the smoothed peak between two close modes
         return belt, (float(belt),) * channels

@@ -1,0 +1,259 @@
+"""The detector's tuned settings, one frozen section per stage.
+
+Each section is a table of the scene's ``[vision]`` table (``[vision.report]``, keys
+``vision.report.min_support`` and so on), so ``--set vision.SECTION.KEY=VALUE`` and
+``stackpick sweep --param vision.SECTION.KEY=...`` reach every field, and a field of
+:class:`~stackpick_sim.vision.detector.DetectorConfig` of the same name. Every field states
+its unit and why its default is what it is; its allowed range is in the section's
+``RANGES`` (checked on construction: one ConfigError naming the dotted key). The sections
+are plain data with no dependency on the vision code, so that loading a scene does not load
+the pipeline (:mod:`stackpick_sim.vision.params` is their home for users of the detector).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from stackpick_sim.exceptions import ConfigError
+
+#: The top rule's fallbacks, in the order they are tried when no ellipse passes the rule
+#: (each is described by the failure class it handles in :class:`TopParams`).
+FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed",
+                              "arc_pairs", "spare_refit", "all_arcs")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Section:
+    """A section of settings: ``SECTION`` is its key under ``vision``; ``RANGES`` maps a
+    field to its allowed (min, max, unit), checked for a number and for every number of a
+    list."""
+
+    SECTION: ClassVar[str] = ""
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {}
+
+    def __post_init__(self) -> None:
+        for name, (lo, hi, unit) in self.RANGES.items():
+            value = getattr(self, name)
+            numbers = value if isinstance(value, tuple) else (value,)
+            if not all(_number_within(v, lo, hi) for v in numbers):
+                raise ConfigError(f"vision.{self.SECTION}.{name} = {_shown(value)} is out of "
+                                  f"range; allowed: {_allowed(lo, hi, unit)}"
+                                  + (" each" if isinstance(value, tuple) else ""))
+
+
+def _number_within(value: Any, lo: float, hi: float) -> bool:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return math.isfinite(value) and lo <= value <= hi
+
+
+def _shown(value: Any) -> str:
+    return repr(list(value)) if isinstance(value, tuple) else repr(value)
+
+
+def _allowed(lo: float, hi: float, unit: str) -> str:
+    return f"{lo:g} to {hi:g} {unit}".rstrip()
+
+
+def _ordered(section: Section, name: str) -> None:
+    """ConfigError unless the (low, high) pair ``name`` of ``section`` has low <= high."""
+    lo, hi = getattr(section, name)
+    if lo > hi:
+        raise ConfigError(f"vision.{section.SECTION}.{name} = {[lo, hi]!r} must be "
+                          "[low, high] with low <= high")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RoiParams(Section):
+    """``roi`` stage: the box around everything that is not bare belt
+    (:mod:`~stackpick_sim.vision.roi`)."""
+
+    SECTION: ClassVar[str] = "roi"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "decimation": (1, 16, "(a power of two)"), "foreground_delta": (1.0, 128.0, "grey levels"),
+        "margin_px": (0, 100, "px"), "belt_mode_window": (1, 64, "grey levels"),
+        "belt_colour_levels": (0, 32, "grey levels")}
+
+    decimation: int = 4
+    """Side ratio of the small copy the box is found on, a power of two reached in halving
+    steps: area averaging keeps thin walls, and a quarter-size copy costs a sixteenth."""
+    foreground_delta: float = 14.0
+    """Grey levels between a foreground pixel's brightest channel and the belt's: the belt
+    varies by ~15 levels across the frame under the ring light (26-41 measured), the darkest
+    object walls lie ~20 levels above it at their brightest channel."""
+    margin_px: int = 10
+    """Margin added around the box, px: covers the decimation's rounding, the edge stage's
+    5x5 blur and 3x3 Sobel footprint, and a dark wall rim the threshold misses."""
+    belt_mode_window: int = 9
+    """Grey levels the histogram of brightest-channel levels is smoothed over before its mode
+    (the belt's level) is taken: the belt spreads over ~15 levels, a face over a few."""
+    belt_colour_levels: int = 2
+    """Pixels within this many grey levels of the belt's level give the belt's colour (read
+    by the side-wall tests to tell a grey object's wall from bare belt)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.decimation & (self.decimation - 1):
+            raise ConfigError(f"vision.roi.decimation = {self.decimation!r} is out of range; "
+                              "allowed: a power of two from 1 to 16")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GateParams(Section):
+    """``gate`` stage: with a depth range, ellipses too small or too large for any face
+    radius in it are dropped after the refit."""
+
+    SECTION: ClassVar[str] = "gate"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"slack": (0.1, 10.0, "")}
+
+    slack: tuple[float, float] = (0.9, 1.25)
+    """(low, high) ratios: a face of radius r at depth z images with a semi-major axis of at
+    least f r / z px (perspective only enlarges it, by up to 4% on the paper scene's frames);
+    ellipses smaller than ``low`` times the smallest such axis at the farthest depth, or
+    larger than ``high`` times the largest at the nearest, are arcs of rims, walls and shading
+    fitted together. The slack covers fits on partial arcs."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _ordered(self, "slack")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TopParams(Section):
+    """``top`` stage: the top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) and
+    what follows it.
+
+    When no ellipse passes the rule, the ``fallbacks`` are tried in this order until one
+    gives a face (drop a name to switch one off):
+
+    - ``unobstructed``: a top face whose boundary with a lower face of its colour shows no
+      contrast fails the rule on support alone; the best-supported face with no T-junction
+      and no edge inside is taken.
+    - ``contrast``: faces that failed on support or interior edges only are refitted on the
+      edge contrast (a faint same-colour boundary the edge map missed), and the rule re-run.
+    - ``nearer_arcs``: after a passing contrast refit, a face of arc pairs the merge never
+      joined that passes the rule and lies clearly nearer than that refit takes the choice (a
+      top face the merge never fitted beside a lower, nearly whole face of its colour).
+    - ``rimmed``: a whole face whose interior edges all lie in a band along its outline (its
+      own faint rim inside a same-colour lower face's sliver that its fit took in).
+    - ``arc_pairs``: a face the merge never fitted, from pairs of the fitted arcs.
+    - ``spare_refit``: a contrast refit with no T-junction and no edge inside, most of its
+      outline showing (a top face fitted with part of a lower same-colour face's outline
+      refits onto its own faint boundary).
+    - ``all_arcs``: pairs that also take in the chains no fit was kept for and the parts of
+      chains cut at junctions, else the unobstructed one, else one with its own rim inside:
+      the least constrained, so the last.
+    """
+
+    SECTION: ClassVar[str] = "top"
+
+    fallbacks: tuple[str, ...] = FALLBACKS
+    """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
+    list; always tried in the built-in order); [] turns them all off."""
+    rest_check: bool = True
+    """When an ellipse passes the rule, a whole face that failed on its own rim inside its fit
+    and whose reconstructed cylinder rests on the chosen face's takes the choice instead:
+    nothing may rest on a top object (needs the object kinds' colours and heights)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        unknown = [f for f in self.fallbacks if f not in FALLBACKS]
+        if unknown or len(set(self.fallbacks)) != len(self.fallbacks):
+            raise ConfigError(f"vision.top.fallbacks = {list(self.fallbacks)!r} is not "
+                              f"allowed; give distinct names of {', '.join(FALLBACKS)}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReportParams(Section):
+    """The ``pose`` stage's choice of the ellipses a detection reports: supported ones, each
+    face once, no far rims."""
+
+    SECTION: ClassVar[str] = "report"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_support": (0.0, 1.0, ""), "duplicate_tolerance_px": (0.0, 20.0, "px"),
+        "duplicate_share": (0.0, 1.0, ""), "duplicate_near_px": (0.0, 100.0, "px"),
+        "misfit_share": (0.0, 1.0, ""), "rim_size_tolerance": (0.0, 1.0, ""),
+        "rim_offset_range": (0.0, 2.0, ""), "rim_angle_deg": (0.0, 90.0, "deg")}
+
+    min_support: float = 0.6
+    """Share [0, 1] of an ellipse's outline along which consistent edge contrast must show
+    for it to be reported (the top face always is): arcs of two outlines fitted together and
+    far rims stay below; a real face at least half visible keeps about its visible share, and
+    the scoring counts faces >= 50% visible. The top rule's contrast retry takes only
+    ellipses this well supported too."""
+    duplicate_tolerance_px: float = 2.5
+    """Two reported ellipses are one face fitted twice when each outline lies within this
+    distance (px) of the other along ``duplicate_share`` of it: the edge refit's first
+    collection tolerance, within which it pulls a fit onto the face's edge."""
+    duplicate_share: float = 0.9
+    """Share [0, 1] of each outline that must lie within ``duplicate_tolerance_px`` of the
+    other for two ellipses to be one face."""
+    duplicate_near_px: float = 5.0
+    """Only ellipses whose centres and semi-axes each differ by at most this (px) are compared
+    outline to outline: two outlines within ``duplicate_tolerance_px`` of each other along
+    nearly all their length differ by about that much, twice it at most (on 400 rendered
+    paper-scene frames the duplicates differ by <= 1.3 px, and 89% of the compared pairs by
+    more than this)."""
+    misfit_share: float = 0.5
+    """Share [0, 1]: a reported ellipse whose outline lies within ``duplicate_tolerance_px``
+    of the top face's along at least this share of its own is the top face fitted again on
+    arcs of its outline and of another, not a face of its own. Two faces' outlines cross at
+    points and run together along an arc only where a face of the top's size lies nearly in
+    line under it, hidden (on 4000 paper-scene and 200 cluttered-scene frames, 350 ellipses
+    reach this share, 4 of them true faces: two equal faces stacked in line)."""
+    rim_size_tolerance: float = 0.1
+    """Ratio: an ellipse is a cylinder's far rim (the end of its wall silhouette, half hidden
+    behind its face), not a face, when it has a better-supported face's semi-axes within this
+    share of them..."""
+    rim_offset_range: tuple[float, float] = (0.15, 0.9)
+    """...and is shifted from it along that face's minor axis by this (low, high) range of
+    ratios to its semi-major axis: a rim at height h behind a face of radius r tilted by t
+    lies (h / r) sin t semi-axes away; the paper scene's h <= r and t <= 45 deg give <= 0.71,
+    the upper end adds perspective and fit error, the lower end keeps near-concentric
+    ellipses (two faces stacked in line, square on) out of the test."""
+    rim_angle_deg: float = 20.0
+    """Largest angle, deg, between a far rim's offset and the face's minor axis (the image of
+    the cylinder's axis)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _ordered(self, "rim_offset_range")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PoseParams(Section):
+    """``pose`` stage: the top face's final fit and its pose."""
+
+    SECTION: ClassVar[str] = "pose"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "profile_window_margin_px": (2, 32, "px")}
+
+    profile_window_margin_px: int = 3
+    """Margin, px, beyond the profile search of the window whose unblurred gradients the top
+    face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class EllipsesParams(Section):
+    """Scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (ellipses only)."""
+
+    SECTION: ClassVar[str] = "ellipses"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_normal_cos": (0.0, 1.0, "")}
+
+    min_normal_cos: float = 0.87
+    """Cosine of the largest angle between an outline sample's gradient and the outline's
+    normal for the sample to count (0.87: 30 deg, as the edge refit's test): texture and glyph
+    edges crossing an outline meet it at any angle, a rim's gradient runs along its normal."""
+
+
+#: The sections, by their key under ``vision`` (and their field name in DetectorConfig).
+SECTIONS: tuple[type[Section], ...] = (RoiParams, GateParams, TopParams, ReportParams,
+                                       PoseParams, EllipsesParams)
+
+
+def sections_of(holder: object) -> dict[str, Any]:
+    """The sections ``holder`` (a VisionCfg or a DetectorConfig) carries, by key (keyword
+    arguments for the other's constructor)."""
+    return {cls.SECTION: getattr(holder, cls.SECTION) for cls in SECTIONS}
