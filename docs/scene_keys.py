@@ -1,8 +1,9 @@
 """Writes the table of scene keys in docs/scenes.md from the config dataclasses.
 
-Every key of ``stackpick_sim.config.scene_config.SceneConfig`` (nested sections included) is
-listed with its unit, its default and its field docstring, so the page cannot drift from the
-code: ``python docs/scene_keys.py`` rewrites the table between the page's markers, and
+Every key of ``stackpick_sim.config.scene_config.SceneConfig`` (nested sections included, the
+detector's stage sections of ``stackpick_sim.config.vision_params`` too) is listed with its
+unit, its default and its field docstring, so the page cannot drift from the code: ``python
+docs/scene_keys.py`` rewrites the table between the page's markers, and
 ``tests/test_docs.py`` fails when the page's table differs from what this script writes.
 """
 
@@ -17,7 +18,7 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from stackpick_sim.config import scene_config
+from stackpick_sim.config import scene_config, vision_params
 from stackpick_sim.config.scene_config import SceneConfig
 
 PAGE = Path(__file__).resolve().parent / "scenes.md"
@@ -36,9 +37,9 @@ _UNITS: tuple[tuple[str, str], ...] = (
 def _field_docs() -> dict[tuple[str, str], str]:
     """(class name, field name) -> the docstring below the field; undocumented fields right
     before a documented one share its docstring (e.g. the phase time-outs)."""
-    tree = ast.parse(inspect.getsource(scene_config))
+    trees = [ast.parse(inspect.getsource(m)) for m in (scene_config, vision_params)]
     docs: dict[tuple[str, str], str] = {}
-    for cls in (n for n in tree.body if isinstance(n, ast.ClassDef)):
+    for cls in (n for tree in trees for n in tree.body if isinstance(n, ast.ClassDef)):
         pending: list[str] = []
         body = cls.body
         for i, node in enumerate(body):
@@ -102,7 +103,14 @@ def _walk(cls: type, obj: Any, prefix: str, docs: dict[tuple[str, str], str]
         else:
             doc = docs.get((cls.__name__, f.name), "")
             name = f"{key}.KEY" if isinstance(value, dict) else key  # a table of dotted keys
-            rows.append((name, unit_of(key, doc, value), _default(value), doc))
+            unit = unit_of(key, doc, value)
+            allowed = getattr(cls, "RANGES", {}).get(f.name)
+            if allowed is not None:  # a stage section's field: its range and unit
+                lo, hi, what = allowed
+                unit = (what if what and not what.startswith("(") else
+                        "[0, 1]" if (lo, hi) == (0, 1) else "-")
+                doc = f"{doc} Allowed: {lo:g} to {hi:g} {what}".rstrip() + "."
+            rows.append((name, unit, _default(value), doc))
     return rows
 
 

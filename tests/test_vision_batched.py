@@ -28,7 +28,8 @@ from stackpick_sim.vision.refine import (
     edge_points,
     refine_all,
 )
-from stackpick_sim.vision.roi import DECIMATION, decimate
+from stackpick_sim.vision.roi import DEFAULT as ROI_DEFAULT
+from stackpick_sim.vision.roi import decimate
 from stackpick_sim.vision.segments import link_segments, neighbour_count
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import column_median
@@ -245,7 +246,7 @@ def test_decimate_is_the_block_mean_within_a_grey_level(channels: int) -> None:
     rng = np.random.default_rng(channels)
     image = rng.integers(0, 256, (60, 84, channels)).astype(np.uint8).squeeze()
     small = decimate(image)
-    side = DECIMATION
+    side = ROI_DEFAULT.decimation
     blocks = image.reshape(60 // side, side, 84 // side, side, -1).mean(axis=(1, 3)).squeeze()
     assert small.shape[:2] == (60 // side, 84 // side)
     assert np.abs(small.astype(float) - blocks).max() <= 1.0

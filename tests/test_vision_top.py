@@ -23,6 +23,7 @@ from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect, object_kinds
 from stackpick_sim.vision.edges import detect_edges, edge_image
 from stackpick_sim.vision.occlusion import select_rimmed, select_top, select_unobstructed
+from stackpick_sim.vision.params import GateParams
 from stackpick_sim.vision.pose import choose_radius, circle_poses
 from stackpick_sim.vision.refine import edge_points
 from stackpick_sim.vision.synthetic import (
@@ -320,8 +321,8 @@ def test_size_gate_drops_ellipses_too_small_for_any_face_in_the_depth_range() ->
     assert [round(d.ellipse.cx) for d in gated.ellipses] == [200]
     lo, hi = detector_module.TopObjectDetector(
         DetectorConfig(intrinsics=K, radii_m=(0.03,), depth_range_m=(0.25, 0.35)))._axis_range(K)
-    assert lo == pytest.approx(detector_module.SIZE_GATE_SLACK[0] * K.fy * 0.03 / 0.35)
-    assert hi == pytest.approx(detector_module.SIZE_GATE_SLACK[1] * K.fy * 0.03 / 0.25)
+    assert lo == pytest.approx(GateParams().slack[0] * K.fy * 0.03 / 0.35)
+    assert hi == pytest.approx(GateParams().slack[1] * K.fy * 0.03 / 0.25)
 
 
 def test_one_face_fitted_twice_is_reported_once() -> None:
