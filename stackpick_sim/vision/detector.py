@@ -300,7 +300,7 @@ class TopObjectDetector:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         if state.detection is None:
             raise StageError("no stage made a detection (the pose stage makes it)")
-        return state.detection
+        return replace(state.detection, timings_ms=timings)
 
 
 def axis_range(k: CameraIntrinsics, config: DetectorConfig) -> tuple[float, float] | None:

@@ -68,11 +68,7 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
     vision_params.EllipsesParams`, the scene's ``[vision.ellipses]``). ConfigError for
     bounds out of range, ImageError for input that is not an image.
     """
-    if not min_axis_px > 0 or (max_axis_px is not None and not max_axis_px >= min_axis_px):
-        raise ConfigError(f"find_ellipses: need 0 < min_axis_px <= max_axis_px, got "
-                          f"{min_axis_px}, {max_axis_px}")
-    if not 0.0 <= min_support <= 1.0:
-        raise ConfigError(f"find_ellipses: min_support must be 0-1, got {min_support}")
+    _check_bounds(min_axis_px, max_axis_px, min_support)
     limits = limits or WorkLimits()
     img = as_rgb_or_gray(image)
     factor = downscale_factor((int(img.shape[0]), int(img.shape[1])), limits.max_pixels)
@@ -87,6 +83,15 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
     top = np.inf if max_axis_px is None else max_axis_px
     return [s for s in found if s.ellipse.b >= min_axis_px and s.ellipse.a <= top
             and s.support >= min_support]
+
+
+def _check_bounds(min_axis_px: float, max_axis_px: float | None, min_support: float) -> None:
+    """ConfigError for :func:`find_ellipses`' bounds out of range."""
+    if not min_axis_px > 0 or (max_axis_px is not None and not max_axis_px >= min_axis_px):
+        raise ConfigError(f"find_ellipses: need 0 < min_axis_px <= max_axis_px, got "
+                          f"{min_axis_px}, {max_axis_px}")
+    if not 0.0 <= min_support <= 1.0:
+        raise ConfigError(f"find_ellipses: min_support must be 0-1, got {min_support}")
 
 
 def _aligned(points: NDArray[np.float64], normals: NDArray[np.float64],
