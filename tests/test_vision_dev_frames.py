@@ -5,6 +5,7 @@ face on a lower outline is not reported beside it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -17,6 +18,7 @@ from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
+from stackpick_sim.vision.params import FALLBACKS, TopParams
 
 #: The paper scene's frames of seeds 857, 1374, 1438, 1769, 2241, 2333, 3032, 3070, 3120,
 #: 3355, 3504, 3791 and 3886: PNG and ground-truth JSON as `stackpick dataset --scene paper`
@@ -160,3 +162,28 @@ def test_a_refit_of_the_top_face_on_a_lower_outline_is_not_reported(
     assert second_fits_of_the_top() == 0
     monkeypatch.setattr(detector_module, "_top_misfits", lambda *a, **k: set())
     assert second_fits_of_the_top() == 1
+
+
+def _with_top(frame: BenchFrame, top: TopParams) -> TopObjectDetector:
+    return TopObjectDetector(replace(detector_config(frame), top=top))
+
+
+def test_the_rest_check_is_an_option_of_the_top_stage() -> None:
+    # Frame 857, as in the rest check's test above, switched off by its setting.
+    frame = _chosen_top(857)
+    found = _with_top(frame, TopParams(rest_check=False)).detect(frame.image_rgb)
+    assert found.top_ellipse is not None
+    assert max(mask_iou(found.top_ellipse, f.ellipse, frame.shape) for f in frame.faces
+               if not f.is_top and f.ellipse is not None) > MATCH_IOU
+
+
+@pytest.mark.parametrize(("seed", "dropped"), [(3504, ("arc_pairs", "all_arcs")),
+                                                (3355, ("all_arcs",))])
+def test_fallbacks_are_options_of_the_top_stage(seed: int, dropped: tuple[str, ...]) -> None:
+    # Frames whose top face only the arc-pair fallbacks find (see the tests above): without
+    # those fallbacks, or without any, no face is chosen.
+    frame = _chosen_top(seed)
+    kept = tuple(f for f in FALLBACKS if f not in dropped)
+    for fallbacks in (kept, ()):
+        found = _with_top(frame, TopParams(fallbacks=fallbacks)).detect(frame.image_rgb)
+        assert found.top_ellipse is None, (fallbacks, found.reason)

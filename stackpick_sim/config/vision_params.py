@@ -228,11 +228,39 @@ class PoseParams(Section):
 
     SECTION: ClassVar[str] = "pose"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "profile_window_margin_px": (2, 32, "px")}
+        "profile_window_margin_px": (2, 32, "px"), "min_band_samples": (1, 1000, "samples"),
+        "band_tie": (0.0, 1.0, ""), "lone_band_min_share": (0.0, 1.0, ""),
+        "wall_tie": (0.0, 1.0, ""), "wall_probe_radii": (0.1, 10.0, "radii"),
+        "wall_rim_points": (8, 1024, "points"), "wall_end_skip_px": (0.0, 50.0, "px")}
 
     profile_window_margin_px: int = 3
     """Margin, px, beyond the profile search of the window whose unblurred gradients the top
     face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour."""
+    min_band_samples: int = 4
+    """Samples a pose solution's wall colour band needs to count as visible (fewer: the band
+    hides behind the face, as for a face seen square on). On 1000 rendered paper-scene frames
+    no band decision is wrong down to 3 samples, while the smaller-tilt choice misses 14 of 234
+    faces, 5 of them with clear bands of 4-7 samples (a small face, or a tilt of 10-15 deg): 8
+    would send those to it."""
+    band_tie: float = 0.3
+    """Band shares [0, 1] of the two solutions closer than this are a tie (the smaller tilt is
+    then taken): on rendered paper-scene frames the true band scores 0.5-1.0, the wrong one
+    0-0.3 (0.57 once, on a same-colour neighbour)."""
+    lone_band_min_share: float = 0.5
+    """A lone visible band showing the face's hue on less than this share [0, 1] is the wrong
+    solution's."""
+    wall_tie: float = 0.15
+    """Without a colour image: edge support [0, 1] of the two solutions' predicted wall
+    silhouette lines closer than this is a tie."""
+    wall_probe_radii: float = 1.0
+    """Without a colour image: how far down the axis the wall is probed, in face radii: the
+    shortest cylinder of the paper scene has height / radius = 1.6, so 1.0 stays on the wall
+    for either kind."""
+    wall_rim_points: int = 48
+    """Without a colour image: rim points the wall hull is predicted from (points)."""
+    wall_end_skip_px: float = 2.0
+    """Without a colour image: px skipped at each end of a predicted silhouette line, where it
+    meets the face outline (whose own edge would support either solution)."""
 
 
 @dataclass(frozen=True, kw_only=True)

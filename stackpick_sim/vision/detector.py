@@ -443,7 +443,8 @@ def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     return estimate_pose(_moved(top_ellipse, du, dv), state.intrinsics,
                          config.radii_m if radius is None else (radius,), None,
                          config.depth_range_m, image=img if img.ndim == 3 else None,
-                         face_rgb=face, belt=None if state.cues is None else state.cues.belt)
+                         face_rgb=face, belt=None if state.cues is None else state.cues.belt,
+                         params=config.pose)
 
 
 #: The built-in stages, in order (see the module docstring).

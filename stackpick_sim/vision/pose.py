@@ -23,8 +23,9 @@ loses. When neither predicts a visible band (a face seen nearly square on, where
 solutions nearly coincide) the smaller tilt from the optical axis is taken: a face resting
 flat under a downward-looking camera.
 Without an image, the older test is used: the two straight silhouette lines of each
-solution's wall (the hull of the face rim and a rim WALL_PROBE_RADII radii further along the
-axis) are checked against the edge map.
+solution's wall (the hull of the face rim and a rim ``wall_probe_radii`` radii further along
+the axis) are checked against the edge map. The settings and their reasons:
+:class:`~stackpick_sim.config.vision_params.PoseParams`.
 """
 
 from __future__ import annotations
@@ -38,30 +39,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import PoseParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
 from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidences
 
-#: How far down the axis (in face radii) the wall is probed: the shortest cylinder of the
-#: paper scene has height/radius = 1.6, so 1.0 stays on the wall for either kind.
-WALL_PROBE_RADII = 1.0
-#: Rim points used to predict the wall hull.
-WALL_RIM_POINTS = 48
-#: Samples along each predicted silhouette line, skipping this many px at each end, where the
-#: line meets the face outline (whose own edge would support either solution).
-WALL_END_SKIP_PX = 2.0
-#: Wall support difference below which the edge-line evidence is called a tie.
-WALL_TIE = 0.15
-#: A solution's colour band needs this many samples to count as visible (fewer: the band
-#: hides behind the face, as for a face seen square on). On 1000 rendered paper-scene frames
-#: no band decision is wrong down to 3 samples, while the smaller-tilt fallback misses 14 of
-#: 234 faces, 5 of them with clear bands of 4-7 samples (a small face, or a tilt of 10-15
-#: deg): a threshold of 8 would send those to the fallback.
-MIN_BAND_SAMPLES = 4
-#: Band shares (0-1) closer than this are a tie. Measured on rendered paper-scene frames: the
-#: true band scores 0.5-1.0, the wrong one 0-0.3 (0.57 once, on a same-colour neighbour).
-BAND_TIE = 0.3
-#: A lone visible band showing the face's hue on less than this share is the wrong solution.
-LONE_BAND_MIN_SHARE = 0.5
+#: The default settings (see PoseParams: the reasons for each).
+DEFAULT = PoseParams()
+#: Samples a wall colour band needs to count as visible, by default (the rest test reads it).
+MIN_BAND_SAMPLES = DEFAULT.min_band_samples
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -203,24 +188,24 @@ def _basis_u(n0: float, n1: float, n2: float) -> tuple[float, float, float]:
 
 
 def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,
-                 support: NDArray[np.uint8]) -> float:
+                 support: NDArray[np.uint8], params: PoseParams = DEFAULT) -> float:
     """Share of the predicted wall silhouette lines (px samples) on the (H, W) support map."""
     u, v = plane_basis(pose.normal_cam)
-    t = np.linspace(0.0, 2.0 * np.pi, WALL_RIM_POINTS, endpoint=False)
+    n_rim, skip = params.wall_rim_points, params.wall_end_skip_px
+    t = np.linspace(0.0, 2.0 * np.pi, n_rim, endpoint=False)
     rim = pose.centre_cam + radius * (np.outer(np.cos(t), u) + np.outer(np.sin(t), v))
-    probe = rim + WALL_PROBE_RADII * radius * pose.normal_cam
+    probe = rim + params.wall_probe_radii * radius * pose.normal_cam
     pts = intrinsics.project(np.vstack([rim, probe])).astype(np.float32)
     hull = cv2.convexHull(pts, returnPoints=False)[:, 0]
     samples = []
     for a, b in zip(hull, np.roll(hull, -1), strict=True):
-        if (a < WALL_RIM_POINTS) == (b < WALL_RIM_POINTS):
+        if (a < n_rim) == (b < n_rim):
             continue  # not a line from the face rim to the probe rim
         p, q = pts[a].astype(float), pts[b].astype(float)
         length = float(np.hypot(*(q - p)))
-        if length <= 2 * WALL_END_SKIP_PX + 1:
+        if length <= 2 * skip + 1:
             continue
-        s = np.linspace(WALL_END_SKIP_PX / length, 1.0 - WALL_END_SKIP_PX / length,
-                        max(2, int(length)))
+        s = np.linspace(skip / length, 1.0 - skip / length, max(2, int(length)))
         samples.append(p + np.outer(s, q - p))
     if not samples:
         return 0.0
@@ -249,15 +234,16 @@ def choose_radius(depth_per_metre: float, radii: Sequence[float],
     return float(min(radii, key=cost))
 
 
-def choose_by_band(evidence: Sequence[WallEvidence]) -> int | None:
+def choose_by_band(evidence: Sequence[WallEvidence], params: PoseParams = DEFAULT
+                   ) -> int | None:
     """Index (0 or 1) of the solution the two wall bands favour, or None when they cannot tell."""
-    visible = [e.samples >= MIN_BAND_SAMPLES for e in evidence]
+    visible = [e.samples >= params.min_band_samples for e in evidence]
     if all(visible):
         diff = evidence[0].share - evidence[1].share
-        return None if abs(diff) < BAND_TIE else (0 if diff > 0 else 1)
+        return None if abs(diff) < params.band_tie else (0 if diff > 0 else 1)
     if any(visible):
         lone = visible.index(True)
-        return lone if evidence[lone].share >= LONE_BAND_MIN_SHARE else 1 - lone
+        return lone if evidence[lone].share >= params.lone_band_min_share else 1 - lone
     return None
 
 
@@ -266,8 +252,10 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
                   depth_range_m: tuple[float, float] | None = None, *,
                   image: NDArray[np.uint8] | None = None,
                   face_rgb: NDArray[np.float64] | None = None,
-                  belt: NDArray[np.float64] | None = None) -> Pose:
-    """Pose of the face imaged as ``ellipse``; see the module docstring for the choices.
+                  belt: NDArray[np.float64] | None = None,
+                  params: PoseParams = DEFAULT) -> Pose:
+    """Pose of the face imaged as ``ellipse``; see the module docstring for the choices
+    (``params``: their settings).
 
     ``image`` is the (H, W, 3) RGB frame used for the wall colour test (preferred);
     ``support`` the (H, W) 0/1 dilated edge map used for the edge-line wall test when no image
@@ -286,12 +274,12 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
         evidence = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], ellipse,
                                   intrinsics, image, face, belt)
         scores = [e.share for e in evidence]
-        best = choose_by_band(evidence)
+        best = choose_by_band(evidence, params)
     elif support is not None:
         scores = [wall_support(CirclePose(normal_cam=s.normal_cam,
                                           centre_cam=s.centre_cam * radius),
-                               radius, intrinsics, support) for s in unit]
-        if abs(scores[0] - scores[1]) >= WALL_TIE:
+                               radius, intrinsics, support, params) for s in unit]
+        if abs(scores[0] - scores[1]) >= params.wall_tie:
             best = 0 if scores[0] > scores[1] else 1
     if best is None:
         best = 0 if tilts[0] <= tilts[1] else 1
