@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from stackpick_sim.config.vision_params import (
+    EdgeParams,
     EllipsesParams,
     GateParams,
     PoseParams,
@@ -363,9 +364,9 @@ class VisionCfg:
     """The detector's settings: bounds on its work (stackpick_sim/vision/limits.py: caps that
     keep the cost of any image fixed; deterministic, so seeded runs stay reproducible; the
     defaults lie well above a pile frame's counts and change nothing on the project's
-    scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.gate]``,
-    ``[vision.top]``, ``[vision.report]``, ``[vision.pose]``, ``[vision.ellipses]``:
-    stackpick_sim/config/vision_params.py)."""
+    scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
+    ``[vision.gate]``, ``[vision.top]``, ``[vision.report]``, ``[vision.pose]``,
+    ``[vision.ellipses]``: stackpick_sim/config/vision_params.py)."""
 
     max_pixels: int = 640 * 480
     """Images with more pixels are detected on a copy downscaled by the smallest integer
@@ -400,6 +401,7 @@ class VisionCfg:
     miss naming the stage. Depends on the machine's load: results under a budget are not
     reproducible, so it is for real-time use, not for seeded runs."""
     roi: RoiParams = field(default_factory=RoiParams)
+    edges: EdgeParams = field(default_factory=EdgeParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
     report: ReportParams = field(default_factory=ReportParams)

@@ -101,6 +101,35 @@ class RoiParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class EdgeParams(Section):
+    """``edges`` stage: one-pixel-wide edges with thresholds that adapt to the image
+    (:mod:`~stackpick_sim.vision.edges`)."""
+
+    SECTION: ClassVar[str] = "edges"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "blur_sigma_px": (0.3, 5.0, "px"), "noise_multiple": (0.0, 100.0, ""),
+        "contrast_fraction": (0.0, 1.0, ""), "min_high_threshold": (0.0, 255.0, "grey levels/px"),
+        "low_ratio": (0.05, 1.0, "")}
+
+    blur_sigma_px: float = 1.0
+    """Gaussian smoothing sigma, px (the kernel covers +-2 sigma): suppresses pixel noise of a
+    few grey levels while keeping the edges of 15 px ellipses separate."""
+    noise_multiple: float = 6.0
+    """The high Canny threshold is at least this multiple (ratio) of the median gradient
+    magnitude, the noise level: Gaussian noise gives a Rayleigh magnitude whose 99.99th
+    percentile is ~3.6 times its median; 6 keeps noise edges out with margin."""
+    contrast_fraction: float = 0.04
+    """The high threshold is at least this fraction [0, 1] of the 99th-percentile gradient
+    magnitude (real edges' contrast): keeps smooth shading ramps, whose magnitude is small
+    next to object boundaries, out."""
+    min_high_threshold: float = 2.0
+    """Floor of the high threshold, grey levels/px (an empty or nearly flat image)."""
+    low_ratio: float = 0.4
+    """Low hysteresis threshold as a ratio of the high one (Canny's recommended 1:2 to
+    1:3)."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class GateParams(Section):
     """``gate`` stage: with a depth range, ellipses too small or too large for any face
     radius in it are dropped after the refit."""
@@ -277,8 +306,8 @@ class EllipsesParams(Section):
 
 
 #: The sections, by their key under ``vision`` (and their field name in DetectorConfig).
-SECTIONS: tuple[type[Section], ...] = (RoiParams, GateParams, TopParams, ReportParams,
-                                       PoseParams, EllipsesParams)
+SECTIONS: tuple[type[Section], ...] = (RoiParams, EdgeParams, GateParams, TopParams,
+                                       ReportParams, PoseParams, EllipsesParams)
 
 
 def sections_of(holder: object) -> dict[str, Any]:

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
+    EdgeParams,
     EllipsesParams,
     GateParams,
     PoseParams,
@@ -147,7 +148,7 @@ class DetectorConfig:
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``gate``, ``top``, ``report``, ``pose``: each stage's tuned settings (the
+    ``roi``, ``edges``, ``gate``, ``top``, ``report``, ``pose``: each stage's tuned settings (the
     scene's ``[vision.SECTION]`` tables, :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
@@ -164,6 +165,7 @@ class DetectorConfig:
     marking_depth_ratio: float = VisionCfg.marking_depth_ratio
     marking_min_edge_share: float = VisionCfg.marking_min_edge_share
     roi: RoiParams = field(default_factory=RoiParams)
+    edges: EdgeParams = field(default_factory=EdgeParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
     report: ReportParams = field(default_factory=ReportParams)
@@ -328,7 +330,7 @@ def roi_stage(state: State, config: DetectorConfig) -> State:
 def edges_stage(state: State, config: DetectorConfig) -> State:
     """The crop's edge image (:func:`~stackpick_sim.vision.edges.edge_image`) and its edge
     pixels with their unit gradients (:func:`~stackpick_sim.vision.refine.edge_points`)."""
-    grad = edge_image(state.work)
+    grad = edge_image(state.work, config.edges)
     points, grads = edge_points(grad)
     return replace(state, grad=grad, points=points, grads=grads)
 

@@ -9,11 +9,13 @@ junctions.
 Thresholds adapt to the image: the median gradient magnitude estimates the noise (most
 pixels of a conveyor scene are flat), the 99th percentile the contrast of real edges; the
 high threshold is the larger of a noise multiple and a contrast fraction, so dimmer light or
-more noise needs no retuning.
+more noise needs no retuning. The settings and their reasons:
+:class:`~stackpick_sim.config.vision_params.EdgeParams`.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import cast
 
@@ -21,26 +23,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import EdgeParams
 from stackpick_sim.exceptions import ImageError
 
-#: Gaussian smoothing sigma, px: suppresses pixel noise of a few grey levels while keeping
-#: edges of 15 px ellipses separate.
-GAUSSIAN_SIGMA_PX = 1.0
-#: Gaussian kernel side, px (covers +-2 sigma).
-GAUSSIAN_KSIZE = 5
-#: Sobel 3x3 gives 8x the grey-level slope per pixel; thresholds below are in grey levels/px.
+#: The default settings (see EdgeParams: the reasons for each).
+DEFAULT = EdgeParams()
+#: Sobel 3x3 gives 8x the grey-level slope per pixel; thresholds are in grey levels/px.
 SOBEL_GAIN = 8.0
-#: High threshold >= this multiple of the median gradient magnitude (the noise level).
-#: Gaussian noise of sigma s gives a Rayleigh magnitude whose 99.99th percentile is ~3.6x its
-#: median; 6x keeps noise edges out with margin.
-NOISE_MULTIPLE = 6.0
-#: High threshold >= this fraction of the 99th-percentile magnitude (real edges' contrast):
-#: keeps smooth shading ramps, whose magnitude is small next to object boundaries, out.
-CONTRAST_FRACTION = 0.04
-#: Absolute floor of the high threshold, grey levels/px (an empty or near-flat image).
-MIN_HIGH_THRESHOLD = 2.0
-#: Low hysteresis threshold as a fraction of the high one (Canny's recommended 1:2 to 1:3).
-LOW_RATIO = 0.4
 #: Pixels of the magnitude sample used for the statistics (every 4th row and column).
 STATS_STRIDE = 4
 #: Images smaller than this on either side carry no usable ellipse.
@@ -127,22 +116,22 @@ def _l1(dx: NDArray[np.int16], dy: NDArray[np.int16], out: NDArray[np.int16],
     return out
 
 
-def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16]
-                        ) -> tuple[float, float, float]:
+def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16],
+                        params: EdgeParams = DEFAULT) -> tuple[float, float, float]:
     """(low, high) Canny thresholds in Sobel units for gradients (H, W) int16 dx, dy, and the
-    noise level (median magnitude, grey levels/px)."""
+    noise level (median magnitude, grey levels/px), by the ``params``' rule."""
+    floor, low_ratio = params.min_high_threshold, params.low_ratio
     sx = dx[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
     sy = dy[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
     mag = np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN
     if mag.size == 0:
-        return (MIN_HIGH_THRESHOLD * LOW_RATIO * SOBEL_GAIN, MIN_HIGH_THRESHOLD * SOBEL_GAIN,
-                0.0)
+        return floor * low_ratio * SOBEL_GAIN, floor * SOBEL_GAIN, 0.0
     k50, k99 = mag.size // 2, min(mag.size - 1, int(0.99 * mag.size))
     mag.partition((k50, k99))  # in place: mag is this function's own array
     part = mag
-    high = max(MIN_HIGH_THRESHOLD, NOISE_MULTIPLE * float(part[k50]),
-               CONTRAST_FRACTION * float(part[k99]))
-    return LOW_RATIO * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
+    high = max(floor, params.noise_multiple * float(part[k50]),
+               params.contrast_fraction * float(part[k99]))
+    return low_ratio * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
 
 
 def noise_level(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> float:
@@ -251,14 +240,17 @@ class EdgeImage:
     noise: float
 
 
-def edge_image(image: NDArray[np.uint8]) -> EdgeImage:
-    """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image."""
+def edge_image(image: NDArray[np.uint8], params: EdgeParams = DEFAULT) -> EdgeImage:
+    """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image (settings:
+    ``params``)."""
     # The colour image blurred in one call (the same values as channel by channel, at about
-    # half the cost), then split into the planes the gradients need.
-    blurred = cast("NDArray[np.uint8]",
-                   cv2.GaussianBlur(image, (GAUSSIAN_KSIZE, GAUSSIAN_KSIZE), GAUSSIAN_SIGMA_PX))
+    # half the cost), then split into the planes the gradients need; the kernel covers
+    # +-2 sigma.
+    sigma = params.blur_sigma_px
+    side = 2 * math.ceil(2.0 * sigma) + 1
+    blurred = cast("NDArray[np.uint8]", cv2.GaussianBlur(image, (side, side), sigma))
     gx, gy = colour_gradients(blurred)
-    low, high, noise = adaptive_thresholds(gx, gy)
+    low, high, noise = adaptive_thresholds(gx, gy, params)
     canny = cv2.Canny(gx, gy, low, high, L2gradient=True)
     edges = remove_stairs(cast("NDArray[np.uint8]", canny))
     return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)
