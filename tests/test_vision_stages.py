@@ -16,7 +16,14 @@ from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.runs.sweep import grid, parse_param
 from stackpick_sim.vision.detector import REQUIRED_STAGES, STAGES, DetectorConfig, detect
-from stackpick_sim.vision.params import GateParams, ReportParams, RoiParams, TopParams
+from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.params import (
+    EdgeParams,
+    GateParams,
+    ReportParams,
+    RoiParams,
+    TopParams,
+)
 from stackpick_sim.vision.roi import find_roi
 from stackpick_sim.vision.stages import Stage, StageError, State
 from stackpick_sim.vision.synthetic import draw_ellipses
@@ -119,6 +126,15 @@ def test_the_size_gate_follows_its_slack(image: np.ndarray) -> None:
                             gate=GateParams(slack=(1.0, 1.0)))
     assert [round(e.ellipse.cx) for e in detect(image, config).ellipses] == [150]
     assert len(detect(image, config.without("gate")).ellipses) == 2
+
+
+def test_edge_settings_reach_the_edge_map(image: np.ndarray) -> None:
+    # Noise edges appear once the high threshold drops to the noise level.
+    plain = edge_image(image).edges.sum()
+    assert edge_image(image, EdgeParams(noise_multiple=1.0, contrast_fraction=0.0,
+                                        min_high_threshold=0.0)
+                      ).edges.sum() > 2 * plain
+    assert edge_image(image, EdgeParams(blur_sigma_px=2.5)).edges.sum() < plain
 
 
 def test_roi_settings_reach_the_box(image: np.ndarray) -> None:

@@ -162,12 +162,12 @@ class BaselineDetector:
         found = tuple(s.ellipse for s in self._ellipses(np.ascontiguousarray(rgb[:, :, ::-1])))
         if not found:
             return Detections(reason=f"{self.name}: no ellipse")
-        belt_colour = find_roi(rgb).belt
-        belt = None if belt_colour is None else np.array(belt_colour)
         cfg = detector_config(self.cfg, k, hints)
+        belt_colour = find_roi(rgb, cfg.roi).belt
+        belt = None if belt_colour is None else np.array(belt_colour)
         radius_of = (None if cfg.kind_colours is None
                      else radius_by_colour(rgb, cfg.radii_m, cfg.kind_colours))
-        choice = select_top(found, edge_image(rgb), k, radius_of, image=rgb,
+        choice = select_top(found, edge_image(rgb, cfg.edges), k, radius_of, image=rgb,
                             height_of=cfg.height_of(), belt=belt)
         cands = []
         for i, e in enumerate(found):
@@ -176,7 +176,7 @@ class BaselineDetector:
                 continue
             radius = None if radius_of is None else radius_of(e)
             pose = estimate_pose(e, k, cfg.radii_m if radius is None else (radius,), None,
-                                 cfg.depth_range_m, image=rgb, belt=belt)
+                                 cfg.depth_range_m, image=rgb, belt=belt, params=cfg.pose)
             cands.append(posed_candidate(pose, e))
         reason = "" if choice.index is not None else f"{self.name}: no top face"
         return Detections(candidates=tuple(cands), reason=reason)

@@ -8,6 +8,7 @@ not load the pipeline) and offered here beside the stages they set.
 from stackpick_sim.config.vision_params import (
     FALLBACKS,
     SECTIONS,
+    EdgeParams,
     EllipsesParams,
     GateParams,
     PoseParams,
@@ -21,6 +22,7 @@ from stackpick_sim.config.vision_params import (
 __all__ = [
     "FALLBACKS",
     "SECTIONS",
+    "EdgeParams",
     "EllipsesParams",
     "GateParams",
     "PoseParams",
