@@ -6,8 +6,10 @@ from consistent gradients),
 :mod:`occlusion` (the top-object rule, usable on any detector's ellipses; with
 :mod:`wall_cover` and :mod:`resting`: walls under faces, leans on walls), :mod:`pose` (with
 :mod:`wall`: the wall-colour test that resolves the tilt ambiguity); :mod:`roi` crops to the pile;
-:mod:`detector` runs them (:mod:`limits`: caps on their work; :mod:`kernels`: their
-compiled loops; :mod:`ellipses`: the ellipse stages alone, :func:`find_ellipses`),
+:mod:`detector` runs them as an ordered tuple of named stages (:mod:`stages`: the state
+they pass on; :mod:`params`: each stage's settings; :mod:`limits`: caps on their work;
+:mod:`kernels`: their compiled loops; :mod:`ellipses`: the ellipse stages alone,
+:func:`find_ellipses`),
 :mod:`detection` holds the result, :mod:`synthetic` renders test
 stacks with ground truth. :mod:`moving_edges` finds an already tracked face's outline around
 its predicted ellipse (tracking mode, used by the episodes when the detector misses it).

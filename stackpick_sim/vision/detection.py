@@ -40,8 +40,9 @@ class Detection:
     ``ellipses``: all validated ellipses, best-supported first. ``segments``: the edge
     segments, each (N_i, 2) int32 pixels (u, v) in chain order. ``top``: index of the top
     object's face in ``ellipses`` or None. ``pose``: its pose or None. ``timings_ms``:
-    wall-clock milliseconds per stage (edges, segments, fitting, merging, refine, top, pose,
-    total).
+    wall-clock milliseconds per stage run, under its name (by default roi, edges, segments,
+    fitting, merging, refine, gate, top, pose; see :mod:`~stackpick_sim.vision.stages`), and
+    total.
     """
 
     ellipses: tuple[DetectedEllipse, ...] = ()

@@ -118,7 +118,7 @@ FALLBACK_MIN_SUPPORT = 0.75
 #: objects.count = [5, 5]), only a last resort.
 RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
 #: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
-#: factor on the paper scene's frames (see detector.SIZE_GATE_SLACK): the slack of a depth
+#: factor on the paper scene's frames (see GateParams.slack): the slack of a depth
 #: compared through r / a.
 PERSPECTIVE_ENLARGEMENT = 1.04
 

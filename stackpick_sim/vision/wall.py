@@ -58,7 +58,7 @@ MIN_RELATIVE_BRIGHTNESS = 0.12
 WALL_BRIGHTNESS_MARGIN = 0.3
 #: A band sample within this many grey levels of the bare belt's colour in every channel is
 #: belt, not wall (what tells them apart when the face has the belt's hue: a grey object).
-#: The belt's own spread under the ring light, as roi.FOREGROUND_DELTA.
+#: The belt's own spread under the ring light, as the ROI's foreground_delta (RoiParams).
 BELT_DELTA = 14.0
 #: Interior points whose median colour is the face's colour, at this share of the semi-axes.
 FACE_SAMPLE_SCALE = 0.5
