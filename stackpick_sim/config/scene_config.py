@@ -13,15 +13,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Literal
 
-from stackpick_sim.config.vision_params import (
-    EdgeParams,
-    EllipsesParams,
-    GateParams,
-    PoseParams,
-    ReportParams,
-    RoiParams,
-    TopParams,
-)
+from stackpick_sim.config.vision_params import StageSections
 from stackpick_sim.exceptions import ConfigError
 
 #: A pile larger than this cannot be placed so that every face overlaps another object
@@ -360,7 +352,7 @@ class SimCfg:
 
 
 @dataclass(frozen=True, kw_only=True)
-class VisionCfg:
+class VisionCfg(StageSections):
     """The detector's settings: bounds on its work (stackpick_sim/vision/limits.py: caps that
     keep the cost of any image fixed; deterministic, so seeded runs stay reproducible; the
     defaults lie well above a pile frame's counts and change nothing on the project's
@@ -400,13 +392,6 @@ class VisionCfg:
     """Wall-clock budget of one detection, ms; 0: none. When it runs out the detection is a
     miss naming the stage. Depends on the machine's load: results under a budget are not
     reproducible, so it is for real-time use, not for seeded runs."""
-    roi: RoiParams = field(default_factory=RoiParams)
-    edges: EdgeParams = field(default_factory=EdgeParams)
-    gate: GateParams = field(default_factory=GateParams)
-    top: TopParams = field(default_factory=TopParams)
-    report: ReportParams = field(default_factory=ReportParams)
-    pose: PoseParams = field(default_factory=PoseParams)
-    ellipses: EllipsesParams = field(default_factory=EllipsesParams)
 
     def __post_init__(self) -> None:
         _require(MIN_VISION_PIXELS <= self.max_pixels <= 4096 * 4096, "vision.max_pixels",

@@ -13,7 +13,7 @@ the pipeline (:mod:`stackpick_sim.vision.params` is their home for users of the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 from stackpick_sim.exceptions import ConfigError
@@ -305,12 +305,22 @@ class EllipsesParams(Section):
     edges crossing an outline meet it at any angle, a rim's gradient runs along its normal."""
 
 
-#: The sections, by their key under ``vision`` (and their field name in DetectorConfig).
-SECTIONS: tuple[type[Section], ...] = (RoiParams, EdgeParams, GateParams, TopParams,
-                                       ReportParams, PoseParams, EllipsesParams)
+@dataclass(frozen=True, kw_only=True)
+class StageSections:
+    """One section per stage (fields named by each section's ``SECTION``): the scene's
+    ``[vision]`` table (:class:`~stackpick_sim.config.scene_config.VisionCfg`) and
+    :class:`~stackpick_sim.vision.detector.DetectorConfig` both carry them."""
+
+    roi: RoiParams = field(default_factory=RoiParams)
+    edges: EdgeParams = field(default_factory=EdgeParams)
+    gate: GateParams = field(default_factory=GateParams)
+    top: TopParams = field(default_factory=TopParams)
+    report: ReportParams = field(default_factory=ReportParams)
+    pose: PoseParams = field(default_factory=PoseParams)
+    ellipses: EllipsesParams = field(default_factory=EllipsesParams)
 
 
-def sections_of(holder: object) -> dict[str, Any]:
+def sections_of(holder: StageSections) -> dict[str, Any]:
     """The sections ``holder`` (a VisionCfg or a DetectorConfig) carries, by key (keyword
     arguments for the other's constructor)."""
-    return {cls.SECTION: getattr(holder, cls.SECTION) for cls in SECTIONS}
+    return {f.name: getattr(holder, f.name) for f in fields(StageSections)}

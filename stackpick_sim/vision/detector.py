@@ -32,15 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
-from stackpick_sim.config.vision_params import (
-    EdgeParams,
-    EllipsesParams,
-    GateParams,
-    PoseParams,
-    ReportParams,
-    RoiParams,
-    TopParams,
-)
+from stackpick_sim.config.vision_params import PoseParams, ReportParams, StageSections
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
@@ -130,7 +122,7 @@ DEFAULT_REPORT = ReportParams()
 
 
 @dataclass(frozen=True, kw_only=True)
-class DetectorConfig:
+class DetectorConfig(StageSections):
     """Detector settings.
 
     ``intrinsics``: camera K (default: a centred pinhole of DEFAULT_FOVY_DEG for the image's
@@ -164,13 +156,6 @@ class DetectorConfig:
     limits: WorkLimits = field(default_factory=WorkLimits)
     marking_depth_ratio: float = VisionCfg.marking_depth_ratio
     marking_min_edge_share: float = VisionCfg.marking_min_edge_share
-    roi: RoiParams = field(default_factory=RoiParams)
-    edges: EdgeParams = field(default_factory=EdgeParams)
-    gate: GateParams = field(default_factory=GateParams)
-    top: TopParams = field(default_factory=TopParams)
-    report: ReportParams = field(default_factory=ReportParams)
-    pose: PoseParams = field(default_factory=PoseParams)
-    ellipses: EllipsesParams = field(default_factory=EllipsesParams)
     stages: tuple[Stage, ...] = field(default_factory=lambda: STAGES)
 
     def __post_init__(self) -> None:
@@ -708,7 +693,7 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
                        gate: tuple[float, float] | None = None, max_refits: int = 8,
-                       min_support: float = ReportParams.min_support
+                       min_support: float = DEFAULT_REPORT.min_support
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)

@@ -7,7 +7,6 @@ not load the pipeline) and offered here beside the stages they set.
 
 from stackpick_sim.config.vision_params import (
     FALLBACKS,
-    SECTIONS,
     EdgeParams,
     EllipsesParams,
     GateParams,
@@ -15,13 +14,13 @@ from stackpick_sim.config.vision_params import (
     ReportParams,
     RoiParams,
     Section,
+    StageSections,
     TopParams,
     sections_of,
 )
 
 __all__ = [
     "FALLBACKS",
-    "SECTIONS",
     "EdgeParams",
     "EllipsesParams",
     "GateParams",
@@ -29,6 +28,7 @@ __all__ = [
     "ReportParams",
     "RoiParams",
     "Section",
+    "StageSections",
     "TopParams",
     "sections_of",
 ]
