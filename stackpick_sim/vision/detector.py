@@ -503,16 +503,24 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
     if retried:
         choice = _select([m.ellipse for m in merged], found, cues)
     if retried and choice.index is not None:
-        if "nearer_arcs" not in use or cues.radius_of is None:
-            return merged, choice
         # A face clearly nearer than such a refit is above it (a top face the merge never
         # fitted beside a lower, nearly whole face of its colour).
-        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
-        arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-        return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
-                                (found.points, found.grads), found.crop, found.gate,
-                                cues.k_crop, cues.radius_of)
+        return _nearer_arcs(found, merged, choice, cues, config)
     return _arc_fallbacks(found, merged, choice, spare, config)
+
+
+def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """A face of arc pairs of every arc clearly nearer than a fallback's ``choice``
+    (:func:`_nearer_arc_face`), else ``choice``; unchanged without face radii or without
+    the ``nearer_arcs`` fallback."""
+    if "nearer_arcs" not in config.top.fallbacks or cues.radius_of is None:
+        return merged, choice
+    arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
+    arcs = _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
+    return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
+                            (found.points, found.grads), found.crop, found.gate, cues.k_crop,
+                            cues.radius_of)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
