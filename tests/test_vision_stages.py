@@ -19,6 +19,7 @@ from stackpick_sim.vision.detector import REQUIRED_STAGES, STAGES, DetectorConfi
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.params import (
     EdgeParams,
+    FitParams,
     GateParams,
     ReportParams,
     RoiParams,
@@ -135,6 +136,13 @@ def test_edge_settings_reach_the_edge_map(image: np.ndarray) -> None:
                                         min_high_threshold=0.0)
                       ).edges.sum() > 2 * plain
     assert edge_image(image, EdgeParams(blur_sigma_px=2.5)).edges.sum() < plain
+
+
+def test_fit_settings_reach_the_fits(image: np.ndarray) -> None:
+    found = detect(image, DetectorConfig(intrinsics=K, fits=FitParams(min_fit_px=1000)))
+    assert not found.ellipses and found.top is None  # no chain is that long
+    assert detect(image, DetectorConfig(intrinsics=K, fits=FitParams(max_residual_px=0.3))
+                  ).top is not None
 
 
 def test_roi_settings_reach_the_box(image: np.ndarray) -> None:

@@ -130,6 +130,28 @@ class EdgeParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class FitParams(Section):
+    """``fitting`` stage: an ellipse-specific least-squares fit of every edge chain, a chain
+    whose fit fails split in halves and retried (:func:`~stackpick_sim.vision.fitting.
+    fit_all`)."""
+
+    SECTION: ClassVar[str] = "fits"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_fit_px": (5, 1000, "px"), "min_bow_px": (0.0, 10.0, "px"),
+        "max_residual_px": (0.05, 5.0, "px")}
+
+    min_fit_px: int = 10
+    """Chains shorter than this (px) are not fitted: a few pixels of arc do not fix an
+    ellipse's 5 parameters. The top rule's last-resort arc pairs take arcs this long too."""
+    min_bow_px: float = 0.6
+    """A chain whose pixels spread less than this (px, RMS across its principal line) is
+    straight: a side-wall line or a chord too flat to tell an ellipse from a line."""
+    max_residual_px: float = 0.6
+    """Largest RMS Sampson residual (px) of an accepted segment fit: anti-aliased synthetic
+    and rendered edges fit to ~0.2-0.3 px; 0.6 px rejects arcs that mix two curves."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class GateParams(Section):
     """``gate`` stage: with a depth range, ellipses too small or too large for any face
     radius in it are dropped after the refit."""
@@ -313,6 +335,7 @@ class StageSections:
 
     roi: RoiParams = field(default_factory=RoiParams)
     edges: EdgeParams = field(default_factory=EdgeParams)
+    fits: FitParams = field(default_factory=FitParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
     report: ReportParams = field(default_factory=ReportParams)

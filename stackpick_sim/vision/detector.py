@@ -140,8 +140,9 @@ class DetectorConfig(StageSections):
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``edges``, ``gate``, ``top``, ``report``, ``pose``: each stage's tuned settings (the
-    scene's ``[vision.SECTION]`` tables, :mod:`~stackpick_sim.config.vision_params`);
+    ``roi``, ``edges``, ``fits``, ``gate``, ``top``, ``report``, ``pose``: each stage's
+    tuned settings (the scene's ``[vision.SECTION]`` tables,
+    :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
     ``stages``: the stages run, in order (default :data:`STAGES`; see :meth:`without` and
@@ -333,7 +334,7 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
 def fitting_stage(state: State, config: DetectorConfig) -> State:
     """An ellipse per chain (:func:`~stackpick_sim.vision.fitting.fit_all`), the
     ``limits.max_fits`` on the longest arcs."""
-    found = fit_all(state.segments, state.crop)
+    found = fit_all(state.segments, state.crop, params=config.fits)
     found = [found[i] for i in longest([f[1] for f in found], config.limits.max_fits)]
     return replace(state, fits=tuple(found))
 
@@ -516,7 +517,8 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     the ``nearer_arcs`` fallback."""
     if "nearer_arcs" not in config.top.fallbacks or cues.radius_of is None:
         return merged, choice
-    arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
+    arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted,
+                                        config.fits.min_fit_px)
     arcs = _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
@@ -558,7 +560,8 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         # it (its boundary with a lower face of its colour shows no contrast), else one
         # with its own rim inside. Last, as the least constrained.
         check_time(found.deadline, "top")
-        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted)
+        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted,
+                                            config.fits.min_fit_px)
         arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
         merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
                                        edge_pixels, found.crop, found.gate, unobstructed=True,
@@ -739,17 +742,18 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
 
 
 def last_resort_arcs(pieces: list[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
-                     fitted: set[int]) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
+                     fitted: set[int], min_arc_px: int = MIN_FIT_PX
+                     ) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
     """The chains the last arc pairs are drawn from, and which of them are arcs (indices):
     the fitted ``pieces``, then the edge ``chains`` ((N_i, 2) pixels) cut at their junctions
     (:func:`~stackpick_sim.vision.regroup.split_at_junctions`). Arcs are the pieces and the
-    parts at least MIN_FIT_PX long of the chains that were cut or that are not in ``fitted``
+    parts at least ``min_arc_px`` long of the chains that were cut or that are not in ``fitted``
     (the chains some piece of which was fitted)."""
     out = list(pieces)
     arcs = list(range(len(pieces)))
     for k, parts in enumerate(split_at_junctions(chains)):
         for part in parts:
-            if part.shape[0] >= MIN_FIT_PX and (len(parts) > 1 or k not in fitted):
+            if part.shape[0] >= min_arc_px and (len(parts) > 1 or k not in fitted):
                 arcs.append(len(out))
             out.append(part)
     return tuple(out), arcs

@@ -23,17 +23,17 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import FitParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 
-#: Segments shorter than this (px) are not fitted: a few pixels of arc do not fix 5 parameters.
-MIN_FIT_PX = 10
-#: A segment whose points spread less than this (px, RMS across its principal line) is
-#: straight: a side-wall line or a chord too flat to tell an ellipse from a line.
-MIN_BOW_PX = 0.6
-#: Largest RMS Sampson residual (px) of an accepted fit. Anti-aliased synthetic and rendered
-#: edges fit to ~0.2-0.3 px; 0.6 px rejects arcs that mix two curves.
-MAX_RESIDUAL_PX = 0.6
+#: The default settings (see FitParams: the reasons for each).
+DEFAULT = FitParams()
+#: The defaults by name: the shortest fitted segment (px), the least bow (px) and the largest
+#: RMS residual (px) of an accepted fit (the merge's and the arc pairs' refits hold to it too).
+MIN_FIT_PX = DEFAULT.min_fit_px
+MIN_BOW_PX = DEFAULT.min_bow_px
+MAX_RESIDUAL_PX = DEFAULT.max_residual_px
 #: Smallest semi-minor axis (px) of an accepted ellipse (faces are >= ~10 px).
 MIN_AXIS_PX = 5.0
 #: Largest semi-major axis as a multiple of the image diagonal (beyond: a near-line fit).
@@ -238,23 +238,24 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
             + fit_or_split(points[half:], shape, depth - 1))
 
 
-def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
-            ) -> list[tuple[int, NDArray, Ellipse, float]]:
+def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
+            params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
     """:func:`fit_or_split` of every chain, level by level: the straightness test and the
     residuals of all pieces of one level are one array pass each (only the direct fit runs
     per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
-    order :func:`fit_or_split` gives them chain after chain."""
+    order :func:`fit_or_split` gives them chain after chain (with the default ``params``)."""
+    shortest = params.min_fit_px
     pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     for level in range(depth + 1):
         if not pending:
             break
-        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
+        long_enough = [p for p in pending if p[2].shape[0] >= shortest]
         bows = _bows([p[2] for p in long_enough])
         fitted: list[tuple[tuple[int, str, NDArray], Ellipse]] = []
-        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
+        failed = [p for p in pending if p[2].shape[0] < shortest]
         for p, bow in zip(long_enough, bows, strict=True):
-            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
+            e = fit_ellipse(p[2]) if bow >= params.min_bow_px else None
             if e is None or not plausible(e, shape):
                 failed.append(p)
             else:
@@ -270,7 +271,7 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             sums = np.bincount(which, weights=d * d).tolist()
             rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
             for (p, e), r in zip(fitted, rms, strict=True):
-                if r > MAX_RESIDUAL_PX:
+                if r > params.max_residual_px:
                     failed.append(p)
                 else:
                     found.append(((p[0], p[1]), p[2], e, r))
@@ -278,7 +279,7 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
         if level == depth:
             break
         for i, path, pts_ in failed:
-            if pts_.shape[0] >= 2 * MIN_FIT_PX:
+            if pts_.shape[0] >= 2 * shortest:
                 half = pts_.shape[0] // 2
                 pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
     found.sort(key=lambda f: f[0])
