@@ -21,6 +21,7 @@ from stackpick_sim.vision.params import (
     EdgeParams,
     FitParams,
     GateParams,
+    RefineParams,
     ReportParams,
     RoiParams,
     TopParams,
@@ -143,6 +144,14 @@ def test_fit_settings_reach_the_fits(image: np.ndarray) -> None:
     assert not found.ellipses and found.top is None  # no chain is that long
     assert detect(image, DetectorConfig(intrinsics=K, fits=FitParams(max_residual_px=0.3))
                   ).top is not None
+
+
+def test_refine_settings_reach_the_refit(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    narrow = detect(image, replace(config, refine=RefineParams(tolerances_px=(0.5,))))
+    assert _key(narrow) != _key(detect(image, config))  # fewer pixels along each outline
+    never = detect(image, replace(config, refine=RefineParams(min_pixels=10_000)))
+    assert _key(never) == _key(detect(image, config.without("refine")))
 
 
 def test_roi_settings_reach_the_box(image: np.ndarray) -> None:

@@ -152,6 +152,29 @@ class FitParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class RefineParams(Section):
+    """``refine`` stage: each ellipse refitted on the edge pixels along it, in rounds of
+    narrowing tolerance (:func:`~stackpick_sim.vision.refine.refine_all`)."""
+
+    SECTION: ClassVar[str] = "refine"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "tolerances_px": (0.3, 20.0, "px"), "min_pixels": (5, 10_000, "px")}
+
+    tolerances_px: tuple[float, ...] = (2.5, 1.5, 1.2)
+    """Collection tolerances (px) of the successive refits, one round each: the first admits
+    an arc fit that is ~2 px off on its far side, the last matches the merge's tolerance."""
+    min_pixels: int = 20
+    """Fewest edge pixels (px) collected along an ellipse for a refit; fewer keeps the fit in
+    hand."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.tolerances_px:
+            raise ConfigError("vision.refine.tolerances_px = [] is out of range; allowed: "
+                              "one or more tolerances, px")
+
+
+@dataclass(frozen=True, kw_only=True)
 class GateParams(Section):
     """``gate`` stage: with a depth range, ellipses too small or too large for any face
     radius in it are dropped after the refit."""
@@ -336,6 +359,7 @@ class StageSections:
     roi: RoiParams = field(default_factory=RoiParams)
     edges: EdgeParams = field(default_factory=EdgeParams)
     fits: FitParams = field(default_factory=FitParams)
+    refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
     report: ReportParams = field(default_factory=ReportParams)

@@ -140,8 +140,8 @@ class DetectorConfig(StageSections):
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``edges``, ``fits``, ``gate``, ``top``, ``report``, ``pose``: each stage's
-    tuned settings (the scene's ``[vision.SECTION]`` tables,
+    ``roi``, ``edges``, ``fits``, ``refine``, ``gate``, ``top``, ``report``, ``pose``: each
+    stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
     :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
@@ -352,7 +352,8 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     """Each ellipse refitted on the edge pixels along it (:func:`~stackpick_sim.vision.
     refine.refine_all`)."""
     merged = state.merged
-    refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop)
+    refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
+                         config.refine)
     return replace(state, merged=[
         MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                       support=m.support) for m, e in zip(merged, refined, strict=True)])

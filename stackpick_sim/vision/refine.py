@@ -21,6 +21,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import RefineParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
@@ -28,14 +29,15 @@ from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
 from stackpick_sim.vision.wall import column_median
 
-#: Collection tolerances (px) of the successive refits: the first admits an arc fit that is
-#: ~2 px off on its far side, the last matches the merge tolerance.
-TOLERANCES_PX: tuple[float, ...] = (2.5, 1.5, 1.2)
+#: The default settings of the refine stage (see RefineParams: the reasons for each).
+DEFAULT = RefineParams()
+#: Collection tolerances (px) of the successive refits, by default.
+TOLERANCES_PX: tuple[float, ...] = DEFAULT.tolerances_px
 #: Largest angle between an edge pixel's gradient and the ellipse normal, as its cosine
 #: (30 deg): crossing outlines meet at larger angles.
 MIN_NORMAL_COS = 0.87
-#: Fewest collected pixels for a refit (fewer keeps the previous ellipse).
-MIN_PIXELS = 20
+#: Fewest collected pixels for a refit (fewer keeps the previous ellipse), by default.
+MIN_PIXELS = DEFAULT.min_pixels
 #: Collection tolerance (px) of the final sub-pixel refit of the top face.
 SUBPIXEL_TOLERANCE_PX = 1.2
 #: Largest sub-pixel shift (px) accepted along the gradient: the magnitude peak of a
@@ -192,17 +194,19 @@ def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.floa
 
 
 def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
-               grads: NDArray[np.float64], shape: tuple[int, int]) -> list[Ellipse]:
-    """:func:`refine` of every ellipse, in lockstep: each round collects the pixels along
-    all current fits in one pass over (ellipse, pixel) pairs, then refits each ellipse that
-    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone).
-    A fit on the same pixels as the fit in hand is not repeated."""
+               grads: NDArray[np.float64], shape: tuple[int, int],
+               params: RefineParams = DEFAULT) -> list[Ellipse]:
+    """:func:`refine` of every ellipse, in lockstep: each round (one per tolerance of
+    ``params``) collects the pixels along all current fits in one pass over (ellipse, pixel)
+    pairs, then refits each ellipse that collected enough (an ellipse stops at its first
+    failed round, as :func:`refine` alone). A fit on the same pixels as the fit in hand is
+    not repeated."""
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
     n = len(current)
     a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
-    reach = a + TOLERANCES_PX[0] + 1
+    reach = a + params.tolerances_px[0] + 1
     pu, pv = points[:, 0], points[:, 1]
     pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
                                reach)
@@ -215,7 +219,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     pair_points = points[pm].astype(np.float32)
     active = [True] * n
     previous: dict[int, bytes] = {}
-    for tol in TOLERANCES_PX:
+    for tol in params.tolerances_px:
         if all(active):
             idx, cols, live = None, columns, counts
         else:
@@ -233,7 +237,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
             if previous.get(e) == key:
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = key
-            fit = fit_ellipse(pair_points[mine]) if mine.size >= MIN_PIXELS else None
+            fit = (fit_ellipse(pair_points[mine]) if mine.size >= params.min_pixels
+                   else None)
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
