@@ -11,11 +11,12 @@ from pathlib import Path
 import pytest
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.geometry import mask_iou
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision import occlusion as occlusion_module
 from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
-from stackpick_sim.vision.benchmark.methods import detector_config
+from stackpick_sim.vision.benchmark.methods import detector_config, make_methods
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
 from stackpick_sim.vision.params import FALLBACKS, TopParams
@@ -187,3 +188,12 @@ def test_fallbacks_are_options_of_the_top_stage(seed: int, dropped: tuple[str, .
     for fallbacks in (kept, ()):
         found = _with_top(frame, TopParams(fallbacks=fallbacks)).detect(frame.image_rgb)
         assert found.top_ellipse is None, (fallbacks, found.reason)
+
+
+def test_benchmark_methods_take_a_scenes_vision_settings() -> None:
+    # Frame 3504's top face only the arc-pair fallbacks find: without fallbacks, ours misses.
+    frame = _chosen_top(3504)
+    [ours] = make_methods(["ours"], vision=VisionCfg(top=TopParams(fallbacks=())))
+    assert ours.run(frame).top is None
+    [ours] = make_methods(["ours"], vision=VisionCfg())
+    assert ours.run(frame).top is not None

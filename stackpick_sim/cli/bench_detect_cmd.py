@@ -109,7 +109,7 @@ def detector_method(name: str, cfg: SceneConfig) -> Method:
 def methods_by_name(names: list[str], cfg: SceneConfig, rht_seed: int) -> list[Method]:
     """The benchmark's own methods and episode detectors, in the order of ``names``."""
     builtin = [n for n in names if n in METHOD_NAMES]
-    by_name = {m.name: m for m in make_methods(builtin, seed=rht_seed)}
+    by_name = {m.name: m for m in make_methods(builtin, seed=rht_seed, vision=cfg.vision)}
     by_name.update({n: detector_method(n, cfg) for n in names if n not in METHOD_NAMES})
     return [by_name[n] for n in names]
 

@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
-from stackpick_sim.config.vision_params import sections_of
 from stackpick_sim.episodes.audit import CellTruth
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 from stackpick_sim.pipeline import Detections, FaceCandidate, Frame, Hints
@@ -30,7 +29,6 @@ from stackpick_sim.vision import Detection, DetectorConfig, detect
 from stackpick_sim.vision.baselines import EllipseDetector, FindEllipsesDetector, RHTDetector
 from stackpick_sim.vision.detector import object_kinds, radius_by_colour
 from stackpick_sim.vision.edges import edge_image
-from stackpick_sim.vision.limits import WorkLimits
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import Pose, estimate_pose
@@ -57,11 +55,8 @@ def scene_detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
     types = [cfg.object_types[name] for name in cfg.objects.types]
     radii, colours, heights = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])
     return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
-                          heights_m=heights, depth_range_m=depth_range_m,
-                          limits=WorkLimits.of(cfg.vision),
-                          marking_depth_ratio=cfg.vision.marking_depth_ratio,
-                          marking_min_edge_share=cfg.vision.marking_min_edge_share,
-                          **sections_of(cfg.vision))
+                          heights_m=heights, depth_range_m=depth_range_m
+                          ).with_vision(cfg.vision)
 
 
 def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,

@@ -32,7 +32,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
-from stackpick_sim.config.vision_params import PoseParams, ReportParams, StageSections
+from stackpick_sim.config.vision_params import (
+    PoseParams,
+    ReportParams,
+    StageSections,
+    sections_of,
+)
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
@@ -194,6 +199,14 @@ class DetectorConfig(StageSections):
         if self.heights_m is None:
             return None
         return dict(zip(self.radii_m, self.heights_m, strict=True)).get
+
+    def with_vision(self, vision: VisionCfg) -> DetectorConfig:
+        """This config with the settings of a scene's ``[vision]`` table: the work limits, the
+        marking test and every stage section."""
+        return replace(self, limits=WorkLimits.of(vision),
+                       marking_depth_ratio=vision.marking_depth_ratio,
+                       marking_min_edge_share=vision.marking_min_edge_share,
+                       **sections_of(vision))
 
     def without(self, *names: str) -> DetectorConfig:
         """This config with the stages ``names`` skipped; ConfigError for a stage it does

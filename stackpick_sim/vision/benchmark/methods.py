@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.vision.baselines import (
     EdgeDrawingDetector,
@@ -54,18 +55,20 @@ class Method:
     run: Callable[[BenchFrame], MethodOutput]
 
 
-def detector_config(frame: BenchFrame) -> DetectorConfig:
+def detector_config(frame: BenchFrame, vision: VisionCfg | None = None) -> DetectorConfig:
     """What a caller knows of ``frame``: its intrinsics, depth range and object kinds (radii,
-    colours and heights; the default radii when the kinds are unknown)."""
+    colours and heights; the default radii when the kinds are unknown), and the settings of
+    a scene's ``vision`` table (default: the defaults)."""
     radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
                                else (DEFAULT_RADII_M, None, None))
-    return DetectorConfig(intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
-                          radii_m=radii, kind_colours=colours, heights_m=heights)
+    config = DetectorConfig(intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
+                            radii_m=radii, kind_colours=colours, heights_m=heights)
+    return config if vision is None else config.with_vision(vision)
 
 
-def run_ours(frame: BenchFrame) -> MethodOutput:
+def run_ours(frame: BenchFrame, vision: VisionCfg | None = None) -> MethodOutput:
     """Our detector on one frame, configured by :func:`detector_config`."""
-    det = TopObjectDetector(detector_config(frame))
+    det = TopObjectDetector(detector_config(frame, vision))
     image = frame.image_rgb
     t0 = time.perf_counter()
     result = det.detect(image)
@@ -78,22 +81,24 @@ def run_ours(frame: BenchFrame) -> MethodOutput:
                         stages_ms=stages)
 
 
-def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodOutput]:
-    """``run(frame)`` for a baseline detector followed by our top rule and pose solver."""
+def baseline_runner(detector: EllipseDetector, vision: VisionCfg | None = None
+                    ) -> Callable[[BenchFrame], MethodOutput]:
+    """``run(frame)`` for a baseline detector followed by our top rule and pose solver (with
+    the settings of :func:`detector_config`)."""
 
     def run(frame: BenchFrame) -> MethodOutput:
         bgr = np.ascontiguousarray(frame.image_rgb[:, :, ::-1])
         rgb = frame.image_rgb
+        cfg = detector_config(frame, vision)
         # The bare belt's colour, an input of the top rule's wall tests: our detector reads it
         # in its roi stage (timed); the peers get it untimed, in their favour.
-        belt_colour = find_roi(rgb).belt
+        belt_colour = find_roi(rgb, cfg.roi).belt
         belt = None if belt_colour is None else np.array(belt_colour)
         t0 = time.perf_counter()
         found = detector(bgr)
         t1 = time.perf_counter()
         ellipses = tuple(s.ellipse for s in found)
-        grad = edge_image(rgb)
-        cfg = detector_config(frame)
+        grad = edge_image(rgb, cfg.edges)
         radii = cfg.radii_m
         radius_of = (None if cfg.kind_colours is None
                      else radius_by_colour(rgb, radii, cfg.kind_colours))
@@ -105,7 +110,8 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
             top = ellipses[choice.index]
             radius = None if radius_of is None else radius_of(top)
             p = estimate_pose(top, frame.intrinsics, radii if radius is None else (radius,),
-                              None, frame.depth_range_m, image=rgb, belt=belt)
+                              None, frame.depth_range_m, image=rgb, belt=belt,
+                              params=cfg.pose)
             pose = (p.x, p.y, p.theta_x_deg, p.theta_y_deg)
         t2 = time.perf_counter()
         return MethodOutput(ellipses=ellipses, top=top, pose=pose, total_ms=(t2 - t0) * 1e3,
@@ -115,14 +121,18 @@ def baseline_runner(detector: EllipseDetector) -> Callable[[BenchFrame], MethodO
     return run
 
 
-def make_methods(names: list[str], seed: int = 0) -> list[Method]:
-    """Methods by name (see METHOD_NAMES); ``seed`` seeds the RHT per call."""
+def make_methods(names: list[str], seed: int = 0, vision: VisionCfg | None = None
+                 ) -> list[Method]:
+    """Methods by name (see METHOD_NAMES); ``seed`` seeds the RHT per call; ``vision``: a
+    scene's ``vision`` table, the settings of ours and of the top rule and pose after the
+    baselines (default: the defaults)."""
     factories: dict[str, Callable[[], Method]] = {
-        "ours": lambda: Method("ours", run_ours),
-        "rht": lambda: Method("rht", baseline_runner(RHTDetector(seed=seed))),
+        "ours": lambda: Method("ours", lambda frame: run_ours(frame, vision)),
+        "rht": lambda: Method("rht", baseline_runner(RHTDetector(seed=seed), vision)),
         "findellipses": lambda: Method("findellipses",
-                                       baseline_runner(FindEllipsesDetector())),
-        "edgedrawing": lambda: Method("edgedrawing", baseline_runner(EdgeDrawingDetector())),
+                                       baseline_runner(FindEllipsesDetector(), vision)),
+        "edgedrawing": lambda: Method("edgedrawing",
+                                      baseline_runner(EdgeDrawingDetector(), vision)),
     }
     unknown = [n for n in names if n not in factories]
     if unknown:
