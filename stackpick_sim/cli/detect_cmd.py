@@ -77,6 +77,17 @@ RADIUS_RANGE_M = (0.001, 1.0)
 DEPTH_RANGE_M = (0.01, 10.0)
 
 
+def _check_ellipse_bounds(args: argparse.Namespace) -> None:
+    """ConfigError naming the allowed range for a --min-axis, --max-axis or --min-support
+    value outside it."""
+    if not (math.isfinite(args.min_axis) and args.min_axis >= 0):
+        raise ConfigError(f"--min-axis {args.min_axis!r} is out of range; allowed: >= 0 px")
+    if args.max_axis is not None and not (math.isfinite(args.max_axis) and args.max_axis > 0):
+        raise ConfigError(f"--max-axis {args.max_axis!r} is out of range; allowed: > 0 px")
+    if not 0.0 <= args.min_support <= 1.0:
+        raise ConfigError(f"--min-support {args.min_support!r} is out of range; allowed: 0 to 1")
+
+
 def _check_ranges(args: argparse.Namespace) -> None:
     """ConfigError naming the allowed range for a --fovy, --radii or --depth-range value
     outside it (before the image is read)."""
@@ -86,12 +97,7 @@ def _check_ranges(args: argparse.Namespace) -> None:
     for r in args.radii or ():
         if not (math.isfinite(r) and lo <= r <= hi):
             raise ConfigError(f"--radii {r!r} is out of range; allowed: {lo:g} to {hi:g} m")
-    if not (math.isfinite(args.min_axis) and args.min_axis >= 0):
-        raise ConfigError(f"--min-axis {args.min_axis!r} is out of range; allowed: >= 0 px")
-    if args.max_axis is not None and not (math.isfinite(args.max_axis) and args.max_axis > 0):
-        raise ConfigError(f"--max-axis {args.max_axis!r} is out of range; allowed: > 0 px")
-    if not 0.0 <= args.min_support <= 1.0:
-        raise ConfigError(f"--min-support {args.min_support!r} is out of range; allowed: 0 to 1")
+    _check_ellipse_bounds(args)
     if args.depth_range is not None:
         lo, hi = DEPTH_RANGE_M
         near, far = args.depth_range
