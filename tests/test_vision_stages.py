@@ -194,3 +194,14 @@ def test_detect_command_takes_vision_settings_from_set() -> None:
                               radii=None, depth_range=None)
     config = detect_cmd.detector_config(args, 320, 240)
     assert config.top == TopParams(rest_check=False)
+
+
+def test_a_state_updated_is_the_state_replaced(image: np.ndarray) -> None:
+    seen: list[State] = []
+    detect(image, DetectorConfig(intrinsics=K).with_stage(
+        "gate", lambda state, config: seen.append(state) or state))
+    state = seen[0]
+    assert state.updated(gate=(1.0, 2.0)) == replace(state, gate=(1.0, 2.0))
+    assert state.gate is None  # unchanged
+    with pytest.raises(TypeError, match="ellipses"):
+        state.updated(ellipses=[])

@@ -290,9 +290,10 @@ class TopObjectDetector:
         timings: dict[str, float] = {}
         shape = (int(img.shape[0]), int(img.shape[1]))
         state = State(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
-                      roi=Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), work=img, crop=shape)
+                      roi=Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), work=img, crop=shape,
+                      timings_ms=timings)
         try:
-            state = run_stages(self.config.stages, state, self.config, t0, timings)
+            state = run_stages(self.config.stages, state, self.config, t0)
         except OutOfTime as out:
             timings["total"] = (time.perf_counter() - t0) * 1e3
             return Detection(timings_ms=timings,
@@ -301,7 +302,7 @@ class TopObjectDetector:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         if state.detection is None:
             raise StageError("no stage made a detection (the pose stage makes it)")
-        return replace(state.detection, timings_ms=timings)
+        return state.detection
 
 
 def axis_range(k: CameraIntrinsics, config: DetectorConfig) -> tuple[float, float] | None:
@@ -323,7 +324,7 @@ def roi_stage(state: State, config: DetectorConfig) -> State:
     work = np.ascontiguousarray(roi.crop(state.image))
     if min(work.shape[:2]) < MIN_SIDE_PX:
         return state
-    return replace(state, roi=roi, work=work, crop=(int(work.shape[0]), int(work.shape[1])))
+    return state.updated(roi=roi, work=work, crop=(int(work.shape[0]), int(work.shape[1])))
 
 
 def edges_stage(state: State, config: DetectorConfig) -> State:
@@ -331,7 +332,7 @@ def edges_stage(state: State, config: DetectorConfig) -> State:
     pixels with their unit gradients (:func:`~stackpick_sim.vision.refine.edge_points`)."""
     grad = edge_image(state.work, config.edges)
     points, grads = edge_points(grad)
-    return replace(state, grad=grad, points=points, grads=grads)
+    return state.updated(grad=grad, points=points, grads=grads)
 
 
 def segments_stage(state: State, config: DetectorConfig) -> State:
@@ -341,7 +342,7 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
     segments = link_segments(state.edges("segments").edges, cap).chains
     if len(segments) > cap:
         segments = tuple(segments[i] for i in longest(segments, cap))
-    return replace(state, segments=segments)
+    return state.updated(segments=segments)
 
 
 def fitting_stage(state: State, config: DetectorConfig) -> State:
@@ -349,7 +350,7 @@ def fitting_stage(state: State, config: DetectorConfig) -> State:
     ``limits.max_fits`` on the longest arcs."""
     found = fit_all(state.segments, state.crop, params=config.fits)
     found = [found[i] for i in longest([f[1] for f in found], config.limits.max_fits)]
-    return replace(state, fits=tuple(found))
+    return state.updated(fits=tuple(found))
 
 
 def merging_stage(state: State, config: DetectorConfig) -> State:
@@ -358,7 +359,7 @@ def merging_stage(state: State, config: DetectorConfig) -> State:
     fits = state.fits
     merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
                             state.edges("merging").edges, [f[3] for f in fits])
-    return replace(state, merged=_best_supported(merged, config.limits.max_ellipses))
+    return state.updated(merged=_best_supported(merged, config.limits.max_ellipses))
 
 
 def refine_stage(state: State, config: DetectorConfig) -> State:
@@ -367,7 +368,7 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     merged = state.merged
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
                          config.refine)
-    return replace(state, merged=[
+    return state.updated(merged=[
         MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                       support=m.support) for m, e in zip(merged, refined, strict=True)])
 
@@ -377,7 +378,7 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
     the refit: a fit on a few short arcs can be far smaller than its face); the arc pairs of
     the top rule's fallbacks are held to it too."""
     gate = axis_range(state.intrinsics, config)
-    return replace(state, gate=gate, merged=_within_gate(state.merged, gate))
+    return state.updated(gate=gate, merged=_within_gate(state.merged, gate))
 
 
 def top_stage(state: State, config: DetectorConfig) -> State:
@@ -397,7 +398,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
             choice = replace(choice, index=above)
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
-    return replace(state, cues=cues, merged=merged, choice=choice)
+    return state.updated(cues=cues, merged=merged, choice=choice)
 
 
 def pose_stage(state: State, config: DetectorConfig) -> State:
@@ -421,12 +422,14 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
     chains = state.chains
     frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv], np.int32))
     if choice.index is None:
-        return replace(state, detection=Detection(ellipses=ellipses, segments=frame_chains,
-                                                  reason=choice.reason))
+        return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
+                                                 timings_ms=state.timings_ms,
+                                                 reason=choice.reason))
     pose = _top_pose(state, merged[choice.index].ellipse, config)
-    return replace(state, detection=Detection(ellipses=ellipses, segments=frame_chains,
-                                              top=keep.index(choice.index), pose=pose,
-                                              reason=choice.reason))
+    return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
+                                             top=keep.index(choice.index), pose=pose,
+                                             timings_ms=state.timings_ms,
+                                             reason=choice.reason))
 
 
 def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
