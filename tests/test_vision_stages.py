@@ -11,6 +11,7 @@ import pytest
 
 from stackpick_sim.cli import detect_cmd
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.config.vision_params import SKIPPABLE_STAGES
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
@@ -187,6 +188,15 @@ def test_scene_settings_reach_the_detector_and_the_sweep() -> None:
     got = [load_scene("paper", c.overrides) for c in cells]
     assert [(s.vision.gate.slack, s.vision.report.misfit_share) for s in got] == [
         ((0.8, 1.3), 0.4), ((0.8, 1.3), 0.6)]
+
+
+def test_stages_are_skipped_from_the_scene() -> None:
+    assert set(REQUIRED_STAGES) | set(SKIPPABLE_STAGES) == {s.name for s in STAGES}
+    cfg = load_scene("paper", ["vision.skip_stages=['refine', 'gate']"])
+    names = [s.name for s in scene_detector_config(cfg, K, (0.2, 0.3)).stages]
+    assert names == ["roi", "edges", "segments", "fitting", "merging", "top", "pose"]
+    with pytest.raises(ConfigError, match=r"vision\.skip_stages = \['top'\] is out of range"):
+        load_scene("paper", ["vision.skip_stages=['top']"])
 
 
 def test_detect_command_takes_vision_settings_from_set() -> None:

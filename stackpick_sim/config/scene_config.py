@@ -13,7 +13,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Literal
 
-from stackpick_sim.config.vision_params import StageSections
+from stackpick_sim.config.vision_params import SKIPPABLE_STAGES, StageSections
 from stackpick_sim.exceptions import ConfigError
 
 #: A pile larger than this cannot be placed so that every face overlaps another object
@@ -393,8 +393,14 @@ class VisionCfg(StageSections):
     """Wall-clock budget of one detection, ms; 0: none. When it runs out the detection is a
     miss naming the stage. Depends on the machine's load: results under a budget are not
     reproducible, so it is for real-time use, not for seeded runs."""
+    skip_stages: tuple[str, ...] = ()
+    """Detector stages skipped, by name: any of ``roi`` (search the whole frame), ``refine``
+    (keep the merged fits unrefined), ``gate`` (no size gate); the others are required
+    (docs/detector.md)."""
 
     def __post_init__(self) -> None:
+        _require(set(self.skip_stages) <= set(SKIPPABLE_STAGES), "vision.skip_stages",
+                 list(self.skip_stages), f"names of {', '.join(SKIPPABLE_STAGES)}")
         _require(MIN_VISION_PIXELS <= self.max_pixels <= 4096 * 4096, "vision.max_pixels",
                  self.max_pixels, f"{MIN_VISION_PIXELS} to {4096 * 4096} px")
         for key in ("max_chains", "max_fits", "max_ellipses", "max_arcs", "max_refits"):

@@ -18,6 +18,10 @@ from typing import Any, ClassVar
 
 from stackpick_sim.exceptions import ConfigError
 
+#: The detector's stages that may be skipped (the others are required): without ``roi`` the
+#: whole frame is searched, without ``refine`` the merged fits go on unrefined, without
+#: ``gate`` no size gate applies.
+SKIPPABLE_STAGES: tuple[str, ...] = ("roi", "refine", "gate")
 #: The top rule's fallbacks, in the order they are tried when no ellipse passes the rule
 #: (each is described by the failure class it handles in :class:`TopParams`).
 FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed",

@@ -119,8 +119,8 @@ DEFAULT_FOVY_DEG = 45.0
 MIN_KIND_CHROMA_DISTANCE = 0.1
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
-#: The stages a detection cannot do without (the others, ``roi``, ``refine`` and ``gate``,
-#: may be skipped: the whole frame, the merged fits, no size gate).
+#: The stages a detection cannot do without (the others, SKIPPABLE_STAGES, may be skipped:
+#: the whole frame, the merged fits, no size gate).
 REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "top", "pose")
 #: The report settings' defaults (the helpers' default argument).
 DEFAULT_REPORT = ReportParams()
@@ -202,11 +202,12 @@ class DetectorConfig(StageSections):
 
     def with_vision(self, vision: VisionCfg) -> DetectorConfig:
         """This config with the settings of a scene's ``[vision]`` table: the work limits, the
-        marking test and every stage section."""
-        return replace(self, limits=WorkLimits.of(vision),
-                       marking_depth_ratio=vision.marking_depth_ratio,
-                       marking_min_edge_share=vision.marking_min_edge_share,
-                       **sections_of(vision))
+        marking test, every stage section and the stages it skips."""
+        config = replace(self, limits=WorkLimits.of(vision),
+                         marking_depth_ratio=vision.marking_depth_ratio,
+                         marking_min_edge_share=vision.marking_min_edge_share,
+                         **sections_of(vision))
+        return config.without(*vision.skip_stages) if vision.skip_stages else config
 
     def without(self, *names: str) -> DetectorConfig:
         """This config with the stages ``names`` skipped; ConfigError for a stage it does
