@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
+from stackpick_sim.config.loader import load_scene
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.vision import DetectorConfig, detect
 from stackpick_sim.vision.limits import WorkLimits, downscale_factor
@@ -95,3 +96,19 @@ def test_scene_gives_the_detector_its_kinds_and_depth_range() -> None:
     explicit = detector_config(argparse.Namespace(scene=None, overrides=[], fovy=60.0,
                                                   radii=[0.05], depth_range=None), 320, 240)
     assert explicit.radii_m == (0.05,) and explicit.depth_range_m is None
+
+
+def test_scene_gives_the_detector_its_lens_distortion() -> None:
+    import argparse
+
+    from stackpick_sim.cli.detect_cmd import detector_config
+
+    args = argparse.Namespace(scene="realistic", overrides=[], fovy=None, radii=None,
+                              depth_range=None)
+    config = detector_config(args, 320, 240)
+    assert config.intrinsics is not None
+    assert config.intrinsics.dist == load_scene("realistic").camera.distortion
+    assert config.intrinsics.distorted
+    paper = detector_config(argparse.Namespace(scene="paper", overrides=[], fovy=None,
+                                               radii=None, depth_range=None), 320, 240)
+    assert paper.intrinsics is not None and not paper.intrinsics.distorted

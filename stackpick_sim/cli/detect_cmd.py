@@ -39,10 +39,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--overlay", metavar="OUT.png", help="write the detections drawn on the image "
                    "(format from the extension: .png, .jpg, .bmp, .tif, .webp)")
     p.add_argument("--scene", metavar="NAME_OR_PATH",
-                   help="take the camera's field of view, the object kinds (radii, colours, "
-                   "heights), the top face's depth range at the look pose and the [vision] "
-                   f"limits from this scene ({', '.join(available_scenes())} or a .toml "
-                   "file); the options below override them")
+                   help="take the camera's field of view and lens distortion, the object kinds "
+                   "(radii, colours, heights), the top face's depth range at the look pose "
+                   "and the [vision] settings from this scene "
+                   f"({', '.join(available_scenes())} or a .toml file); the options below "
+                   "override them")
     p.add_argument("--set", dest="overrides", action="append", default=[],
                    metavar="KEY=VALUE", help="override a scene key (implies --scene paper "
                    "when --scene is not given), e.g. --set vision.max_arcs=12")
@@ -121,7 +122,7 @@ def detector_config(args: argparse.Namespace, width: int, height: int) -> Detect
         scene = load_scene(args.scene or "paper", args.overrides)
         fovy = scene.camera.fovy_deg if args.fovy is None else args.fovy
         config = scene_detector_config(
-            scene, CameraIntrinsics.from_fovy(fovy, width, height),
+            scene, CameraIntrinsics.from_fovy(fovy, width, height, scene.camera.distortion),
             face_depth_range(scene.camera.look_height, scene.objects.max_face_height))
     else:
         fovy = DEFAULT_FOVY_DEG if args.fovy is None else args.fovy
