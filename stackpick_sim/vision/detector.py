@@ -454,7 +454,8 @@ class TopObjectDetector:
         # crossing it and pass.
         fallback = select_unobstructed(choice.evidence)
         if fallback is not None:
-            return merged, replace(choice, index=fallback, reason="")
+            choice = replace(choice, index=fallback, reason="")
+            return self._nearer_arc_face(found, merged, choice, cues)
         clock.check("top")
         # Only then: a refit that passes next to a passing face is more often a lower,
         # nearly whole face than the top.
@@ -465,10 +466,7 @@ class TopObjectDetector:
         if retried and choice.index is not None and cues.radius_of is not None:
             # A face clearly nearer than such a refit is above it (a top face the merge never
             # fitted beside a lower, nearly whole face of its colour).
-            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
-            arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
-            return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, grad,
-                                    edge_pixels, crop, gate, cues.k_crop, cues.radius_of)
+            return self._nearer_arc_face(found, merged, choice, cues)
         if choice.index is None:
             # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
             rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
@@ -501,6 +499,18 @@ class TopObjectDetector:
                                            edge_pixels, crop, gate, unobstructed=True,
                                            arc_chains=arc_chains)
         return merged, choice
+
+    def _nearer_arc_face(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                         cues: _Cues) -> tuple[list[MergedEllipse], TopChoice]:
+        """A face of arc pairs of every arc clearly nearer than a fallback's ``choice``
+        (:func:`_nearer_arc_face`), else ``choice``; unchanged without face radii."""
+        if cues.radius_of is None:
+            return merged, choice
+        arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+        arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
+        return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.grad,
+                                (found.points, found.grads), found.crop, found.gate,
+                                cues.k_crop, cues.radius_of)
 
     def _pose_stage(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
                     img: NDArray[np.uint8], k: CameraIntrinsics, cues: _Cues,
