@@ -711,9 +711,11 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     if len(todo) > max_refits:  # the best-supported, in their order
         best = sorted(todo, key=lambda i: (-evidence[i].support, i))[:max_refits]
         todo = sorted(best)
+    # Refits outside the size gate are no faces, as fits are not (a refit onto an inner
+    # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
-             and plausible(r, shape)]
+             and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
     checked = select_top([r for _, r in tries], grad).evidence
@@ -722,11 +724,9 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
         if not ev.occluded and i not in passed:  # the strongest-edge refit first
             passed[i] = r
     if not passed:
-        sized = [k for k, (_, r) in enumerate(tries) if gate is None or gate[0] <= r.a <= gate[1]]
-        spare = select_unobstructed([checked[k] for k in sized])
+        spare = select_unobstructed(checked)
         return merged, False, (None if spare is None else
-                               (tries[sized[spare]][0], tries[sized[spare]][1],
-                                checked[sized[spare]]))
+                               (tries[spare][0], tries[spare][1], checked[spare]))
     return [replace(m, ellipse=passed[i]) if i in passed else m
             for i, m in enumerate(merged)], True, None
 
