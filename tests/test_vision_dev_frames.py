@@ -71,9 +71,22 @@ def _assert_lower_chosen(frame: BenchFrame) -> None:
 def test_rimmed_face_resting_on_the_chosen_face_takes_the_choice(
         seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     # The top face's fit takes in a same-colour lower face's sliver (its own rim inside it);
-    # the face it rests on passes the rule.
+    # the face it rests on passes the rule. (On frame 857 a second fit of the top, cut short
+    # with nothing crossing it, also leads to the top by the hidden-face check: both off.)
     frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "select_resting_rimmed", lambda *a, **k: None)
+    monkeypatch.setattr(detector_module, "hidden_by_no_outline", lambda choice: False)
+    _assert_lower_chosen(frame)
+
+
+def test_a_face_cut_short_with_nothing_crossing_it_leads_to_a_nearer_arc_face(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Frame 857 without the rimmed-face step: the rule chooses a whole lower face; a second
+    # fit of the top face fails on support alone (0.74) with nothing crossing it, so a face
+    # of its colour may hide it, and a fit on pairs of arcs finds the top clearly nearer.
+    monkeypatch.setattr(detector_module, "select_resting_rimmed", lambda *a, **k: None)
+    frame = _chosen_top(857)
+    monkeypatch.setattr(detector_module, "hidden_by_no_outline", lambda choice: False)
     _assert_lower_chosen(frame)
 
 

@@ -79,6 +79,7 @@ from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     TopChoice,
     clearly_nearest,
+    hidden_by_no_outline,
     holds_centre,
     select_resting_rimmed,
     select_rimmed,
@@ -436,6 +437,11 @@ class TopObjectDetector:
                                           cues.height_of, cues.rgb, cues.belt)
             if above is not None:
                 choice = replace(choice, index=above)
+        if choice.index is not None and hidden_by_no_outline(choice):
+            # A face cut short by an occluder that shows no outline: a top face of its
+            # colour and shade the merge never fitted.
+            clock.check("top")
+            merged, choice = self._nearer_arc_face(found, merged, choice, cues)
         if choice.index is None:
             merged, choice = self._fallbacks(found, merged, choice, cues, clock)
         clock.lap("top")
@@ -816,15 +822,20 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
     the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
     it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
-    those too), and is another face than the chosen one (neither holds the other's centre) is
-    clearly nearer the camera than it and every other such (:func:`~stackpick_sim.vision.
-    occlusion.clearly_nearest`): then it is added to ``merged`` and chosen."""
+    those too), and is another face than the chosen one and those the depth test heard
+    (neither holds the other's centre: a refit of a face already weighed, too large a refit
+    reading too near) is clearly nearer the camera than the chosen one and every other such
+    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
+    and chosen."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
+    weighed = [chosen, *(merged[i].ellipse for i, ev in enumerate(choice.evidence)
+                         if i != choice.index and (not ev.occluded or unobstructed(ev)))]
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
                                    shape, gate)
     passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
-              and not (holds_centre(chosen, found[i]) or holds_centre(found[i], chosen))]
+              and not any(holds_centre(w, found[i]) or holds_centre(found[i], w)
+                          for w in weighed)]
     if not passed:
         return merged, choice
     faces = [chosen, *(found[i] for i in passed)]

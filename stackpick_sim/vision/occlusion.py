@@ -105,6 +105,11 @@ SUPPORT_TIE = 0.02
 #: with the DEPTH_TIE_M margin. Placeholder chosen on those frames, not tuned further.
 FALLBACK_MIN_SUPPORT = 0.75
 
+#: A face cut short with nothing crossing it (:func:`hidden_by_no_outline`) must show at
+#: least this share of its outline: a face at least half visible, as the scoring counts
+#: faces (far rims and arcs of two outlines fitted together show about half theirs).
+HIDDEN_MIN_SUPPORT = 0.6
+
 #: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
 #: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
 #: own colour and about its size is fitted on the lower face's strong silhouette where the
@@ -416,6 +421,18 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     passes it (see FALLBACK_MIN_SUPPORT)."""
     ok = [i for i, ev in enumerate(evidence) if unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
+
+
+def hidden_by_no_outline(choice: TopChoice) -> bool:
+    """Whether an ellipse besides the chosen one failed the rule on support alone (at least
+    HIDDEN_MIN_SUPPORT, below TOP_MIN_SUPPORT) with no T-junction end and no edge pixel
+    inside: the failure class *top face hidden by same-colour neighbours*. An occluder whose
+    outline shows runs into the face it covers (interior edges, T-ends); a face cut short with
+    nothing crossing it lies under a face whose boundary with it shows no contrast, a face of
+    its colour and shade that the merge may never have fitted, which can be the top."""
+    return any(i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
+               and HIDDEN_MIN_SUPPORT <= ev.support < TOP_MIN_SUPPORT
+               for i, ev in enumerate(choice.evidence))
 
 
 def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
