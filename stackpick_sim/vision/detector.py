@@ -441,7 +441,8 @@ class TopObjectDetector:
             # A face cut short by an occluder that shows no outline: a top face of its
             # colour and shade the merge never fitted.
             clock.check("top")
-            merged, choice = self._nearer_arc_face(found, merged, choice, cues)
+            merged, choice = self._nearer_arc_face(found, merged, choice, cues,
+                                                   every_arc=False)
         if choice.index is None:
             merged, choice = self._fallbacks(found, merged, choice, cues, clock)
         clock.lap("top")
@@ -507,12 +508,17 @@ class TopObjectDetector:
         return merged, choice
 
     def _nearer_arc_face(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
-                         cues: _Cues) -> tuple[list[MergedEllipse], TopChoice]:
-        """A face of arc pairs of every arc clearly nearer than a fallback's ``choice``
-        (:func:`_nearer_arc_face`), else ``choice``; unchanged without face radii."""
+                         cues: _Cues, every_arc: bool = True
+                         ) -> tuple[list[MergedEllipse], TopChoice]:
+        """A face of arc pairs clearly nearer than ``choice`` (:func:`_nearer_arc_face`),
+        else ``choice``; unchanged without face radii. The arcs: with ``every_arc`` those of
+        :func:`last_resort_arcs` (a fallback's choice), else the fitted pieces alone (a
+        choice that passed the rule: ~10x cheaper)."""
         if cues.radius_of is None:
             return merged, choice
-        arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+        arc_chains, arcs = found.chains, list(range(len(found.pieces)))
+        if every_arc:
+            arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
         arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
         return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.grad,
                                 (found.points, found.grads), found.crop, found.gate,
