@@ -209,6 +209,6 @@ def test_no_contrast_refit_below_the_size_gate_is_chosen() -> None:
     frame = _chosen_top(70070, GREY_FRAMES, GREY)
     found = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb)
     k = frame.intrinsics
-    near, far = frame.depth_range_m
+    far = frame.depth_range_m[1]
     smallest = detector_module.SIZE_GATE_SLACK[0] * min(k.fx, k.fy) * 0.025 / far
     assert all(d.ellipse.a >= smallest for d in found.ellipses)

@@ -1,27 +1,33 @@
 """The top-object detector: edges -> segments -> fits -> merging -> top rule -> pose.
 
-Given a depth range, refined ellipses too small or too large for any face radius in it are
-dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the best-supported face with
-no T-junction and no edge inside is taken (:func:`~stackpick_sim.vision.occlusion.
-select_unobstructed`); failing that, those that failed on support or interior edges alone are
-refitted on the edge contrast (faint same-colour boundaries) and the rule is re-run (a face
-from the last stage's arc pairs, below, that passes the rule and lies clearly nearer than the
-refit it chose takes the choice: :func:`_nearer_arc_face`); failing that, a whole face whose
-interior edges all lie in a band along its outline is taken (its own faint rim inside a
-same-colour lower face's sliver, :func:`~stackpick_sim.vision.occlusion.select_rimmed`);
-failing that, ellipses fitted to pairs of arcs the merge never joined
-(:mod:`~stackpick_sim.vision.regroup`) go through the rule; then a contrast refit with no
-T-junction and no edge inside, most of its outline showing; the very last are the pairs that
-also take in the edge chains no fit was kept for and the parts of the chains cut at their
-junctions (:func:`last_resort_arcs`), through the rule and else its own last resorts
-(select_unobstructed, then select_rimmed). One face fitted twice is reported once
-(DUPLICATE_SHARE), nor are the top face's refits on other outlines too (MISFIT_SHARE), and a
-cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
+Given a depth range, refined ellipses (and contrast refits) too small or too large for any
+face radius in it are dropped (SIZE_GATE_SLACK). When no ellipse passes the top rule, the
+best-supported face with no T-junction and no edge inside is taken (:func:`~stackpick_sim.
+vision.occlusion.select_unobstructed`), unless a face from arc pairs is clearly nearer
+(:func:`_nearer_arc_face`: a top face across faces of its colour and shade, never fitted,
+hides part of that face's outline without a visible boundary); failing that, those that
+failed on support or interior edges alone are refitted on the edge contrast (faint
+same-colour boundaries) and the rule is re-run (a face from the last stage's arc pairs,
+below, that passes the rule and lies clearly nearer than the refit it chose takes the
+choice: :func:`_nearer_arc_face`); failing that, a whole face whose interior edges all lie
+in a band along its outline is taken (its own faint rim inside a same-colour lower face's
+sliver, :func:`~stackpick_sim.vision.occlusion.select_rimmed`); failing that, ellipses
+fitted to pairs of arcs the merge never joined (:mod:`~stackpick_sim.vision.regroup`) go
+through the rule; then a contrast refit with no T-junction and no edge inside, most of its
+outline showing; the very last are the pairs that also take in the edge chains no fit was
+kept for and the parts of the chains cut at their junctions (:func:`last_resort_arcs`),
+through the rule and else its own last resorts (select_unobstructed, then select_rimmed).
+One face fitted twice is reported once (DUPLICATE_SHARE), nor are the top face's refits on
+other outlines too (MISFIT_SHARE), and a cylinder's far rim is not reported as a face
+(RIM_OFFSET_RANGE).
 
 When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
 (:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
 the chosen face's takes the choice instead (:func:`~stackpick_sim.vision.occlusion.
-select_resting_rimmed`): nothing may rest on a top object.
+select_resting_rimmed`): nothing may rest on a top object. And when another ellipse was cut
+short with nothing crossing it (:func:`~stackpick_sim.vision.occlusion.hidden_by_no_outline`:
+an occluder whose boundary shows no contrast), a face from pairs of the fitted pieces clearly
+nearer than the choice takes it (:func:`_nearer_arc_face`).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
 :class:`~stackpick_sim.vision.detection.Detection` (falsy with a reason on a miss) or, for
@@ -424,8 +430,9 @@ class TopObjectDetector:
 
     def _top_stage(self, found: _Found, cues: _Cues, clock: _Clock
                    ) -> tuple[list[MergedEllipse], TopChoice]:
-        """The top rule, then, when it chose a face, the rest test's correction, and when
-        it chose none, its fallbacks (:meth:`_fallbacks`)."""
+        """The top rule, then, when it chose a face, the rest test's correction and the
+        hidden-face check (see the module docstring), and when it chose none, its fallbacks
+        (:meth:`_fallbacks`)."""
         merged = found.merged
         choice = self._select([m.ellipse for m in merged], found, cues)
         if (choice.index is not None and cues.radius_of is not None
@@ -451,9 +458,10 @@ class TopObjectDetector:
     def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
                    cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
         """When no ellipse passed the top rule, in order, until one gives a face: the
-        unobstructed face, the contrast retry (and a clearly nearer face of arc pairs beside
-        its choice), a face with its own rim inside, arc pairs of the fitted pieces, the
-        retry's spare refit, arc pairs of every arc (see the module docstring)."""
+        unobstructed face (or a clearly nearer face of arc pairs), the contrast retry (and a
+        clearly nearer face of arc pairs beside its choice), a face with its own rim inside,
+        arc pairs of the fitted pieces, the retry's spare refit, arc pairs of every arc (see
+        the module docstring)."""
         limits, crop, gate, grad = self.config.limits, found.crop, found.gate, found.grad
         edge_pixels = (found.points, found.grads)
         spare: tuple[int, Ellipse, OcclusionEvidence] | None = None

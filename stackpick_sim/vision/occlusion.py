@@ -20,7 +20,8 @@ the camera intrinsics, the rule is also applied to side walls: a candidate whose
 wall runs under another candidate's face lies under it (:mod:`stackpick_sim.vision.
 wall_cover`). Given the colour image as well, a candidate whose reconstructed cylinder
 another candidate's touches from above (a lean on its side wall, below its face, shows no
-T-junction) lies under it (:mod:`stackpick_sim.vision.resting`).
+T-junction) lies under it (:mod:`stackpick_sim.vision.resting`); one face fitted twice shares
+that verdict.
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
