@@ -141,11 +141,16 @@ def test_last_pair_with_its_own_rim_inside_is_taken(monkeypatch: pytest.MonkeyPa
     _assert_missed(frame)
 
 
-def test_a_face_from_arc_pairs_clearly_nearer_than_a_contrast_refit_wins(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("seed", [3791, 30229])
+def test_a_face_from_arc_pairs_clearly_nearer_than_a_fallback_choice_wins(
+        seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     # Frame 3791: no fit passes the rule; the contrast refit of a lower, nearly whole face
     # passes, and the top face, which the merge never fitted, is ~4 cm nearer the camera.
-    frame = _chosen_top(3791)
+    # Frame 30229: the top face lies across two faces of its colour and shade, whose
+    # boundaries with it show no edge: it is never fitted, and a lower face it hides passes
+    # the unobstructed fallback (nothing crosses it); its fit on pairs of its arcs is ~2 cm
+    # nearer.
+    frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "_nearer_arc_face",
                         lambda merged, choice, *a, **k: (merged, choice))
     _assert_lower_chosen(frame)
@@ -187,18 +192,6 @@ def test_a_lean_found_on_one_fit_of_a_face_holds_for_its_other_fit(
     # 0.2 for the other fit).
     frame = _chosen_top(40091)
     monkeypatch.setattr(occlusion_module, "_shared_by_refits", lambda faces, under: under)
-    _assert_lower_chosen(frame)
-
-
-def test_a_face_from_arc_pairs_clearly_nearer_than_the_unobstructed_fallback_wins(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    # Frame 30229: the top face lies across two faces of its colour and shade, so their
-    # boundaries show no edge: it is never fitted, and the lower face it hides passes the
-    # unobstructed fallback (nothing crosses it); a fit on pairs of the top's arcs is ~2 cm
-    # nearer.
-    frame = _chosen_top(30229)
-    monkeypatch.setattr(detector_module, "_nearer_arc_face",
-                        lambda merged, choice, *a, **k: (merged, choice))
     _assert_lower_chosen(frame)
 
 
