@@ -1,7 +1,8 @@
-"""Pinned paper-scene frames (rendered by the simulator, with their ground truth)
-on which a detector step decides: the detector's choice is a true top face, and without the
-step it is a whole lower face that the top rests on, or no face at all; and a refit of the top
-face on a lower outline is not reported beside it."""
+"""Pinned paper-scene frames (rendered by the simulator, with their ground truth; one with
+both kinds grey) on which a detector step decides: the detector's choice is a true top face,
+and without the step it is a whole lower face that the top rests on, or no face at all; a
+refit of the top face on a lower outline is not reported beside it; no refit smaller than
+any face in the depth range is reported."""
 
 from __future__ import annotations
 
