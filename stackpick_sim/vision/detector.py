@@ -520,11 +520,14 @@ class TopObjectDetector:
                          ) -> tuple[list[MergedEllipse], TopChoice]:
         """A face of arc pairs clearly nearer than ``choice`` (:func:`_nearer_arc_face`),
         else ``choice``; unchanged without face radii. The arcs: with ``every_arc`` those of
-        :func:`last_resort_arcs` (a fallback's choice), else the fitted pieces alone (a
-        choice that passed the rule: ~10x cheaper)."""
+        :func:`last_resort_arcs` (a fallback's choice), else the fitted pieces that lie on
+        none of the faces the rule weighed (a choice that passed the rule; an unfitted face's
+        arcs are on no fitted face: ~20x cheaper)."""
         if cues.radius_of is None:
             return merged, choice
-        arc_chains, arcs = found.chains, list(range(len(found.pieces)))
+        weighed = {k for i in _weighed(choice) for k in merged[i].segments}
+        arc_chains, arcs = found.chains, [k for k in range(len(found.pieces))
+                                          if k not in weighed]
         if every_arc:
             arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
         arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
@@ -843,8 +846,7 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     and chosen."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
-    weighed = [chosen, *(merged[i].ellipse for i, ev in enumerate(choice.evidence)
-                         if i != choice.index and (not ev.occluded or unobstructed(ev)))]
+    weighed = [merged[i].ellipse for i in _weighed(choice)]
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
                                    shape, gate)
     passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
@@ -858,6 +860,14 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
         return merged, choice
     i = passed[nearest - 1]
     return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
+
+
+def _weighed(choice: TopChoice) -> list[int]:
+    """The chosen index (first), then the other ellipses the top rule's depth test heard: those
+    that passed, or failed on support alone with nothing crossing them."""
+    assert choice.index is not None
+    return [choice.index, *(i for i, ev in enumerate(choice.evidence)
+                            if i != choice.index and (not ev.occluded or unobstructed(ev)))]
 
 
 def _distinct(indices: list[int], ellipses: list[Ellipse], choice: TopChoice) -> list[int]:
