@@ -211,9 +211,11 @@ class TopParams(Section):
       and no edge inside is taken.
     - ``contrast``: faces that failed on support or interior edges only are refitted on the
       edge contrast (a faint same-colour boundary the edge map missed), and the rule re-run.
-    - ``nearer_arcs``: after a passing contrast refit, a face of arc pairs the merge never
-      joined that passes the rule and lies clearly nearer than that refit takes the choice (a
-      top face the merge never fitted beside a lower, nearly whole face of its colour).
+    - ``nearer_arcs``: after the ``unobstructed`` choice or a passing contrast refit, a face
+      of arc pairs the merge never joined that passes the rule and lies clearly nearer than
+      that choice takes it (a top face the merge never fitted beside a lower, nearly whole
+      face of its colour, or across faces of its colour and shade that hide part of its
+      outline without a visible boundary).
     - ``rimmed``: a whole face whose interior edges all lie in a band along its outline (its
       own faint rim inside a same-colour lower face's sliver that its fit took in).
     - ``arc_pairs``: a face the merge never fitted, from pairs of the fitted arcs.
@@ -226,6 +228,8 @@ class TopParams(Section):
     """
 
     SECTION: ClassVar[str] = "top"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "hidden_min_support": (0.0, 1.0, "")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -234,6 +238,17 @@ class TopParams(Section):
     """When an ellipse passes the rule, a whole face that failed on its own rim inside its fit
     and whose reconstructed cylinder rests on the chosen face's takes the choice instead:
     nothing may rest on a top object (needs the object kinds' colours and heights)."""
+    hidden_check: bool = True
+    """When an ellipse passes the rule and another was cut short with nothing crossing it (no
+    T-junction, no edge inside, support at least ``hidden_min_support``), a face from pairs
+    of the fitted pieces on none of the faces the rule weighed that lies clearly nearer takes
+    the choice: an occluder whose outline shows runs into the face it covers, so a face cut
+    short by nothing lies under a face of its colour and shade the merge never fitted, which
+    can be the top (needs the object kinds' colours)."""
+    hidden_min_support: float = 0.6
+    """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
+    hidden-face check: a face at least half visible, as the scoring counts faces (far rims
+    and arcs of two outlines fitted together show about half theirs)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

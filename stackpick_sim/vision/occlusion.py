@@ -20,7 +20,8 @@ the camera intrinsics, the rule is also applied to side walls: a candidate whose
 wall runs under another candidate's face lies under it (:mod:`stackpick_sim.vision.
 wall_cover`). Given the colour image as well, a candidate whose reconstructed cylinder
 another candidate's touches from above (a lean on its side wall, below its face, shows no
-T-junction) lies under it (:mod:`stackpick_sim.vision.resting`).
+T-junction) lies under it (:mod:`stackpick_sim.vision.resting`); one face fitted twice shares
+that verdict.
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
@@ -104,6 +105,9 @@ SUPPORT_TIE = 0.02
 #: edge inside (on the same frames), so this evidence is used only when nothing passes, or
 #: with the DEPTH_TIE_M margin. Placeholder chosen on those frames, not tuned further.
 FALLBACK_MIN_SUPPORT = 0.75
+
+#: Default of TopParams.hidden_min_support (see there).
+HIDDEN_MIN_SUPPORT = 0.6
 
 #: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
 #: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
@@ -418,6 +422,18 @@ def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     return max(ok, key=lambda i: evidence[i].support, default=None)
 
 
+def hidden_by_no_outline(choice: TopChoice, min_support: float = HIDDEN_MIN_SUPPORT) -> bool:
+    """Whether an ellipse besides the chosen one failed the rule on support alone (at least
+    ``min_support``, below TOP_MIN_SUPPORT) with no T-junction end and no edge pixel
+    inside: the failure class *top face hidden by same-colour neighbours*. An occluder whose
+    outline shows runs into the face it covers (interior edges, T-ends); a face cut short with
+    nothing crossing it lies under a face whose boundary with it shows no contrast, a face of
+    its colour and shade that the merge may never have fitted, which can be the top."""
+    return any(i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
+               and min_support <= ev.support < TOP_MIN_SUPPORT
+               for i, ev in enumerate(choice.evidence))
+
+
 def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
                      depth_px: float) -> list[int]:
     """Per ellipse: how many edge pixels (M, 2) (integer u, v >= 0) lie inside it by more
@@ -564,19 +580,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     no candidate, and a whole face that holds only such markings is one
     (:mod:`~stackpick_sim.vision.markings`).
     """
-    gradients = edges if isinstance(edges, EdgeImage) else None
-    edge_map = edges.edges if isinstance(edges, EdgeImage) else edges
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
-    binary = None
-    if gradients is None or edge_points is None:
-        binary = (np.asarray(edge_map) > 0).astype(np.uint8)
-    support = None if gradients is not None or binary is None else support_map(binary)
-    if edge_points is None:
-        assert binary is not None
-        vv, uu = np.nonzero(binary)
-        edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
-    evidence = evidence_all(ellipses, edge_points, support, gradients)
+    evidence, edge_points = _evidence_and_pixels(ellipses, edges, edge_points)
     inner, marked = _markings(ellipses, evidence, edge_points, markings, radius_of)
     candidates = [i for i, ev in enumerate(evidence)
                   if (not ev.occluded or i in marked) and i not in inner]
@@ -587,26 +593,115 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
+    cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
+                 colour_of=colour_of, belt=belt)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
-    if intrinsics is not None and len(pool) > 1:
-        under = under_another([ellipses[i] for i in pool], intrinsics, radius_of, cache=bands)
-        free = [i for i, u in zip(pool, under, strict=True) if not u]
-        pool = free or pool
-        candidates = [i for i in candidates if i in free] or candidates
-    if (intrinsics is not None and radius_of is not None and height_of is not None
-            and image is not None and image.ndim == 3 and len(pool) > 1):
-        # A leaning object shows no T-junction on the face it leans on (see resting). When
-        # every passing face has an object resting on it, the pool's faces left (failed on
-        # support alone) are above them (e.g. a top face whose arc over a lower face of its
-        # own colour does not show).
-        under = rests_on([ellipses[i] for i in pool], intrinsics, radius_of, height_of,
-                         image, colour_of=colour_of, cache=bands, belt=belt)
-        free = [i for i, u in zip(pool, under, strict=True) if not u]
-        pool = free or pool
-        candidates = [i for i in candidates if i in free] or free or candidates
-    if intrinsics is not None and radius_of is not None and len(pool) > 1:
-        nearest = clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
-        if nearest is not None:
-            return TopChoice(index=pool[nearest], evidence=evidence)
+    pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
+    pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
+    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of)
+    if nearest is not None:
+        return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)
+
+
+def _evidence_and_pixels(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
+                         edge_points: NDArray[np.float64] | None
+                         ) -> tuple[tuple[OcclusionEvidence, ...], NDArray[np.float64]]:
+    """:func:`evidence_all` of ``ellipses`` over ``edges`` (an edge map, or an EdgeImage:
+    support from the edge contrast), and the edge map's pixels (M, 2) (u, v) in
+    ``np.nonzero`` order (``edge_points`` when given)."""
+    gradients = edges if isinstance(edges, EdgeImage) else None
+    support = None
+    if gradients is None or edge_points is None:
+        binary = (np.asarray(edges.edges if isinstance(edges, EdgeImage) else edges) > 0
+                  ).astype(np.uint8)
+        support = None if gradients is not None else support_map(binary)
+        if edge_points is None:
+            vv, uu = np.nonzero(binary)
+            edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
+    return evidence_all(ellipses, edge_points, support, gradients), edge_points
+
+
+def _without_under(pool: list[int], candidates: list[int], under: list[bool],
+                   free_as_candidates: bool) -> tuple[list[int], list[int]]:
+    """The ``pool`` and ``candidates`` (indices) without those of the pool a test found
+    ``under`` another (parallel to ``pool``), each unchanged when that leaves it empty. With
+    ``free_as_candidates``, candidates all found under another give way to the pool's faces
+    left (the rest test: when every passing face has an object resting on it, the faces that
+    failed on support alone are above them, e.g. a top face whose arc over a lower face of its
+    own colour does not show)."""
+    free = [i for i, u in zip(pool, under, strict=True) if not u]
+    kept = [i for i in candidates if i in free]
+    if not kept and free_as_candidates:
+        kept = free
+    return free or pool, kept or candidates
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Cues:
+    """What :func:`select_top` reads besides the ellipses and edges (see its docstring)."""
+
+    intrinsics: CameraIntrinsics | None
+    radius_of: Callable[[Ellipse], float | None] | None
+    height_of: Callable[[float], float | None] | None
+    image: NDArray[np.uint8] | None
+    colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
+    belt: NDArray[np.float64] | None
+
+
+def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
+                cues: _Cues, bands: BandCache) -> tuple[list[int], list[int]]:
+    """``pool`` and ``candidates`` without the faces whose side wall runs under another
+    pool face's (:func:`~stackpick_sim.vision.wall_cover.under_another`, its wall bands kept
+    in ``bands``); unchanged without intrinsics or rivals."""
+    if cues.intrinsics is None or len(pool) < 2:
+        return pool, candidates
+    under = under_another([ellipses[i] for i in pool], cues.intrinsics, cues.radius_of,
+                          cache=bands)
+    return _without_under(pool, candidates, under, False)
+
+
+def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
+               cues: _Cues, bands: BandCache) -> tuple[list[int], list[int]]:
+    """``pool`` and ``candidates`` without the faces another pool face's cylinder rests on
+    (:func:`~stackpick_sim.vision.resting.rests_on`: a leaning object shows no T-junction on
+    the face it leans on; the cover test's wall ``bands`` reused); unchanged without the
+    intrinsics, radii, heights and an RGB image, or without rivals."""
+    if (cues.intrinsics is None or cues.radius_of is None or cues.height_of is None
+            or cues.image is None or cues.image.ndim != 3 or len(pool) < 2):
+        return pool, candidates
+    faces = [ellipses[i] for i in pool]
+    under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
+                     colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+    return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
+
+
+def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]:
+    """``under`` (per face) shared by every fit of one face: the failure class *rest verdict
+    on one of two fits*. The top rule's pool can hold one face fitted twice (two arcs the
+    merge kept apart, refined to outlines a fraction of a pixel apart); where a leaning
+    cylinder's wall meets the face's rim edge to edge, the contact normal turns fast with the
+    fit (measured on rendered paper-scene frames: 0.8 up for one fit, 0.2 for the other), so
+    the rest test can find the lean on one fit only. Whole faces of two objects do not
+    overlap, so two pool faces one of which holds the other's centre are one face
+    (:func:`clearly_nearest` treats them alike): when an object rests on either fit, it
+    rests on the face."""
+    out = list(under)
+    for i, face in enumerate(faces):
+        if under[i]:
+            for j, other in enumerate(faces):
+                if not out[j] and (holds_centre(face, other) or holds_centre(other, face)):
+                    out[j] = True
+    return out
+
+
+def _clearly_nearest_of(ellipses: Sequence[Ellipse], pool: list[int],
+                        intrinsics: CameraIntrinsics | None,
+                        radius_of: Callable[[Ellipse], float | None] | None) -> int | None:
+    """The index (of ``pool``'s) of the face clearly nearest the camera
+    (:func:`clearly_nearest`), or None: without intrinsics or radii, or with one face."""
+    if intrinsics is None or radius_of is None or len(pool) < 2:
+        return None
+    nearest = clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
+    return None if nearest is None else pool[nearest]

@@ -26,12 +26,18 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.pose import MIN_BAND_SAMPLES, choose_by_band, unit_circle_poses
+from stackpick_sim.vision.pose import (
+    MIN_BAND_SAMPLES,
+    CirclePose,
+    choose_by_band,
+    unit_circle_poses,
+)
 from stackpick_sim.vision.wall import (
     WALL_DEPTH_FRACTIONS,
     WALL_RIM_POINTS,
@@ -139,65 +145,129 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
     computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`); ``belt``: the bare
     belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`)."""
-    n = len(faces)
-    under = [False] * n
-    kinds: list[tuple[int, float, float]] = []  # (face, radius, height) of the known kinds
+    under = [False] * len(faces)
+    bodies = _bodies(faces, intrinsics, radius_of, height_of)
+    if bodies is None:
+        return under
+    near, apart = _touching_pairs(bodies)
+    if not near:
+        return under
+    picks = _solution_picks(faces, bodies, sorted({p for pq in near for p in pq}),
+                            intrinsics, image, colour_of, cache, belt)
+    # The chosen solutions' pairs not already apart along the coarse directions.
+    todo = [(p, q) for p, q in near if p in picks and q in picks
+            and not apart[(p, q)][picks[p]][picks[q]]]
+    for _upper, lower in _resting_pairs(bodies, picks, todo):
+        under[bodies.kinds[lower][0]] = True
+    return under
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Bodies:
+    """Both pose solutions' cylinders of the faces of known kind: ``kinds`` (face index,
+    radius m, height m), ``units`` each face's unit-radius pose solutions, and per solution
+    (rows 2p, 2p + 1: ``kinds[p]``'s) the face centre (2P, 3) m, inward unit axis (2P, 3),
+    radius (2P,) m and height (2P,) m, camera frame."""
+
+    kinds: list[tuple[int, float, float]]
+    units: list[tuple[CirclePose, CirclePose]]
+    centres: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    radii: NDArray[np.float64]
+    heights: NDArray[np.float64]
+
+
+def _bodies(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+            radius_of: Callable[[Ellipse], float | None],
+            height_of: Callable[[float], float | None]) -> _Bodies | None:
+    """The cylinders of the faces whose radius and height are known, or None for fewer than
+    two such faces."""
+    kinds = _known_kinds(faces, radius_of, height_of)
+    if len(kinds) < 2:
+        return None
+    units = [unit_circle_poses(faces[i], intrinsics) for i, _, _ in kinds]
+    return _Bodies(
+        kinds=kinds, units=units,
+        centres=np.array([s.centre_cam * radius for (_, radius, _), unit
+                          in zip(kinds, units, strict=True) for s in unit]),
+        normals=np.array([s.normal_cam for unit in units for s in unit]),
+        radii=np.array([radius for _, radius, _ in kinds for _ in range(2)]),
+        heights=np.array([height for _, _, height in kinds for _ in range(2)]))
+
+
+def _known_kinds(faces: Sequence[Ellipse], radius_of: Callable[[Ellipse], float | None],
+                 height_of: Callable[[float], float | None]) -> list[tuple[int, float, float]]:
+    """(face index, radius m, height m) of each face whose kind's radius and height are
+    known."""
+    kinds: list[tuple[int, float, float]] = []
     for i, face in enumerate(faces):
         radius = radius_of(face)
         height = None if radius is None else height_of(radius)
         if radius is not None and height is not None:
             kinds.append((i, radius, height))
-    if len(kinds) < 2:
-        return under
-    # Both pose solutions' bodies of each face (rows 2p, 2p + 1: face kinds[p]'s).
-    units = [unit_circle_poses(faces[i], intrinsics) for i, _, _ in kinds]
-    centres = np.array([s.centre_cam * radius for (_, radius, _), unit in zip(kinds, units,
-                                                                              strict=True)
-                        for s in unit])
-    normals = np.array([s.normal_cam for unit in units for s in unit])
-    radii = np.array([radius for _, radius, _ in kinds for _ in range(2)])
-    heights = np.array([height for _, _, height in kinds for _ in range(2)])
-    # Cost gate, before the wall bands choose the solutions: a pair of faces apart along one
-    # of the coarse directions whichever their solutions (all four combinations) does not
-    # touch (on rendered paper-scene frames about half the calls have no other pair).
-    face_pairs = [(p, q) for p in range(len(kinds)) for q in range(p + 1, len(kinds))]
+    return kinds
+
+
+def _touching_pairs(bodies: _Bodies) -> tuple[list[tuple[int, int]],
+                                              dict[tuple[int, int], list[list[bool]]]]:
+    """The cost gate, before the wall bands choose the solutions: the pairs (p, q), p < q,
+    of ``bodies.kinds`` that may touch, and for each, whether each combination of their
+    solutions ([j][k]: p's j, q's k) is apart along one of the coarse directions by more
+    than CONTACT_GAP_M (pairs apart whichever their solutions do not touch; on rendered
+    paper-scene frames about half the calls have no other pair)."""
+    n = len(bodies.kinds)
+    face_pairs = [(p, q) for p in range(n) for q in range(p + 1, n)]
     combos = np.array([(2 * p + j, 2 * q + k) for p, q in face_pairs for j in (0, 1)
                        for k in (0, 1)], np.int64)
-    apart = (_separations(centres, normals, radii, heights, combos,
+    apart = (_separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights, combos,
                           *_direction_set(coarse=True)).max(axis=1)
-             > CONTACT_GAP_M).reshape(-1, 2, 2)
-    near = [pq for pq, gap in zip(face_pairs, apart.tolist(), strict=True)
-            if not all(gap[0] + gap[1])]
-    if not near:
-        return under
-    involved = sorted({p for pq in near for p in pq})
+             > CONTACT_GAP_M).reshape(-1, 2, 2).tolist()
+    gaps = dict(zip(face_pairs, apart, strict=True))
+    return [pq for pq in face_pairs if not all(gaps[pq][0] + gaps[pq][1])], gaps
+
+
+def _solution_picks(faces: Sequence[Ellipse], bodies: _Bodies, involved: list[int],
+                    intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
+                    colour_of: Callable[[Ellipse], NDArray[np.float64]] | None,
+                    cache: BandCache | None, belt: NDArray[np.float64] | None
+                    ) -> dict[int, int]:
+    """The pose solution (0 or 1) of each ``involved`` body (indices into ``bodies.kinds``)
+    its wall bands favour (:func:`~stackpick_sim.vision.pose.choose_by_band`); a face seen
+    square on (no band shows) takes the smaller tilt; a face whose bands cannot tell has
+    none."""
     picks: dict[int, int] = {}
-    evidence = wall_evidences_of([faces[kinds[p][0]] for p in involved], intrinsics, image,
-                                 colour_of, cache, belt)
+    evidence = wall_evidences_of([faces[bodies.kinds[p][0]] for p in involved],
+                                 intrinsics, image, colour_of, cache, belt)
     for p, bands in zip(involved, evidence, strict=True):
         pick = choose_by_band(bands)
         if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
             # smaller tilt, as the pose takes (a flat face another object leans on).
-            pick = int(np.argmax([float(s.normal_cam[2]) for s in units[p]]))
+            pick = int(np.argmax([float(s.normal_cam[2]) for s in bodies.units[p]]))
         if pick is not None:
             picks[p] = pick
-    # The chosen solutions' pairs not already apart along the coarse directions.
-    todo = [(p, q) for p, q in near if p in picks and q in picks
-            and not apart[face_pairs.index((p, q)), picks[p], picks[q]]]
+    return picks
+
+
+def _resting_pairs(bodies: _Bodies, picks: dict[int, int], todo: list[tuple[int, int]]
+                   ) -> list[tuple[int, int]]:
+    """Of the pairs ``todo`` (with their ``picks``' solutions): (upper, lower) for each
+    pair in contact (within CONTACT_GAP_M .. CONTACT_PENETRATION_M) whose contact normal
+    points up by MIN_REST_UP or more, one way or the other."""
     if not todo:
-        return under
-    sep, normal = contact(centres, normals, radii, heights,
-                          np.array([(2 * p + picks[p], 2 * q + picks[q]) for p, q in todo],
-                                   np.int64))
+        return []
+    sep, normal = contact(bodies.centres, bodies.normals, bodies.radii, bodies.heights,
+                         np.array([(2 * p + picks[p], 2 * q + picks[q]) for p, q in todo],
+                                  np.int64))
     up = normal @ UP_CAM
     touching = (sep <= CONTACT_GAP_M) & (sep >= -CONTACT_PENETRATION_M)
+    out = []
     for (p, q), t, u in zip(todo, touching.tolist(), up.tolist(), strict=True):
-        if t and u >= MIN_REST_UP:  # p rests on q
-            under[kinds[q][0]] = True
+        if t and u >= MIN_REST_UP:
+            out.append((p, q))
         elif t and u <= -MIN_REST_UP:
-            under[kinds[p][0]] = True
-    return under
+            out.append((q, p))
+    return out
 
 
 def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
