@@ -408,7 +408,7 @@ class TopObjectDetector:
         markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
                                depth_ratio=self.config.marking_depth_ratio,
                                min_edge_share=self.config.marking_min_edge_share,
-                               margin_px=INTERIOR_MARGIN_PX)
+                               margin_px=INTERIOR_MARGIN_PX, image=rgb)
         return _Cues(k_crop=k_crop, rgb=rgb,
                      belt=None if found.roi.belt is None else np.array(found.roi.belt),
                      colour_of=colour_of, radius_of=radius_of,

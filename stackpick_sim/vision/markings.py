@@ -22,7 +22,19 @@ and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
 * one that passes the top rule itself, or lies wholly inside it and reads nearer, is a face
   on it: the face is under it;
 * one that fails the rule and runs across the face's whole outline is a fit on its markings
-  and outline together, when nothing else lies on the face.
+  and outline together, when nothing else lies on the face; but when it shows whole itself
+  and the face's rim band shows two surfaces, one inside it and one outside it (their colours
+  apart in hue, SURFACE_CHROMA_TOLERANCE, or in brightness, SURFACE_BRIGHTNESS_RANGE), the
+  face's outline runs over another surface beyond it: the outer ellipse is no face but a fit
+  of the inner face's outline with an outline beyond it (its own cylinder's wall
+  silhouette, a lower face's edge), and it is judged no further.
+
+Failure class of the last: *a fit round a face and its wall*. A tilted cylinder's face
+outline runs on into its wall's silhouette; the ellipse fitted to the face's far arc and the
+silhouette holds the whole face and reads nearer than it (larger), and without the colour
+test it takes the face for its marking. A face's rim band is its own surface all round (a
+printed stripe or word crossing it is a small share of it: the medians of the two parts
+agree).
 
 Markings across a face (a word, a stripe, a logo, a can end's rings) leave interior edges
 along about its perimeter or more; a plain face that fails on interior edges shows a stray
@@ -46,7 +58,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+from numpy.typing import NDArray
+
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.wall import CHROMA_TOLERANCE, column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
     from stackpick_sim.vision.occlusion import OcclusionEvidence
@@ -58,6 +74,20 @@ INSIDE_SAMPLES = 32
 #: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
 #: most of this band; a can end's rim (its outer 12 %) lies on it.
 RIM_SAMPLE_SCALE = 0.94
+#: Two parts of a face's rim band (inside and outside an inner whole face) are two surfaces
+#: when their median colours' chromaticities (r, g, b over their sum) differ by more than
+#: this (L1): the wall test's tolerance between a face and its own wall
+#: (:data:`~stackpick_sim.vision.wall.CHROMA_TOLERANCE`).
+SURFACE_CHROMA_TOLERANCE = CHROMA_TOLERANCE
+#: ...or when the outer part's brightness (channel sum) over the inner part's lies outside
+#: this range: a cylinder's wall under the ring light is darker than its face (wall.py:
+#: about tan(tilt) of it plus ambient light), and a face's own rim band, printed or
+#: tinplate, keeps within about 0.75-1.1 of itself round it (vignetting, shading, artwork
+#: at the rim; measured on rendered realistic-scene frames).
+SURFACE_BRIGHTNESS_RANGE = (0.7, 1.0 / 0.7)
+#: Rim band samples of the two-surface test, and how many each part needs at least.
+BAND_SAMPLES = 64
+MIN_PART_SAMPLES = 4
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,13 +98,16 @@ class MarkingTest:
     least this multiple of the face's is a marking (ratio); ``min_edge_share``: the interior
     edge pixels, per pixel of its perimeter, a face holds at least for them to be read as
     markings across it; ``margin_px``: how far (px)
-    inside the face a marking's whole outline lies (the margin of the interior-edge count)."""
+    inside the face a marking's whole outline lies (the margin of the interior-edge count);
+    ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
+    (:func:`two_surfaces`; None: no such test)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
     depth_ratio: float
     min_edge_share: float
     margin_px: float
+    image: NDArray[np.uint8] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,9 +175,37 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             own.append(i)
         elif passes or wholly:
             blocked = True  # a face of its own on it, or an object nearer than it
+        elif (test.image is not None and whole_with_edges_inside(evidence[i])
+              and two_surfaces(face, e, test.image, test.margin_px)):
+            blocked = True  # a fit round the whole face e and another surface
         else:
             loose.append(i)  # a failed fit across its whole outline: no object's
     return own, loose, blocked
+
+
+def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
+                 margin_px: float) -> bool:
+    """Whether ``face``'s rim band (BAND_SAMPLES points at RIM_SAMPLE_SCALE) shows two
+    surfaces in the (H, W, 3) RGB ``image``: the median colour of its points more than
+    ``margin_px`` outside ``inner`` and that of those more than ``margin_px`` inside it differ
+    in chromaticity by more than SURFACE_CHROMA_TOLERANCE, or in brightness by a ratio
+    outside SURFACE_BRIGHTNESS_RANGE (False with fewer than MIN_PART_SAMPLES either side)."""
+    band = Ellipse.of(face.cx, face.cy, RIM_SAMPLE_SCALE * face.a, RIM_SAMPLE_SCALE * face.b,
+                      face.angle_deg).points(BAND_SAMPLES)
+    within = inner.inside(band, margin_px)
+    beyond = ~inner.inside(band, -margin_px)
+    if min(int(within.sum()), int(beyond.sum())) < MIN_PART_SAMPLES:
+        return False
+    h, w = image.shape[:2]
+    pix = np.rint(band).astype(np.int64)
+    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
+    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
+    own = column_median(colours[within])
+    other = column_median(colours[beyond])
+    own_sum, other_sum = max(float(own.sum()), 1e-9), max(float(other.sum()), 1e-9)
+    chroma = float(np.abs(own / own_sum - other / other_sum).sum())
+    lo, hi = SURFACE_BRIGHTNESS_RANGE
+    return chroma > SURFACE_CHROMA_TOLERANCE or not lo <= other_sum / own_sum <= hi
 
 
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
