@@ -408,7 +408,8 @@ class TopObjectDetector:
         markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
                                depth_ratio=self.config.marking_depth_ratio,
                                min_edge_share=self.config.marking_min_edge_share,
-                               margin_px=INTERIOR_MARGIN_PX, image=rgb)
+                               margin_px=INTERIOR_MARGIN_PX, image=rgb,
+                               gradients=found.grad)
         return _Cues(k_crop=k_crop, rgb=rgb,
                      belt=None if found.roi.belt is None else np.array(found.roi.belt),
                      colour_of=colour_of, radius_of=radius_of,
@@ -427,6 +428,9 @@ class TopObjectDetector:
         it chose none, its fallbacks (:meth:`_fallbacks`)."""
         merged = found.merged
         choice = self._select([m.ellipse for m in merged], found, cues)
+        if choice.index is None or choice.evidence[choice.index].occluded:
+            # None passed the rule outright: faces with markings the merge never fitted.
+            merged, choice = self._marked_arc_faces(found, merged, choice, cues)
         if (choice.index is not None and cues.radius_of is not None
                 and cues.height_of is not None and cues.rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
@@ -440,6 +444,33 @@ class TopObjectDetector:
             merged, choice = self._fallbacks(found, merged, choice, cues, clock)
         clock.lap("top")
         return merged, choice
+
+    def _marked_arc_faces(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
+                          cues: _Cues) -> tuple[list[MergedEllipse], TopChoice]:
+        """When no ellipse passed the top rule outright (none did, or a face with markings
+        was chosen, :mod:`~stackpick_sim.vision.markings`): the top rule again over the
+        ellipses and those of pairs of every arc (:func:`_arc_pair_faces`; the merge joins
+        no arcs across a face's artwork or a can end's rings, so a printed or tinplate face
+        is often fitted only on arc pairs). A face with markings it chooses takes the choice
+        (an arc pair's ellipse is then added to ``merged``); otherwise both come back
+        unchanged."""
+        if cues.markings.image is None:
+            return merged, choice
+        arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
+        arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
+        extra, _ = _arc_pair_faces(arcs, arc_chains, found.grad, found.points, found.grads,
+                                   found.crop, found.gate)
+        if not extra:
+            return merged, choice
+        n = len(merged)
+        both = self._select([m.ellipse for m in merged] + extra, found, cues)
+        if both.index is None or not both.evidence[both.index].occluded:
+            return merged, choice
+        mine = TopChoice(index=None, evidence=both.evidence[:n])
+        if both.index < n:
+            return merged, replace(mine, index=both.index)
+        return _with_face(merged, mine, extra[both.index - n], both.evidence[both.index],
+                          found.chains, found.grad)
 
     def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
                    cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:

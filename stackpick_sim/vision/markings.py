@@ -62,6 +62,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
+from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.wall import CHROMA_TOLERANCE, column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
@@ -85,6 +87,12 @@ SURFACE_CHROMA_TOLERANCE = CHROMA_TOLERANCE
 #: tinplate, keeps within about 0.75-1.1 of itself round it (vignetting, shading, artwork
 #: at the rim; measured on rendered realistic-scene frames).
 SURFACE_BRIGHTNESS_RANGE = (0.7, 1.0 / 0.7)
+#: Where two whole faces with markings cross, the upper one's outline shows edge contrast
+#: along at least this share of its run over the lower one, and the lower one's hidden
+#: outline along less (a hidden arc still picks up contrast where the upper face's artwork
+#: or rings cross it; the top rule's fallback reads a face's gaps the same way,
+#: occlusion.FALLBACK_MIN_SUPPORT).
+CROSSING_MIN_SUPPORT = 0.75
 #: Rim band samples of the two-surface test, and how many each part needs at least.
 BAND_SAMPLES = 64
 MIN_PART_SAMPLES = 4
@@ -100,7 +108,8 @@ class MarkingTest:
     markings across it; ``margin_px``: how far (px)
     inside the face a marking's whole outline lies (the margin of the interior-edge count);
     ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
-    (:func:`two_surfaces`; None: no such test)."""
+    (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
+    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
@@ -108,6 +117,7 @@ class MarkingTest:
     min_edge_share: float
     margin_px: float
     image: NDArray[np.uint8] | None = None
+    gradients: EdgeImage | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -166,7 +176,8 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
         passes = not evidence[i].occluded
         if not (e.a < face.a and holds_centre(face, e)):
             # A face of its own reaching into it lies on it.
-            blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
+            blocked = blocked or (_reaches_into(e, face, test.margin_px) and (
+                passes or _crosses_over(e, evidence[i], face, test)))
             continue
         r = None if radius_of is None else radius_of(e)
         farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
@@ -206,6 +217,30 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     chroma = float(np.abs(own / own_sum - other / other_sum).sum())
     lo, hi = SURFACE_BRIGHTNESS_RANGE
     return chroma > SURFACE_CHROMA_TOLERANCE or not lo <= other_sum / own_sum <= hi
+
+
+def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
+                  test: MarkingTest) -> bool:
+    """Whether ``other``, a whole face that failed the rule on interior edges alone (its
+    ``evidence``), crossing ``face`` (neither holds the other's centre), lies on it: where two
+    faces overlap, the upper one's outline runs on as an edge across the lower one, whose own
+    outline is hidden under it. So ``other`` lies on ``face`` when its outline samples
+    inside ``face`` (by ``margin_px``) show consistent edge contrast
+    (:mod:`~stackpick_sim.vision.contrast`) along at least CROSSING_MIN_SUPPORT of them and
+    ``face``'s samples inside ``other`` along less, each with at least MIN_PART_SAMPLES
+    samples there (False without the ``gradients``)."""
+    if (test.gradients is None or not whole_with_edges_inside(evidence)
+            or holds_centre(other, face) or holds_centre(face, other)):
+        return False
+    lines = outlines([other, face])
+    shown = contrast_profiles(lines, test.gradients) >= contrast_threshold(test.gradients)
+    split = int(lines.offsets[1])
+    over = face.inside(lines.points[:split], test.margin_px)
+    under = other.inside(lines.points[split:], test.margin_px)
+    if min(int(over.sum()), int(under.sum())) < MIN_PART_SAMPLES:
+        return False
+    return (float(shown[:split][over].mean()) >= CROSSING_MIN_SUPPORT
+            > float(shown[split:][under].mean()))
 
 
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
