@@ -430,7 +430,7 @@ class TopObjectDetector:
         choice = self._select([m.ellipse for m in merged], found, cues)
         if choice.index is None or choice.evidence[choice.index].occluded:
             # None passed the rule outright: faces with markings the merge never fitted.
-            merged, choice = self._marked_arc_faces(found, merged, choice, cues)
+            merged, choice = self._marked_arc_faces(found, merged, choice, cues, clock)
         if (choice.index is not None and cues.radius_of is not None
                 and cues.height_of is not None and cues.rgb is not None):
             # A whole lower face that a top face rests on, that face's fit taking in a
@@ -446,16 +446,20 @@ class TopObjectDetector:
         return merged, choice
 
     def _marked_arc_faces(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
-                          cues: _Cues) -> tuple[list[MergedEllipse], TopChoice]:
+                          cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
         """When no ellipse passed the top rule outright (none did, or a face with markings
-        was chosen, :mod:`~stackpick_sim.vision.markings`): the top rule again over the
-        ellipses and those of pairs of every arc (:func:`_arc_pair_faces`; the merge joins
-        no arcs across a face's artwork or a can end's rings, so a printed or tinplate face
-        is often fitted only on arc pairs). A face with markings it chooses takes the choice
-        (an arc pair's ellipse is then added to ``merged``); otherwise both come back
-        unchanged."""
-        if cues.markings.image is None:
+        was chosen, :mod:`~stackpick_sim.vision.markings`) and some ellipse holds markings
+        across it (interior edges along ``marking_min_edge_share`` of its perimeter; on plain
+        faces the fallbacks decide, at no extra cost): the top rule again over the ellipses
+        and those of pairs of every arc (:func:`_arc_pair_faces`; the merge joins no arcs
+        across a face's artwork or a can end's rings, so a printed or tinplate face is often
+        fitted only on arc pairs). A face with markings it chooses takes the choice (an arc
+        pair's ellipse is then added to ``merged``); otherwise both come back unchanged."""
+        test = cues.markings
+        if test.image is None or not any(ev.interior_edge_px >= test.min_edge_share
+                                         * ev.perimeter_px for ev in choice.evidence):
             return merged, choice
+        clock.check("top")
         arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
         arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
         extra, _ = _arc_pair_faces(arcs, arc_chains, found.grad, found.points, found.grads,
@@ -469,8 +473,12 @@ class TopObjectDetector:
         mine = TopChoice(index=None, evidence=both.evidence[:n])
         if both.index < n:
             return merged, replace(mine, index=both.index)
-        return _with_face(merged, mine, extra[both.index - n], both.evidence[both.index],
-                          found.chains, found.grad)
+        face = extra[both.index - n]
+        if choice.index is not None and (holds_centre(face, chosen := merged[choice.index]
+                                                      .ellipse) or holds_centre(chosen, face)):
+            return merged, choice  # the chosen face refitted on arc pairs: the merge's fit
+        return _with_face(merged, mine, face, both.evidence[both.index], found.chains,
+                          found.grad)
 
     def _fallbacks(self, found: _Found, merged: list[MergedEllipse], choice: TopChoice,
                    cues: _Cues, clock: _Clock) -> tuple[list[MergedEllipse], TopChoice]:
