@@ -18,6 +18,12 @@ junctions (:func:`last_resort_arcs`), through the rule and else its own last res
 (DUPLICATE_SHARE), nor are the top face's refits on other outlines too (MISFIT_SHARE), and a
 cylinder's far rim is not reported as a face (RIM_OFFSET_RANGE).
 
+When no ellipse passes the rule outright (none does, or a face with markings is chosen,
+:mod:`~stackpick_sim.vision.markings`) and some face holds markings across it, the faces with
+markings fitted on pairs of arcs join the rule first (:meth:`TopObjectDetector.
+_marked_arc_faces`): the merge joins no arcs across a printed face's artwork or a can end's
+rings.
+
 When an ellipse does pass the rule, a whole face that failed on its own rim inside its fit
 (:func:`~stackpick_sim.vision.occlusion.rim_only`) and whose reconstructed cylinder rests on
 the chosen face's takes the choice instead (:func:`~stackpick_sim.vision.occlusion.

@@ -41,14 +41,22 @@ along about its perimeter or more; a plain face that fails on interior edges sho
 edge entering it (an occluder's, where the occluder's own fit is missing), a fraction of its
 perimeter. So only faces with at least ``min_edge_share`` interior edge pixels per perimeter
 pixel are judged. A whole face that fails the rule on interior edges alone, with no face on
-it and no other
-ellipse that passes the rule reaching into it, has only its own markings inside: it is a
+it and no other face of its own reaching into it, has only its own markings inside: it is a
 candidate, and the ellipses of the third kind are no candidates either. (A face whose interior
 edges all lie in its rim band is left to the rule's rim fallbacks: :func:`~stackpick_sim.
 vision.occlusion.rim_only`.)
 
-The tests read only ellipses, their evidence and the faces' colours (a few pixels each): no
-image pass (cheap).
+A face of its own reaching into it is one that passes the rule, or a whole face with markings
+crossing it (neither holds the other's centre) whose outline runs on across it as an edge
+while its own outline under that face is hidden (CROSSING_MIN_SUPPORT). Failure class: *a
+lower lid fitted whole*: where a printed lid lies across another of its kind, the lower one's
+ellipse (fitted on its visible arcs) shows no T-junction, its hidden arc picking up the upper
+lid's artwork edges; both show whole with markings, and only the two outlines' runs across
+each other tell which lies on which (the paper's rule of the occluding contour running
+through).
+
+The tests read only ellipses, their evidence, the faces' colours and, for crossing faces, the
+edge contrast along their outlines (a few hundred pixels each): no image pass (cheap).
 """
 
 from __future__ import annotations
@@ -175,9 +183,7 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             continue
         passes = not evidence[i].occluded
         if not (e.a < face.a and holds_centre(face, e)):
-            # A face of its own reaching into it lies on it.
-            blocked = blocked or (_reaches_into(e, face, test.margin_px) and (
-                passes or _crosses_over(e, evidence[i], face, test)))
+            blocked = blocked or _lies_across(e, evidence[i], face, test)
             continue
         r = None if radius_of is None else radius_of(e)
         farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
@@ -186,12 +192,28 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             own.append(i)
         elif passes or wholly:
             blocked = True  # a face of its own on it, or an object nearer than it
-        elif (test.image is not None and whole_with_edges_inside(evidence[i])
-              and two_surfaces(face, e, test.image, test.margin_px)):
-            blocked = True  # a fit round the whole face e and another surface
+        elif _round_another_surface(face, e, evidence[i], test):
+            blocked = True
         else:
             loose.append(i)  # a failed fit across its whole outline: no object's
     return own, loose, blocked
+
+
+def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
+                 test: MarkingTest) -> bool:
+    """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
+    own lying on it: one that passes the rule, or a whole face with markings whose outline
+    runs on across it (:func:`_crosses_over`)."""
+    return _reaches_into(other, face, test.margin_px) and (
+        not evidence.occluded or _crosses_over(other, evidence, face, test))
+
+
+def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvidence,
+                           test: MarkingTest) -> bool:
+    """Whether ``face`` is a fit round the whole face ``inner`` (its top-rule ``evidence``)
+    and another surface (:func:`two_surfaces`; False without the ``image``)."""
+    return (test.image is not None and whole_with_edges_inside(evidence)
+            and two_surfaces(face, inner, test.image, test.margin_px))
 
 
 def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
