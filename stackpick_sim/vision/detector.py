@@ -407,15 +407,7 @@ class TopObjectDetector:
         colours = self.config.kind_colours
         radius_of = (None if colours is None else
                      radius_by_colour(work, self.config.radii_m, colours, colour_of))
-        # A face's kind from its rim band, for the marking test (see markings).
-        rim_radius_of = (None if colours is None or rgb is None else
-                         radius_by_colour(work, self.config.radii_m, colours,
-                                          face_colours(rgb, RIM_SAMPLE_SCALE)))
-        markings = MarkingTest(radii=self.config.radii_m, rim_radius_of=rim_radius_of,
-                               depth_ratio=self.config.marking_depth_ratio,
-                               min_edge_share=self.config.marking_min_edge_share,
-                               margin_px=INTERIOR_MARGIN_PX, image=rgb,
-                               gradients=found.grad)
+        markings = marking_test(self.config, work, found.grad)
         return _Cues(k_crop=k_crop, rgb=rgb,
                      belt=None if found.roi.belt is None else np.array(found.roi.belt),
                      colour_of=colour_of, radius_of=radius_of,
@@ -684,6 +676,23 @@ def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
         return known[ellipse]
 
     return radius_of
+
+
+def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeImage
+                 ) -> MarkingTest:
+    """The top rule's settings for markings inside a face (:mod:`~stackpick_sim.vision.
+    markings`) on ``image`` ((H, W) or (H, W, 3) RGB) and its edges and gradients ``grad``:
+    ``config``'s radii and marking keys, a face's kind read from its rim band's colour when
+    the kinds' colours are known (an RGB image), the image for the two-surface test."""
+    rgb = image if image.ndim == 3 else None
+    colours = config.kind_colours
+    rim_radius_of = (None if colours is None or rgb is None else
+                     radius_by_colour(rgb, config.radii_m, colours,
+                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
+    return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
+                       depth_ratio=config.marking_depth_ratio,
+                       min_edge_share=config.marking_min_edge_share,
+                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
