@@ -72,7 +72,7 @@ from stackpick_sim.vision.limits import (
     scaled_intrinsics,
     upscaled,
 )
-from stackpick_sim.vision.markings import RIM_SAMPLE_SCALE, MarkingTest
+from stackpick_sim.vision.markings import RIM_SAMPLE_SCALE, MarkingTest, inside_rim_band
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_shares,
@@ -472,9 +472,8 @@ class TopObjectDetector:
         if both.index < n:
             return merged, replace(mine, index=both.index)
         face = extra[both.index - n]
-        if choice.index is not None and (holds_centre(face, chosen := merged[choice.index]
-                                                      .ellipse) or holds_centre(chosen, face)):
-            return merged, choice  # the chosen face refitted on arc pairs: the merge's fit
+        if choice.index is not None and _refit_round(face, merged[choice.index].ellipse):
+            return merged, choice
         return _with_face(merged, mine, face, both.evidence[both.index], found.chains,
                           found.grad)
 
@@ -602,6 +601,17 @@ def _within_gate(merged: list[MergedEllipse], gate: tuple[float, float] | None
     if gate is None:
         return merged
     return [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
+
+
+def _refit_round(face: Ellipse, chosen: Ellipse) -> bool:
+    """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
+    holds the other's centre) round it and beyond, the chosen face reaching into its rim band
+    (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
+    silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
+    lying within the arc face's rim band is a fit on an arc of that face's outline and its
+    artwork, and gives way."""
+    return ((holds_centre(face, chosen) or holds_centre(chosen, face))
+            and not inside_rim_band(chosen, face, INTERIOR_MARGIN_PX))
 
 
 def _longest_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]], cap: int

@@ -223,8 +223,7 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     ``margin_px`` outside ``inner`` and that of those more than ``margin_px`` inside it differ
     in chromaticity by more than SURFACE_CHROMA_TOLERANCE, or in brightness by a ratio
     outside SURFACE_BRIGHTNESS_RANGE (False with fewer than MIN_PART_SAMPLES either side)."""
-    band = Ellipse.of(face.cx, face.cy, RIM_SAMPLE_SCALE * face.a, RIM_SAMPLE_SCALE * face.b,
-                      face.angle_deg).points(BAND_SAMPLES)
+    band = rim_band(face)
     within = inner.inside(band, margin_px)
     beyond = ~inner.inside(band, -margin_px)
     if min(int(within.sum()), int(beyond.sum())) < MIN_PART_SAMPLES:
@@ -263,6 +262,20 @@ def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
         return False
     return (float(shown[:split][over].mean()) >= CROSSING_MIN_SUPPORT
             > float(shown[split:][under].mean()))
+
+
+def rim_band(face: Ellipse) -> NDArray[np.float64]:
+    """(BAND_SAMPLES, 2) pixels of ``face``'s rim band (its ellipse at RIM_SAMPLE_SCALE)."""
+    return Ellipse.of(face.cx, face.cy, RIM_SAMPLE_SCALE * face.a, RIM_SAMPLE_SCALE * face.b,
+                      face.angle_deg).points(BAND_SAMPLES)
+
+
+def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether no point of ``face``'s rim band (:func:`rim_band`) lies inside ``inner`` by
+    more than ``margin_px``: ``inner`` lies within the band (a fit on an arc of the face's
+    outline and its artwork does; a face that a larger fit runs round, beyond it on its wall
+    or a lower face, reaches into the larger fit's band where their outlines run together)."""
+    return not bool(inner.inside(rim_band(face), margin_px).any())
 
 
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
