@@ -72,7 +72,12 @@ from stackpick_sim.vision.limits import (
     scaled_intrinsics,
     upscaled,
 )
-from stackpick_sim.vision.markings import RIM_SAMPLE_SCALE, MarkingTest, inside_rim_band
+from stackpick_sim.vision.markings import (
+    RIM_SAMPLE_SCALE,
+    MarkingTest,
+    inside_rim_band,
+    whole_with_edges_inside,
+)
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_shares,
@@ -460,8 +465,13 @@ class TopObjectDetector:
         clock.check("top")
         arc_chains, arcs = last_resort_arcs(found.pieces, found.segments, found.fitted)
         arcs = _longest_arcs(arcs, arc_chains, self.config.limits.max_arcs)
-        extra, _ = _arc_pair_faces(arcs, arc_chains, found.grad, found.points, found.grads,
-                                   found.crop, found.gate)
+        extra, alone = _arc_pair_faces(arcs, arc_chains, found.grad, found.points,
+                                       found.grads, found.crop, found.gate)
+        # Only whole faces with markings across them can be chosen so (the rule's evidence
+        # of each ellipse is its own: the union's is the same).
+        extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
+                 if whole_with_edges_inside(ev)
+                 and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px]
         if not extra:
             return merged, choice
         n = len(merged)

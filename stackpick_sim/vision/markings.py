@@ -61,6 +61,7 @@ edge contrast along their outlines (a few hundred pixels each): no image pass (c
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -278,16 +279,26 @@ def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
     return not bool(inner.inside(rim_band(face), margin_px).any())
 
 
+@functools.lru_cache(maxsize=1024)
+def _outline(ellipse: Ellipse) -> NDArray[np.float64]:
+    """``ellipse``'s INSIDE_SAMPLES outline points (shared: not to be modified); each
+    ellipse's once, a face being judged against every other."""
+    return ellipse.points(INSIDE_SAMPLES)
+
+
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
     """Whether any of ``other``'s outline (INSIDE_SAMPLES points) lies inside ``face`` by more
-    than ``margin_px``."""
-    return bool(face.inside(other.points(INSIDE_SAMPLES), margin_px).any())
+    than ``margin_px`` (never when their centres lie farther apart than their semi-major
+    axes together)."""
+    if math.hypot(other.cx - face.cx, other.cy - face.cy) >= other.a + face.a:
+        return False
+    return bool(face.inside(_outline(other), margin_px).any())
 
 
 def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
     """Whether ``inner``'s whole outline (INSIDE_SAMPLES points) lies inside ``face`` by more
     than ``margin_px``."""
-    return bool(face.inside(inner.points(INSIDE_SAMPLES), margin_px).all())
+    return bool(face.inside(_outline(inner), margin_px).all())
 
 
 def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:
