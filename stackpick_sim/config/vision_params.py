@@ -238,6 +238,14 @@ class TopParams(Section):
     """When an ellipse passes the rule, a whole face that failed on its own rim inside its fit
     and whose reconstructed cylinder rests on the chosen face's takes the choice instead:
     nothing may rest on a top object (needs the object kinds' colours and heights)."""
+    marked_arcs: bool = True
+    """When no ellipse passes the rule outright (none does, or a face with markings is
+    chosen) and some ellipse holds markings across it (interior edges along
+    ``marking_min_edge_share`` of its perimeter), whole faces with markings fitted on pairs
+    of every arc join the rule: the merge joins no arcs across a printed face's artwork or a
+    can end's rings, so such a face is often fitted only on arc pairs. Frames without faces
+    with markings pay nothing; on frames of printed lids and cans the arc pairs cost several
+    times the rest of the detector."""
     hidden_check: bool = True
     """When an ellipse passes the rule and another was cut short with nothing crossing it (no
     T-junction, no edge inside, support at least ``hidden_min_support``), a face from pairs

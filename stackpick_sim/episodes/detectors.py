@@ -4,7 +4,8 @@
   ellipse is a candidate, the detector's top one carries its pose; where the detector misses
   the tracked face, its outline is searched for around the predicted ellipse.
 * ``rht``, ``findellipses``: a baseline ellipse detector (the paper's randomized Hough
-  transform; OpenCV's ``findEllipses``), then our top rule and pose solver, as in
+  transform; OpenCV's ``findEllipses``), then our top rule (markings inside a face included)
+  and pose solver, as in
   ``stackpick bench-detect``: the paper's comparison in closed loop.
 * ``oracle``: ground truth, no image needed (:mod:`stackpick_sim.episodes.audit` hands it the
   cell's truth): while the episode looks for the top, the flattest true top face wholly in
@@ -27,7 +28,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 from stackpick_sim.pipeline import Detections, FaceCandidate, Frame, Hints
 from stackpick_sim.vision import Detection, DetectorConfig, detect
 from stackpick_sim.vision.baselines import EllipseDetector, FindEllipsesDetector, RHTDetector
-from stackpick_sim.vision.detector import object_kinds, radius_by_colour
+from stackpick_sim.vision.detector import marking_test, object_kinds, radius_by_colour
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.occlusion import select_top
@@ -162,8 +163,9 @@ class BaselineDetector:
         belt = None if belt_colour is None else np.array(belt_colour)
         radius_of = (None if cfg.kind_colours is None
                      else radius_by_colour(rgb, cfg.radii_m, cfg.kind_colours))
-        choice = select_top(found, edge_image(rgb, cfg.edges), k, radius_of, image=rgb,
-                            height_of=cfg.height_of(), belt=belt)
+        grad = edge_image(rgb, cfg.edges)
+        choice = select_top(found, grad, k, radius_of, image=rgb, height_of=cfg.height_of(),
+                            belt=belt, markings=marking_test(cfg, rgb, grad))
         cands = []
         for i, e in enumerate(found):
             if i != choice.index:

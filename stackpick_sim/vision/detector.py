@@ -64,7 +64,12 @@ from stackpick_sim.vision.limits import (
     scaled_intrinsics,
     upscaled,
 )
-from stackpick_sim.vision.markings import RIM_SAMPLE_SCALE, MarkingTest
+from stackpick_sim.vision.markings import (
+    RIM_SAMPLE_SCALE,
+    MarkingTest,
+    inside_rim_band,
+    whole_with_edges_inside,
+)
 from stackpick_sim.vision.merging import (
     MergedEllipse,
     boundary_shares,
@@ -386,10 +391,15 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``) and the hidden-face check (``top.hidden_check``), and when it chose
-    none, its fallbacks (``top.fallbacks``)."""
+    none, its fallbacks (``top.fallbacks``). Before those, when no ellipse passed the rule
+    outright, faces with markings fitted on arc pairs join it (``top.marked_arcs``)."""
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)
+    if config.top.marked_arcs and (choice.index is None
+                                   or choice.evidence[choice.index].occluded):
+        # None passed the rule outright: faces with markings the merge never fitted.
+        merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if (config.top.rest_check and choice.index is not None and cues.radius_of is not None
             and cues.height_of is not None and cues.rgb is not None):
         # A whole lower face that a top face rests on, that face's fit taking in a
@@ -484,14 +494,7 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     colours = config.kind_colours
     radius_of = (None if colours is None else
                  radius_by_colour(work, config.radii_m, colours, colour_of))
-    # A face's kind from its rim band, for the marking test (see markings).
-    rim_radius_of = (None if colours is None or rgb is None else
-                     radius_by_colour(work, config.radii_m, colours,
-                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
-    markings = MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
-                           depth_ratio=config.marking_depth_ratio,
-                           min_edge_share=config.marking_min_edge_share,
-                           margin_px=INTERIOR_MARGIN_PX)
+    markings = marking_test(config, work, state.edges("top"))
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
@@ -503,6 +506,59 @@ def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
                       colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+
+
+def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,
+                      cues: Cues, config: DetectorConfig
+                      ) -> tuple[list[MergedEllipse], TopChoice]:
+    """When no ellipse passed the top rule outright (none did, or a face with markings was
+    chosen, :mod:`~stackpick_sim.vision.markings`) and some ellipse holds markings across it
+    (interior edges along ``marking_min_edge_share`` of its perimeter; on plain faces the
+    fallbacks decide, at no extra cost): the top rule again over the ellipses and those of
+    pairs of every arc (:func:`_arc_pair_faces`; the merge joins no arcs across a face's
+    artwork or a can end's rings, so a printed or tinplate face is often fitted only on arc
+    pairs). A face with markings it chooses takes the choice (an arc pair's ellipse is then
+    added to ``merged``); otherwise both come back unchanged."""
+    test = cues.markings
+    if test.image is None or not any(ev.interior_edge_px >= test.min_edge_share
+                                     * ev.perimeter_px for ev in choice.evidence):
+        return merged, choice
+    check_time(state.deadline, "top")
+    grad = state.edges("top")
+    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
+                                        config.fits.min_fit_px)
+    arcs = _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
+    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
+                                   state.crop, state.gate)
+    # Only whole faces with markings across them can be chosen so (the rule's evidence of
+    # each ellipse is its own: the union's is the same).
+    extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
+             if whole_with_edges_inside(ev)
+             and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px]
+    if not extra:
+        return merged, choice
+    n = len(merged)
+    both = _select([m.ellipse for m in merged] + extra, state, cues)
+    if both.index is None or not both.evidence[both.index].occluded:
+        return merged, choice
+    mine = TopChoice(index=None, evidence=both.evidence[:n])
+    if both.index < n:
+        return merged, replace(mine, index=both.index)
+    face = extra[both.index - n]
+    if choice.index is not None and _refit_round(face, merged[choice.index].ellipse):
+        return merged, choice
+    return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad)
+
+
+def _refit_round(face: Ellipse, chosen: Ellipse) -> bool:
+    """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
+    holds the other's centre) round it and beyond, the chosen face reaching into its rim band
+    (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
+    silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
+    lying within the arc face's rim band is a fit on an arc of that face's outline and its
+    artwork, and gives way."""
+    return ((holds_centre(face, chosen) or holds_centre(chosen, face))
+            and not inside_rim_band(chosen, face, INTERIOR_MARGIN_PX))
 
 
 def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -693,6 +749,23 @@ def radius_by_colour(image: NDArray[np.uint8], radii: tuple[float, ...],
         return known[ellipse]
 
     return radius_of
+
+
+def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeImage
+                 ) -> MarkingTest:
+    """The top rule's settings for markings inside a face (:mod:`~stackpick_sim.vision.
+    markings`) on ``image`` ((H, W) or (H, W, 3) RGB) and its edges and gradients ``grad``:
+    ``config``'s radii and marking keys, a face's kind read from its rim band's colour when
+    the kinds' colours are known (an RGB image), the image for the two-surface test."""
+    rgb = image if image.ndim == 3 else None
+    colours = config.kind_colours
+    rim_radius_of = (None if colours is None or rgb is None else
+                     radius_by_colour(rgb, config.radii_m, colours,
+                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
+    return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
+                       depth_ratio=config.marking_depth_ratio,
+                       min_edge_share=config.marking_min_edge_share,
+                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE

@@ -22,31 +22,58 @@ and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
 * one that passes the top rule itself, or lies wholly inside it and reads nearer, is a face
   on it: the face is under it;
 * one that fails the rule and runs across the face's whole outline is a fit on its markings
-  and outline together, when nothing else lies on the face.
+  and outline together, when nothing else lies on the face; but when it shows whole itself
+  and the face's rim band shows two surfaces, one inside it and one outside it (their colours
+  apart in hue, SURFACE_CHROMA_TOLERANCE, or in brightness, SURFACE_BRIGHTNESS_RANGE), the
+  face's outline runs over another surface beyond it: the outer ellipse is no face but a fit
+  of the inner face's outline with an outline beyond it (its own cylinder's wall
+  silhouette, a lower face's edge), and it is judged no further.
+
+Failure class of the last: *a fit round a face and its wall*. A tilted cylinder's face
+outline runs on into its wall's silhouette; the ellipse fitted to the face's far arc and the
+silhouette holds the whole face and reads nearer than it (larger), and without the colour
+test it takes the face for its marking. A face's rim band is its own surface all round (a
+printed stripe or word crossing it is a small share of it: the medians of the two parts
+agree).
 
 Markings across a face (a word, a stripe, a logo, a can end's rings) leave interior edges
 along about its perimeter or more; a plain face that fails on interior edges shows a stray
 edge entering it (an occluder's, where the occluder's own fit is missing), a fraction of its
 perimeter. So only faces with at least ``min_edge_share`` interior edge pixels per perimeter
 pixel are judged. A whole face that fails the rule on interior edges alone, with no face on
-it and no other
-ellipse that passes the rule reaching into it, has only its own markings inside: it is a
+it and no other face of its own reaching into it, has only its own markings inside: it is a
 candidate, and the ellipses of the third kind are no candidates either. (A face whose interior
 edges all lie in its rim band is left to the rule's rim fallbacks: :func:`~stackpick_sim.
 vision.occlusion.rim_only`.)
 
-The tests read only ellipses, their evidence and the faces' colours (a few pixels each): no
-image pass (cheap).
+A face of its own reaching into it is one that passes the rule, or a whole face with markings
+crossing it (neither holds the other's centre) whose outline runs on across it as an edge
+while its own outline under that face is hidden (CROSSING_MIN_SUPPORT). Failure class: *a
+lower lid fitted whole*: where a printed lid lies across another of its kind, the lower one's
+ellipse (fitted on its visible arcs) shows no T-junction, its hidden arc picking up the upper
+lid's artwork edges; both show whole with markings, and only the two outlines' runs across
+each other tell which lies on which (the paper's rule of the occluding contour running
+through).
+
+The tests read only ellipses, their evidence, the faces' colours and, for crossing faces, the
+edge contrast along their outlines (a few hundred pixels each): no image pass (cheap).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+from numpy.typing import NDArray
+
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
+from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.wall import CHROMA_TOLERANCE, column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
     from stackpick_sim.vision.occlusion import OcclusionEvidence
@@ -58,6 +85,26 @@ INSIDE_SAMPLES = 32
 #: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
 #: most of this band; a can end's rim (its outer 12 %) lies on it.
 RIM_SAMPLE_SCALE = 0.94
+#: Two parts of a face's rim band (inside and outside an inner whole face) are two surfaces
+#: when their median colours' chromaticities (r, g, b over their sum) differ by more than
+#: this (L1): the wall test's tolerance between a face and its own wall
+#: (:data:`~stackpick_sim.vision.wall.CHROMA_TOLERANCE`).
+SURFACE_CHROMA_TOLERANCE = CHROMA_TOLERANCE
+#: ...or when the outer part's brightness (channel sum) over the inner part's lies outside
+#: this range: a cylinder's wall under the ring light is darker than its face (wall.py:
+#: about tan(tilt) of it plus ambient light), and a face's own rim band, printed or
+#: tinplate, keeps within about 0.75-1.1 of itself round it (vignetting, shading, artwork
+#: at the rim; measured on rendered realistic-scene frames).
+SURFACE_BRIGHTNESS_RANGE = (0.7, 1.0 / 0.7)
+#: Where two whole faces with markings cross, the upper one's outline shows edge contrast
+#: along at least this share of its run over the lower one, and the lower one's hidden
+#: outline along less (a hidden arc still picks up contrast where the upper face's artwork
+#: or rings cross it; the top rule's fallback reads a face's gaps the same way,
+#: occlusion.FALLBACK_MIN_SUPPORT).
+CROSSING_MIN_SUPPORT = 0.75
+#: Rim band samples of the two-surface test, and how many each part needs at least.
+BAND_SAMPLES = 64
+MIN_PART_SAMPLES = 4
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,13 +115,18 @@ class MarkingTest:
     least this multiple of the face's is a marking (ratio); ``min_edge_share``: the interior
     edge pixels, per pixel of its perimeter, a face holds at least for them to be read as
     markings across it; ``margin_px``: how far (px)
-    inside the face a marking's whole outline lies (the margin of the interior-edge count)."""
+    inside the face a marking's whole outline lies (the margin of the interior-edge count);
+    ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
+    (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
+    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
     depth_ratio: float
     min_edge_share: float
     margin_px: float
+    image: NDArray[np.uint8] | None = None
+    gradients: EdgeImage | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -132,8 +184,7 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             continue
         passes = not evidence[i].occluded
         if not (e.a < face.a and holds_centre(face, e)):
-            # A face of its own reaching into it lies on it.
-            blocked = blocked or (passes and _reaches_into(e, face, test.margin_px))
+            blocked = blocked or _lies_across(e, evidence[i], face, test)
             continue
         r = None if radius_of is None else radius_of(e)
         farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
@@ -142,21 +193,112 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             own.append(i)
         elif passes or wholly:
             blocked = True  # a face of its own on it, or an object nearer than it
+        elif _round_another_surface(face, e, evidence[i], test):
+            blocked = True
         else:
             loose.append(i)  # a failed fit across its whole outline: no object's
     return own, loose, blocked
 
 
+def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
+                 test: MarkingTest) -> bool:
+    """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
+    own lying on it: one that passes the rule, or a whole face with markings whose outline
+    runs on across it (:func:`_crosses_over`)."""
+    return _reaches_into(other, face, test.margin_px) and (
+        not evidence.occluded or _crosses_over(other, evidence, face, test))
+
+
+def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvidence,
+                           test: MarkingTest) -> bool:
+    """Whether ``face`` is a fit round the whole face ``inner`` (its top-rule ``evidence``)
+    and another surface (:func:`two_surfaces`; False without the ``image``)."""
+    return (test.image is not None and whole_with_edges_inside(evidence)
+            and two_surfaces(face, inner, test.image, test.margin_px))
+
+
+def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
+                 margin_px: float) -> bool:
+    """Whether ``face``'s rim band (BAND_SAMPLES points at RIM_SAMPLE_SCALE) shows two
+    surfaces in the (H, W, 3) RGB ``image``: the median colour of its points more than
+    ``margin_px`` outside ``inner`` and that of those more than ``margin_px`` inside it differ
+    in chromaticity by more than SURFACE_CHROMA_TOLERANCE, or in brightness by a ratio
+    outside SURFACE_BRIGHTNESS_RANGE (False with fewer than MIN_PART_SAMPLES either side)."""
+    band = rim_band(face)
+    within = inner.inside(band, margin_px)
+    beyond = ~inner.inside(band, -margin_px)
+    if min(int(within.sum()), int(beyond.sum())) < MIN_PART_SAMPLES:
+        return False
+    h, w = image.shape[:2]
+    pix = np.rint(band).astype(np.int64)
+    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
+    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
+    own = column_median(colours[within])
+    other = column_median(colours[beyond])
+    own_sum, other_sum = max(float(own.sum()), 1e-9), max(float(other.sum()), 1e-9)
+    chroma = float(np.abs(own / own_sum - other / other_sum).sum())
+    lo, hi = SURFACE_BRIGHTNESS_RANGE
+    return chroma > SURFACE_CHROMA_TOLERANCE or not lo <= other_sum / own_sum <= hi
+
+
+def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
+                  test: MarkingTest) -> bool:
+    """Whether ``other``, a whole face that failed the rule on interior edges alone (its
+    ``evidence``), crossing ``face`` (neither holds the other's centre), lies on it: where two
+    faces overlap, the upper one's outline runs on as an edge across the lower one, whose own
+    outline is hidden under it. So ``other`` lies on ``face`` when its outline samples
+    inside ``face`` (by ``margin_px``) show consistent edge contrast
+    (:mod:`~stackpick_sim.vision.contrast`) along at least CROSSING_MIN_SUPPORT of them and
+    ``face``'s samples inside ``other`` along less, each with at least MIN_PART_SAMPLES
+    samples there (False without the ``gradients``)."""
+    if (test.gradients is None or not whole_with_edges_inside(evidence)
+            or holds_centre(other, face) or holds_centre(face, other)):
+        return False
+    lines = outlines([other, face])
+    shown = contrast_profiles(lines, test.gradients) >= contrast_threshold(test.gradients)
+    split = int(lines.offsets[1])
+    over = face.inside(lines.points[:split], test.margin_px)
+    under = other.inside(lines.points[split:], test.margin_px)
+    if min(int(over.sum()), int(under.sum())) < MIN_PART_SAMPLES:
+        return False
+    return (float(shown[:split][over].mean()) >= CROSSING_MIN_SUPPORT
+            > float(shown[split:][under].mean()))
+
+
+def rim_band(face: Ellipse) -> NDArray[np.float64]:
+    """(BAND_SAMPLES, 2) pixels of ``face``'s rim band (its ellipse at RIM_SAMPLE_SCALE)."""
+    return Ellipse.of(face.cx, face.cy, RIM_SAMPLE_SCALE * face.a, RIM_SAMPLE_SCALE * face.b,
+                      face.angle_deg).points(BAND_SAMPLES)
+
+
+def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
+    """Whether no point of ``face``'s rim band (:func:`rim_band`) lies inside ``inner`` by
+    more than ``margin_px``: ``inner`` lies within the band (a fit on an arc of the face's
+    outline and its artwork does; a face that a larger fit runs round, beyond it on its wall
+    or a lower face, reaches into the larger fit's band where their outlines run together)."""
+    return not bool(inner.inside(rim_band(face), margin_px).any())
+
+
+@functools.lru_cache(maxsize=1024)
+def _outline(ellipse: Ellipse) -> NDArray[np.float64]:
+    """``ellipse``'s INSIDE_SAMPLES outline points (shared: not to be modified); each
+    ellipse's once, a face being judged against every other."""
+    return ellipse.points(INSIDE_SAMPLES)
+
+
 def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
     """Whether any of ``other``'s outline (INSIDE_SAMPLES points) lies inside ``face`` by more
-    than ``margin_px``."""
-    return bool(face.inside(other.points(INSIDE_SAMPLES), margin_px).any())
+    than ``margin_px`` (never when their centres lie farther apart than their semi-major
+    axes together)."""
+    if math.hypot(other.cx - face.cx, other.cy - face.cy) >= other.a + face.a:
+        return False
+    return bool(face.inside(_outline(other), margin_px).any())
 
 
 def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
     """Whether ``inner``'s whole outline (INSIDE_SAMPLES points) lies inside ``face`` by more
     than ``margin_px``."""
-    return bool(face.inside(inner.points(INSIDE_SAMPLES), margin_px).all())
+    return bool(face.inside(_outline(inner), margin_px).all())
 
 
 def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:

@@ -3,9 +3,9 @@
 * ``ours``: :class:`~stackpick_sim.vision.detector.TopObjectDetector` end to end.
 * ``rht``, ``findellipses``, ``edgedrawing``: a baseline ellipse detector, then the same top
   rule (:func:`~stackpick_sim.vision.occlusion.select_top` over our edge map, with the
-  intrinsics and, when the frame knows the object kinds, radii read from the faces' colours,
-  as ours) and the same pose solver as ours, so differences in success and pose come from
-  the ellipses (and ours' refits) alone. Their
+  intrinsics, the test for markings inside a face and, when the frame knows the object kinds,
+  radii read from the faces' colours, as ours) and the same pose solver as ours, so
+  differences in success and pose come from the ellipses (and ours' refits) alone. Their
   total time includes that edge map, the top rule and the pose; ``detector_ms`` is the
   baseline's own call.
 
@@ -35,6 +35,7 @@ from stackpick_sim.vision.detector import (
     DEFAULT_RADII_M,
     DetectorConfig,
     TopObjectDetector,
+    marking_test,
     object_kinds,
     radius_by_colour,
 )
@@ -103,7 +104,8 @@ def baseline_runner(detector: EllipseDetector, vision: VisionCfg | None = None
         radius_of = (None if cfg.kind_colours is None
                      else radius_by_colour(rgb, radii, cfg.kind_colours))
         choice = select_top(ellipses, grad, frame.intrinsics, radius_of, image=rgb,
-                            height_of=cfg.height_of(), belt=belt)
+                            height_of=cfg.height_of(), belt=belt,
+                            markings=marking_test(cfg, rgb, grad))
         pose = None
         top = None
         if choice.index is not None:
