@@ -167,6 +167,91 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
 
 
 @_compiled
+def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, v: float,
+               gu: float, gv: float, dist_sq: float, cos_sq: float
+               ) -> bool:  # pragma: no cover - compiled
+    """:func:`along_grouped`'s test of one pixel (u, v) with unit gradient (gu, gv)."""
+    du = u - cx
+    dv = v - cy
+    nu = fa * du + fh * dv
+    nv = fb * dv + fh * du
+    f = du * nu + dv * nv - 1.0
+    n2 = nu * nu + nv * nv
+    dot = nu * gu + nv * gv
+    return f * f < dist_sq * n2 and dot * dot >= cos_sq * n2
+
+
+@_compiled
+def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray[np.float64],
+                   gv: NDArray[np.float64], form: NDArray[np.float64], reach: float,
+                   dist_sq: float, cos_sq: float, gx: NDArray[np.int16],
+                   gy: NDArray[np.int16], max_shift: float
+                   ) -> NDArray[np.float32]:  # pragma: no cover - compiled
+    """The edge pixels (pu, pv) with unit gradients (gu, gv) that lie along one ellipse
+    (``form``: its (cx, cy, A, H, B); within ``reach`` of its centre on both axes, then
+    :func:`along_grouped`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
+    as (K, 2) float32 in pixel order; see :func:`~stackpick_sim.vision.refine.
+    refine_subpixel`."""
+    cx, cy, fa, fh, fb = form[0], form[1], form[2], form[3], form[4]
+    keep = np.empty(pu.shape[0], np.int64)
+    count = 0
+    for k in range(pu.shape[0]):
+        if (abs(pu[k] - cx) <= reach and abs(pv[k] - cy) <= reach
+                and _along_one(cx, cy, fa, fh, fb, pu[k], pv[k], gu[k], gv[k], dist_sq,
+                               cos_sq)):
+            keep[count] = k
+            count += 1
+    at = keep[:count]
+    su, sv = subpixel_columns(gx, gy, pu[at], pv[at], gu[at], gv[at], max_shift)
+    out = np.empty((count, 2), np.float32)
+    for k in range(count):
+        out[k, 0] = su[k]
+        out[k, 1] = sv[k]
+    return out
+
+
+@_compiled
+def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.float64],
+                  pv: NDArray[np.float64], nu: NDArray[np.float64], nv: NDArray[np.float64],
+                  steps: NDArray[np.float64], step_px: float, threshold: float
+                  ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The gradient peaks across an outline: at each sample (pu, pv) with unit normal
+    (nu, nv), the normal gradient |(gx, gy) . n| read bilinearly at offsets ``steps`` (px,
+    ``step_px`` apart), its strongest interior sample (the first of equals) placed by a
+    parabola through its neighbours (shift clamped to half a step); the (K, 2) peaks of the
+    samples whose strongest value reaches ``threshold``, in sample order; see
+    :func:`~stackpick_sim.vision.refine.refine_on_profile`."""
+    n, k = pu.shape[0], steps.shape[0]
+    qu, qv = np.empty(n * k), np.empty(n * k)
+    for i in range(n):
+        for j in range(k):
+            qu[i * k + j] = pu[i] + steps[j] * nu[i]
+            qv[i * k + j] = pv[i] + steps[j] * nv[i]
+    bx, by = bilinear_uv(gx, gy, qu, qv)
+    g = np.empty(n * k)
+    for i in range(n):
+        for j in range(k):
+            g[i * k + j] = abs(bx[i * k + j] * nu[i] + by[i * k + j] * nv[i])
+    out = np.empty((n, 2))
+    count = 0
+    for i in range(n):
+        best, top = 1, g[i * k + 1]
+        for j in range(2, k - 1):
+            if g[i * k + j] > top:
+                best, top = j, g[i * k + j]
+        if top < threshold:
+            continue
+        before, after = g[i * k + best - 1], g[i * k + best + 1]
+        curvature = before - 2.0 * top + after
+        shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
+        offset = steps[best] + min(max(shift, -0.5), 0.5) * step_px
+        out[count, 0] = pu[i] + offset * nu[i]
+        out[count, 1] = pv[i] + offset * nv[i]
+        count += 1
+    return out[:count]
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -219,3 +304,5 @@ def warm_up() -> None:
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
+    subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
+    profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)

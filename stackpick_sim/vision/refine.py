@@ -84,17 +84,19 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
                     grads: NDArray[np.float64], shape: tuple[int, int]) -> Ellipse:
     """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
     unit gradients (M, 2) along it (within SUBPIXEL_TOLERANCE_PX, gradient normal to it)."""
-    reach = ellipse.a + SUBPIXEL_TOLERANCE_PX + 1
-    near = ((np.abs(points[:, 0] - ellipse.cx) <= reach)
-            & (np.abs(points[:, 1] - ellipse.cy) <= reach)).nonzero()[0]
-    u, v = points[:, 0][near], points[:, 1][near]
-    gu, gv = grads[:, 0][near], grads[:, 1][near]
-    keep = _along_mask(ellipse, u, v, gu, gv, SUBPIXEL_TOLERANCE_PX).nonzero()[0]
-    if keep.shape[0] < MIN_PIXELS:
+    def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.ascontiguousarray(c, np.float64)
+
+    # One compiled pass: the pixels near the ellipse (its box grown by the tolerance), those
+    # along it, their sub-pixel positions (float32: the fit's input type).
+    pts = kernels.subpixel_along(col(points[:, 0]), col(points[:, 1]), col(grads[:, 0]),
+                                 col(grads[:, 1]), np.array(_form(ellipse)),
+                                 ellipse.a + SUBPIXEL_TOLERANCE_PX + 1,
+                                 4.0 * SUBPIXEL_TOLERANCE_PX * SUBPIXEL_TOLERANCE_PX,
+                                 MIN_NORMAL_COS * MIN_NORMAL_COS, image.gx, image.gy,
+                                 MAX_SHIFT_PX)
+    if pts.shape[0] < MIN_PIXELS:
         return ellipse
-    su, sv = _subpixel_columns(image, u[keep], v[keep], gu[keep], gv[keep])
-    pts = np.empty((keep.shape[0], 2), np.float32)  # the fit's input type
-    pts[:, 0], pts[:, 1] = su, sv
     fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape) else ellipse
 
@@ -287,33 +289,15 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     arcs only. Returns ``ellipse`` when too little of the outline shows a peak.
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
-    steps = PROFILE_STEPS
-    k = steps.shape[0]
     current = ellipse
     for round_ in range(PROFILE_ROUNDS):
         pu, pv, nu, nv = _outline_columns(current)
         n = pu.shape[0]
-        # The (n, k) sample grid across the outline, one coordinate at a time.
-        qu = pu[:, None] + steps * nu[:, None]
-        qv = pv[:, None] + steps * nv[:, None]
-        bx, by = _bilinear_uv(image.gx, image.gy, qu.ravel(), qv.ravel())
-        g = np.abs(bx.reshape(n, k) * nu[:, None] + by.reshape(n, k) * nv[:, None])
-        best = g[:, 1:-1].argmax(axis=1) + 1
-        at = np.arange(0, n * k, k) + best
-        flat = g.ravel()
-        before, centre, after = flat[at - 1], flat[at], flat[at + 1]
-        curvature = before - 2.0 * centre + after
-        peaked = curvature < -1e-9
-        shift = np.where(peaked, 0.5 * (before - after) / np.where(peaked, curvature, -1.0),
-                         0.0)
-        ok = centre >= threshold
-        count = int(np.count_nonzero(ok))
-        if count < PROFILE_MIN_SHARE * n:
+        # The (n, k) sample grid across the outline and each sample's peak, in one pass.
+        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, PROFILE_STEPS,
+                                      PROFILE_STEP_PX, threshold)
+        if peaks.shape[0] < PROFILE_MIN_SHARE * n:
             return current
-        offset = steps[best] + np.minimum(np.maximum(shift, -0.5), 0.5) * PROFILE_STEP_PX
-        peaks = np.empty((count, 2))
-        peaks[:, 0] = (pu + offset * nu)[ok]
-        peaks[:, 1] = (pv + offset * nv)[ok]
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape):
             return current
