@@ -146,15 +146,10 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
     """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
     ``np.nonzero`` order, without the (E, N) matrix."""
     p = np.asarray(points, np.float64)
-    pu, pv = p[:, 0], p[:, 1]
     reach = params[:, 2] + tol_px + 1.0
-    e, n = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv),
-                             np.ascontiguousarray(params[:, 0]),
-                             np.ascontiguousarray(params[:, 1]), reach)
-    # The pairs run ellipse by ellipse: each ellipse's parameters repeated, not gathered.
-    d = grouped_distances(params, np.bincount(e, minlength=params.shape[0]), pu[n], pv[n])
-    close = (d < tol_px).nonzero()[0]
-    return e[close], n[close]
+    # The box test and the distances in one compiled pass over (ellipse, point) pairs.
+    return kernels.near_pairs(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                              _distance_rows(params), reach, tol_px)
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
@@ -175,13 +170,19 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
     ``counts[1]`` to ellipse 1, ... (the same values, in one compiled loop)."""
+    return kernels.grouped_distances(_distance_rows(params), np.asarray(counts, np.int64),
+                                     np.ascontiguousarray(pu, np.float64),
+                                     np.ascontiguousarray(pv, np.float64))
+
+
+def _distance_rows(params: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(6, E) rows cx, cy, a, b, cos angle, sin angle of (E, 5) ``params`` (numpy's cos and
+    sin, as :func:`distances`), the compiled distance kernels' input."""
     rows = np.empty((6, params.shape[0]))
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    return kernels.grouped_distances(rows, np.asarray(counts, np.int64),
-                                     np.ascontiguousarray(pu, np.float64),
-                                     np.ascontiguousarray(pv, np.float64))
+    return rows
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
@@ -286,24 +287,9 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
 
 
 def _bows(pieces: list[NDArray]) -> list[float]:
-    """:func:`bow_px` of each piece (N_i, 2), in one pass."""
+    """:func:`bow_px` of each piece (N_i, 2), in one compiled pass (the same sums)."""
     if not pieces:
         return []
-    u, v = np.concatenate(pieces).T.astype(np.float64)  # contiguous rows
-    counts = np.array([q.shape[0] for q in pieces])
-    which = np.arange(len(pieces)).repeat(counts)
-    mean_u = np.bincount(which, weights=u) / counts
-    mean_v = np.bincount(which, weights=v) / counts
-    cu, cv = u - mean_u.repeat(counts), v - mean_v.repeat(counts)
-    sxx = np.bincount(which, weights=cu * cu).tolist()
-    syy = np.bincount(which, weights=cv * cv).tolist()
-    sxy = np.bincount(which, weights=cu * cv).tolist()
-    # Per piece, as bow_px (a handful of pieces: scalars cost less than array passes).
-    bows = []
-    sqrt = math.sqrt
-    for xx, yy, xy, k in zip(sxx, syy, sxy, counts.tolist(), strict=True):
-        n = max(1, k)
-        half_trace, det = 0.5 * (xx + yy) / n, (xx * yy - xy * xy) / (n * n)
-        smallest = half_trace - sqrt(max(0.0, half_trace * half_trace - det))
-        bows.append(sqrt(max(0.0, smallest)))
-    return bows
+    counts = np.array([q.shape[0] for q in pieces], np.int64)
+    bows = kernels.bows(np.concatenate(pieces).astype(np.float64), counts)
+    return cast("list[float]", bows.tolist())

@@ -61,6 +61,105 @@ def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.f
 
 
 @_compiled
+def _sampson(du: float, dv: float, a: float, b: float, c: float, s: float
+             ) -> float:  # pragma: no cover - compiled
+    """Sampson distance of a point at (du, dv) from the centre of the ellipse of semi-axes
+    (a, b) and angle cosine and sine (c, s); see :func:`grouped_distances`."""
+    x = (c * du + s * dv) / a
+    y = (c * dv - s * du) / b
+    xa, yb = x / a, y / b
+    grad = 2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12
+    return abs(x * x + y * y - 1.0) / grad
+
+
+@_compiled
+def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[np.float64],
+               reach: NDArray[np.float64], tol_px: float
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """(ellipse, point) index pairs, ellipse by ellipse and points ascending, of the points
+    (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
+    closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
+    column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
+    n_e, n_p = rows.shape[1], pu.shape[0]
+    count = 0
+    for e in range(n_e):
+        x, y, r = rows[0, e], rows[1, e], reach[e]
+        for m in range(n_p):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                count += 1
+    pe = np.empty(count, np.int64)
+    pm = np.empty(count, np.int64)
+    k = 0
+    for e in range(n_e):
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        r = reach[e]
+        for m in range(n_p):
+            if (abs(pu[m] - cx) <= r and abs(pv[m] - cy) <= r
+                    and _sampson(pu[m] - cx, pv[m] - cy, a, b, c, s) < tol_px):
+                pe[k] = e
+                pm[k] = m
+                k += 1
+    return pe[:k], pm[:k]
+
+
+@_compiled
+def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
+         ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """RMS spread (px) across its principal line of each piece of (N, 2) ``pixels``, the
+    pieces running one after another (``counts[i]`` pixels each); see
+    :func:`~stackpick_sim.vision.fitting.bow_px` (the same sums, in pixel order)."""
+    out = np.empty(counts.shape[0])
+    start = 0
+    for i in range(counts.shape[0]):
+        n = counts[i]
+        su = 0.0
+        sv = 0.0
+        for j in range(start, start + n):
+            su += pixels[j, 0]
+            sv += pixels[j, 1]
+        mu, mv = su / n, sv / n
+        sxx = 0.0
+        syy = 0.0
+        sxy = 0.0
+        for j in range(start, start + n):
+            cu, cv = pixels[j, 0] - mu, pixels[j, 1] - mv
+            sxx += cu * cu
+            syy += cv * cv
+            sxy += cu * cv
+        k = max(1, n)
+        half_trace, det = 0.5 * (sxx + syy) / k, (sxx * syy - sxy * sxy) / (k * k)
+        smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
+        out[i] = math.sqrt(max(0.0, smallest))
+        start += n
+    return out
+
+
+@_compiled
+def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
+                    counts: NDArray[np.int64], ct: NDArray[np.float64],
+                    st: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+    """Per ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine),
+    the share of its ``counts[e]`` outline samples (parameters' cosines ``ct`` and sines
+    ``st``, ellipse by ellipse) whose rounded pixel is set in the (H, W) ``support`` map
+    (off the map: not); see :func:`~stackpick_sim.vision.merging.support_shares`."""
+    h, w = support.shape
+    out = np.empty(counts.shape[0])
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        hits = 0
+        for _ in range(counts[e]):
+            x, y = a * ct[k], b * st[k]
+            u = np.rint(c * x + cx - s * y)
+            v = np.rint(s * x + cy + c * y)
+            if 0.0 <= u < w and 0.0 <= v < h and support[np.int64(v), np.int64(u)] > 0:
+                hits += 1
+            k += 1
+        out[e] = hits / counts[e]
+    return out
+
+
+@_compiled
 def grouped_distances(rows: NDArray[np.float64], counts: NDArray[np.int64],
                       pu: NDArray[np.float64], pv: NDArray[np.float64]
                       ) -> NDArray[np.float64]:  # pragma: no cover - compiled
@@ -306,3 +405,6 @@ def warm_up() -> None:
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
+    near_pairs(col, col, np.ones((6, 1)), col, 1.0)
+    bows(np.zeros((1, 2)), counts)
+    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)

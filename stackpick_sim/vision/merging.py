@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
@@ -145,32 +146,11 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
     circles = [unit_circle(n) for n in counts]
-    ct = np.concatenate([q[0] for q in circles])
-    st = np.concatenate([q[1] for q in circles])
-    # Each parameter repeated per sample as one contiguous row (a row gather of (E, 6) would
-    # leave strided columns, slower in every operation below).
-    cx, cy, a, b, c, s = np.array(rows).T.repeat(counts, axis=1)
-    x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
-    # The rounded samples (cx + c x - s y, cy + s x + c y, summed in that order), clamped one
-    # pixel outside the map, onto a zero border added around it (off-image samples are
-    # unsupported), as flat indices into that framed map: integers all along, in float64.
-    h, w = support.shape
-    u = c * x
-    u += cx
-    u -= s * y
-    np.clip(np.rint(u, out=u), -1, w, out=u)
-    v = s * x
-    v += cy
-    v += c * y
-    np.clip(np.rint(v, out=v), -1, h, out=v)
-    v *= w + 2
-    v += u
-    v += w + 3
-    framed = cv2.copyMakeBorder(support, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    hit = framed.ravel()[v.astype(np.int64)] > 0
-    starts = np.array([0, *itertools.accumulate(counts[:-1])])
-    return cast("NDArray[np.float64]", np.add.reduceat(hit, starts, dtype=np.int64)
-                / np.array(counts))
+    # The rounded samples (as boundary_samples' points) looked up in one compiled pass.
+    return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
+                                   np.array(rows, np.float64), np.array(counts, np.int64),
+                                   np.concatenate([q[0] for q in circles]),
+                                   np.concatenate([q[1] for q in circles]))
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
