@@ -106,3 +106,122 @@ def test_along_grouped_matches_the_array_test(rng: np.random.Generator) -> None:
     want = (f * f < 4.0 * 2.0 * 2.0 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
     got = kernels.along_grouped(forms, counts, u, v, gu, gv, 4.0 * 2.0 * 2.0, 0.87 * 0.87)
     assert np.array_equal(got, want)
+
+
+def _ellipse_rows(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
+    """(6, n) rows cx, cy, a, b, cos, sin of random ellipses in a 100 px square."""
+    t = rng.uniform(0, np.pi, n)
+    a = rng.uniform(8, 40, n)
+    return np.vstack([rng.uniform(0, 100, n), rng.uniform(0, 100, n), a,
+                      a * rng.uniform(0.3, 1.0, n), np.cos(t), np.sin(t)])
+
+
+def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
+        rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 6)
+    # Points scattered near the outlines too, so that both sides of the tolerance occur.
+    t = rng.uniform(0, 2 * np.pi, 3000)
+    e = rng.integers(0, 6, 3000)
+    x, y = rows[2, e] * np.cos(t), rows[3, e] * np.sin(t)
+    pu = np.rint(rows[0, e] + rows[4, e] * x - rows[5, e] * y + rng.normal(0, 1.5, 3000))
+    pv = np.rint(rows[1, e] + rows[5, e] * x + rows[4, e] * y + rng.normal(0, 1.5, 3000))
+    reach = rows[2] + 1.5 + 1.0
+    be, bm = kernels.box_pairs(pu, pv, rows[0].copy(), rows[1].copy(), reach)
+    d = kernels.grouped_distances(rows, np.bincount(be, minlength=6).astype(np.int64),
+                                  pu[bm], pv[bm])
+    close = d < 1.5
+    got = kernels.near_pairs(pu, pv, rows, reach, 1.5)
+    assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
+    assert 0 < close.sum() < close.size
+
+
+def test_bows_match_the_per_piece_sums(rng: np.random.Generator) -> None:
+    counts = rng.integers(10, 120, 9).astype(np.int64)
+    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(np.float64)
+    # The array form: per-piece sums in pixel order (np.bincount's), then the smallest
+    # eigenvalue of the 2x2 scatter.
+    which = np.arange(counts.size).repeat(counts)
+    mu = (np.bincount(which, weights=pixels[:, 0]) / counts).repeat(counts)
+    mv = (np.bincount(which, weights=pixels[:, 1]) / counts).repeat(counts)
+    cu, cv = pixels[:, 0] - mu, pixels[:, 1] - mv
+    sxx, syy, sxy = (np.bincount(which, weights=w) for w in (cu * cu, cv * cv, cu * cv))
+    half, det = 0.5 * (sxx + syy) / counts, (sxx * syy - sxy * sxy) / (counts * counts)
+    want = np.sqrt(np.maximum(0.0, half - np.sqrt(np.maximum(0.0, half * half - det))))
+    got = kernels.bows(pixels, counts)
+    assert np.array_equal(got, want)
+    # And a straight run has none.
+    line = np.column_stack([np.arange(20.0), 2.0 * np.arange(20.0)])
+    assert kernels.bows(line, np.array([20], np.int64))[0] < 1e-6
+
+
+def test_outline_support_is_the_lookup_of_the_rounded_samples(
+        rng: np.random.Generator) -> None:
+    support = (rng.uniform(0, 1, (70, 90)) < 0.4).astype(np.uint8)
+    rows = _ellipse_rows(rng, 5).T.copy()  # ellipses reaching off the map too
+    counts = rng.integers(16, 200, 5).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    u, v = np.rint(c * x + cx - s * y), np.rint(s * x + cy + c * y)
+    inside = (u >= 0) & (u < 90) & (v >= 0) & (v < 70)
+    hit = np.zeros(u.size, bool)
+    hit[inside] = support[v[inside].astype(int), u[inside].astype(int)] > 0
+    want = np.bincount(np.arange(5).repeat(counts), weights=hit) / counts
+    got = kernels.outline_support(support, rows, counts, ct, st)
+    assert np.array_equal(got, want)
+    assert not inside.all()
+
+
+def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
+        rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    cx, cy, a, b, th = 40.0, 30.0, 20.0, 12.0, 0.4
+    c, s = np.cos(th), np.sin(th)
+    form = np.array([cx, cy, c * c / a**2 + s * s / b**2, c * s * (1 / a**2 - 1 / b**2),
+                     s * s / a**2 + c * c / b**2])
+    t = rng.uniform(0, 2 * np.pi, 4000)
+    pu = np.rint(cx + c * a * np.cos(t) - s * b * np.sin(t) + rng.normal(0, 2, 4000))
+    pv = np.rint(cy + s * a * np.cos(t) + c * b * np.sin(t) + rng.normal(0, 2, 4000))
+    g = rng.uniform(0, 2 * np.pi, 4000)
+    gu, gv = np.cos(g), np.sin(g)
+    reach = a + 1.2 + 1
+    near = (np.abs(pu - cx) <= reach) & (np.abs(pv - cy) <= reach)
+    du, dv = pu - cx, pv - cy
+    nu, nv = form[2] * du + form[3] * dv, form[4] * dv + form[3] * du
+    f = du * nu + dv * nv - 1.0
+    n2 = nu * nu + nv * nv
+    dot = nu * gu + nv * gv
+    keep = near & (f * f < 4 * 1.2 * 1.2 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
+    su, sv = kernels.subpixel_columns(gx, gy, pu[keep], pv[keep], gu[keep], gv[keep], 0.5)
+    got = kernels.subpixel_along(pu, pv, gu, gv, form, reach, 4 * 1.2 * 1.2, 0.87 * 0.87,
+                                 gx, gy, 0.5)
+    assert got.dtype == np.float32 and 0 < got.shape[0] < near.sum()
+    assert np.array_equal(got, np.column_stack([su, sv]).astype(np.float32))
+
+
+def test_profile_peaks_match_the_grid_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    n = 300
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pu, pv = 40 + 25 * np.cos(t), 30 + 20 * np.sin(t)
+    nu, nv = np.cos(t), np.sin(t)
+    steps = np.arange(-2.0, 2.0 + 1e-9, 0.5)
+    k = steps.size
+    qu = pu[:, None] + steps * nu[:, None]
+    qv = pv[:, None] + steps * nv[:, None]
+    bx, by = _bilinear_numpy(gx, gy, qu.ravel(), qv.ravel())
+    g = np.abs(bx.reshape(n, k) * nu[:, None] + by.reshape(n, k) * nv[:, None])
+    best = g[:, 1:-1].argmax(axis=1) + 1
+    rows = np.arange(n)
+    before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
+    curvature = before - 2.0 * centre + after
+    peaked = curvature < -1e-9
+    shift = np.where(peaked, 0.5 * (before - after) / np.where(peaked, curvature, -1.0), 0.0)
+    threshold = float(np.median(centre))
+    ok = centre >= threshold
+    offset = steps[best] + np.minimum(np.maximum(shift, -0.5), 0.5) * 0.5
+    want = np.column_stack([(pu + offset * nu)[ok], (pv + offset * nv)[ok]])
+    got = kernels.profile_peaks(gx, gy, pu, pv, nu, nv, steps, 0.5, threshold)
+    assert 0 < got.shape[0] < n
+    assert np.array_equal(got, want)
