@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -225,3 +229,90 @@ def test_profile_peaks_match_the_grid_form(rng: np.random.Generator) -> None:
     got = kernels.profile_peaks(gx, gy, pu, pv, nu, nv, steps, 0.5, threshold)
     assert 0 < got.shape[0] < n
     assert np.array_equal(got, want)
+
+
+#: Run in a fresh interpreter: warm the kernels, then detect on the pinned paper-scene frames
+#: (colour and gray) and print every kernel that had to compile for a new argument type.
+_COMPILES_AFTER_WARM_UP = r"""
+import sys
+from pathlib import Path
+from numba.core.registry import CPUDispatcher
+from stackpick_sim.config.loader import load_scene
+from stackpick_sim.vision import kernels
+from stackpick_sim.vision.benchmark.frames import load_frame
+from stackpick_sim.vision.benchmark.methods import detector_config
+from stackpick_sim.vision.detector import TopObjectDetector
+kernels.warm_up()
+compiled = {n: k for n, k in vars(kernels).items() if isinstance(k, CPUDispatcher)}
+warm = {n: set(k.signatures) for n, k in compiled.items()}
+scene = load_scene("paper")
+kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
+              for t in scene.object_types.values())
+folder = Path(sys.argv[1])
+for png in sorted(folder.glob("*.png")):
+    frame = load_frame(folder, int(png.stem), scene.conveyor.top_z,
+                       scene.objects.max_face_height, kinds)
+    detector = TopObjectDetector(detector_config(frame))
+    detector.detect(frame.image_rgb)
+    detector.detect(frame.image_rgb.mean(axis=2).astype("uint8"))
+print(sorted(n for n, k in compiled.items() if set(k.signatures) - warm[n]))
+"""
+
+
+def test_warm_up_compiles_every_argument_type_the_detector_passes() -> None:
+    frames = Path(__file__).parent / "data" / "paper_dev_frames"
+    out = subprocess.run([sys.executable, "-c", _COMPILES_AFTER_WARM_UP, str(frames)],
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_outline_contrasts_match_the_gather_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    sizes = [40, 75]
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in sizes])
+    # The second outline runs off the image: its samples there read nothing.
+    cx, cy = np.repeat([40.0, 70.0], sizes), np.repeat([30.0, 50.0], sizes)
+    r = np.repeat([15.0, 20.0], sizes)
+    pu, pv = cx + r * np.cos(t), cy + r * np.sin(t)
+    nu, nv = np.cos(t), np.sin(t)
+    half = 2
+    shifts = np.array([0, *range(-half, 0), *range(1, half + 1)])
+    window = np.concatenate([(np.arange(n) + shifts[:, None]) % n + start
+                             for n, start in zip(sizes, [0, sizes[0]], strict=True)], axis=1)
+    offsets = np.array([-1.0, 0.0, 1.0])
+    g = []
+    for o in offsets:
+        u, v = np.rint(pu + o * nu).astype(int), np.rint(pv + o * nv).astype(int)
+        inside = (u >= 0) & (u < 80) & (v >= 0) & (v < 60)
+        uc, vc = np.clip(u, 0, 79), np.clip(v, 0, 59)
+        g.append(np.where(inside, gx[vc, uc] * nu + gy[vc, uc] * nv, 0.0))
+    mags = np.abs(g)
+    best = np.take_along_axis(np.array(g), mags.argmax(axis=0)[None], axis=0)[0]
+    want = np.abs(best[window].sum(axis=0) / window.shape[0]) / 8.0
+    got = kernels.outline_contrasts(pu, pv, nu, nv, gx, gy, offsets, window, 8.0)
+    assert np.array_equal(got, want)
+
+
+def test_band_hits_match_the_array_tests(rng: np.random.Generator) -> None:
+    image = rng.integers(0, 256, (50, 60, 3)).astype(np.uint8)
+    image[10:30, 10:40] = (120, 40, 30)  # a wall of the face's hue
+    pu, pv = rng.uniform(-5, 65, (2, 300)), rng.uniform(-5, 55, (2, 300))
+    keep = rng.uniform(0, 1, (2, 300)) < 0.8
+    colours = np.array([[200.0, 66.0, 50.0], [90.0, 90.0, 95.0]])
+    tans = np.array([1.5, 0.4])
+    belt = np.array([30.0, 32.0, 35.0])
+    qu, qv = np.rint(pu), np.rint(pv)
+    take = keep & (qu >= 0) & (qu < 60) & (qv >= 0) & (qv < 50)
+    owner = np.nonzero(take)[0]
+    cols = image[qv[take].astype(int), qu[take].astype(int)].astype(np.float64)
+    face = np.maximum(colours.sum(axis=1), 1.0)
+    sums = cols.sum(axis=1)
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - (colours / face[:, None])[owner])
+    ok = ((chroma.sum(axis=1) <= 0.12) & (sums >= 0.12 * face[owner])
+          & (sums <= ((tans + 0.3) * face)[owner])
+          & (np.abs(cols - belt).max(axis=1) > 14.0))
+    counts, hits = kernels.band_hits(pu, pv, keep, image, colours, tans + 0.3, belt, True,
+                                     0.12, 0.12, 14.0)
+    assert np.array_equal(counts, np.bincount(owner, minlength=2))
+    assert np.array_equal(hits, np.bincount(owner, weights=ok, minlength=2))
+    assert hits[0] > 0

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import fit_ellipse
 
@@ -100,8 +101,8 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     return np.abs(smooth) / SOBEL_GAIN
 
 
-#: Margin (px) for the rounding of outline samples against their ellipses' bounding box.
-_BOX_MARGIN_PX = 1e-6
+#: NORMAL_OFFSETS_PX as the compiled pass takes them.
+_OFFSETS = np.array(NORMAL_OFFSETS_PX, np.float64)
 
 
 @functools.lru_cache(maxsize=1024)
@@ -225,44 +226,12 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass (the same
     values: every offset of every sample read in one gather, the window summed from
     :attr:`Outlines.window`)."""
-    h, w = image.gx.shape
-    pts, normals = lines.points.T, lines.normals.T  # (2, N) each: u, v rows
-    n = pts.shape[1]
-    # (2, k, N): u and v of every sample at every offset across its outline (p + o n, as
-    # contrast_profile's, written as sums and differences for the offsets -1, 0, 1).
-    q = np.empty((2, len(NORMAL_OFFSETS_PX), n))
-    for k, offset in enumerate(NORMAL_OFFSETS_PX):
-        if offset == 0.0:
-            q[:, k] = pts
-        elif abs(offset) == 1.0:
-            (np.add if offset > 0 else np.subtract)(pts, normals, out=q[:, k])
-        else:
-            np.add(pts, offset * normals, out=q[:, k])
-    at = np.rint(q, out=q).astype(np.int64)
-    # Every sample inside the image (the usual case) when the outlines' box, widened by the
-    # offsets and the rounding (and a margin for the samples' own rounding), is: no clamping.
-    reach = max(abs(o) for o in NORMAL_OFFSETS_PX) + 0.5 + _BOX_MARGIN_PX
-    u0, v0, u1, v1 = lines.box
-    if u0 - reach >= 0.0 and v0 - reach >= 0.0 and u1 + reach < w - 1 and v1 + reach < h - 1:
-        flat = at[1] * w + at[0]
-        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
-    else:
-        u = np.minimum(np.maximum(at[0], 0), w - 1)
-        v = np.minimum(np.maximum(at[1], 0), h - 1)
-        flat = v * w + u
-        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
-        g = np.where((u == at[0]) & (v == at[1]), g, 0.0)
-    # The strongest offset per sample (the first of equals, as a running strict maximum).
-    mag = np.abs(g)
-    best, top = g[0], mag[0]
-    for k in range(1, g.shape[0]):
-        better = mag[k] > top
-        best = np.where(better, g[k], best)
-        if k + 1 < g.shape[0]:
-            top = np.maximum(top, mag[k])
-    # The window's sum in the order of a running sum from the sample itself (row by row).
-    total = best[lines.window].sum(axis=0)
-    return np.asarray(np.abs(total / WINDOW_SAMPLES) / SOBEL_GAIN, np.float64)
+    # One compiled pass (kernels.outline_contrasts: the same values as the array form).
+    pts, normals = lines.points, lines.normals
+    return kernels.outline_contrasts(
+        np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+        np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+        image.gx, image.gy, _OFFSETS, lines.window, SOBEL_GAIN)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

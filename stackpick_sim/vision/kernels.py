@@ -351,6 +351,97 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
 
 
 @_compiled
+def outline_contrasts(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                      nu: NDArray[np.float64], nv: NDArray[np.float64],
+                      gx: NDArray[np.int16], gy: NDArray[np.int16],
+                      offsets: NDArray[np.float64], window: NDArray[np.int64], gain: float
+                      ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per outline sample (pu, pv) with unit normal (nu, nv): the normal gradient read at the
+    pixel nearest each of the ``offsets`` along the normal (0 off the image), the strongest
+    of them (the first of equals), then its signed mean over the sample's ``window`` (rows:
+    sample indices, summed row by row), as an absolute value over ``gain``; see
+    :func:`~stackpick_sim.vision.contrast.contrast_profiles`."""
+    h, w = gx.shape
+    n = pu.shape[0]
+    best = np.empty(n)
+    for i in range(n):
+        top = -1.0
+        for k in range(offsets.shape[0]):
+            o = offsets[k]
+            if o == 0.0:
+                qu, qv = pu[i], pv[i]
+            elif o == 1.0:
+                qu, qv = pu[i] + nu[i], pv[i] + nv[i]
+            elif o == -1.0:
+                qu, qv = pu[i] - nu[i], pv[i] - nv[i]
+            else:
+                qu, qv = pu[i] + o * nu[i], pv[i] + o * nv[i]
+            ru, rv = np.rint(qu), np.rint(qv)
+            g = 0.0
+            if 0.0 <= ru < w and 0.0 <= rv < h:  # tested as floats: any value is safe
+                u, v = np.int64(ru), np.int64(rv)
+                g = gx[v, u] * nu[i] + gy[v, u] * nv[i]
+            if k == 0 or abs(g) > top:
+                best[i], top = g, abs(g)
+    out = np.empty(n)
+    rows = window.shape[0]
+    for i in range(n):
+        total = best[window[0, i]]
+        for r in range(1, rows):
+            total += best[window[r, i]]
+        out[i] = abs(total / rows) / gain
+    return out
+
+
+@_compiled
+def band_hits(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
+              image: NDArray[np.uint8], colours: NDArray[np.float64],
+              brightest: NDArray[np.float64], belt: NDArray[np.float64], use_belt: bool,
+              chroma_tolerance: float, min_brightness: float, belt_delta: float
+              ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover
+    """Per row s of the (S, P) band pixels (pu, pv) (those ``keep`` marks, on the (H, W, C)
+    ``image``): how many there are and how many show the face's colour ``colours[s]`` (C,):
+    its chromaticity within ``chroma_tolerance`` (L1), a channel sum between
+    ``min_brightness`` times the face's and ``brightest[s]`` times the face's, and (with
+    ``use_belt``) some channel more than ``belt_delta`` off the ``belt`` colour; see
+    :func:`~stackpick_sim.vision.wall.band_evidences` (the same sums, left to right)."""
+    n_sol, per = keep.shape
+    h, w, chans = image.shape
+    counts = np.zeros(n_sol, np.int64)
+    hits = np.zeros(n_sol)
+    for s in range(n_sol):
+        face_sum = colours[s, 0]
+        for c in range(1, chans):
+            face_sum += colours[s, c]
+        face_sum = max(face_sum, 1.0)
+        for k in range(per):
+            if not keep[s, k]:
+                continue
+            ru, rv = np.rint(pu[s, k]), np.rint(pv[s, k])
+            if not (0.0 <= ru < w and 0.0 <= rv < h):  # as floats: inf and NaN are off
+                continue
+            u, v = np.int64(ru), np.int64(rv)
+            counts[s] += 1
+            total = float(image[v, u, 0])
+            for c in range(1, chans):
+                total += float(image[v, u, c])
+            scale = max(total, 1.0)
+            chroma = abs(image[v, u, 0] / scale - colours[s, 0] / face_sum)
+            for c in range(1, chans):
+                chroma += abs(image[v, u, c] / scale - colours[s, c] / face_sum)
+            ok = (chroma <= chroma_tolerance and total >= min_brightness * face_sum
+                  and total <= brightest[s] * face_sum)
+            if ok and use_belt:
+                off = abs(image[v, u, 0] - belt[0])
+                for c in range(1, chans):
+                    off = max(off, abs(image[v, u, c] - belt[c]))
+                ok = off > belt_delta
+            if ok:
+                hits[s] += 1.0
+    return counts, hits
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -408,3 +499,7 @@ def warm_up() -> None:
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
+    outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
+    band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
+              np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
+              1.0)

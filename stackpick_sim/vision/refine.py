@@ -264,6 +264,8 @@ PROFILE_STEP_PX = 0.5
 #: The search offsets, px.
 PROFILE_STEPS = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
 PROFILE_STEPS.setflags(write=False)
+#: The same, writable: the compiled pass's argument type (a read-only array is another).
+_STEPS = PROFILE_STEPS.copy()
 #: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
 #: from the sub-pixel refit, already within a fraction of a pixel (a second round does not
 #: help on rendered paper-scene frames).
@@ -294,7 +296,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
         pu, pv, nu, nv = _outline_columns(current)
         n = pu.shape[0]
         # The (n, k) sample grid across the outline and each sample's peak, in one pass.
-        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, PROFILE_STEPS,
+        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, _STEPS,
                                       PROFILE_STEP_PX, threshold)
         if peaks.shape[0] < PROFILE_MIN_SHARE * n:
             return current

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import unit_circle
 
 #: Depths along the axis, as fractions of the face radius, at which the band is sampled.
@@ -264,24 +265,19 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
     ``image`` and ``tans`` (S,) its :func:`tan_tilt`; ``belt`` the bare belt's colour (C,)
     or None. Band pixels off the image are not samples. One array pass for every solution,
     of one face or of several."""
-    n_sol, per = keep.shape
-    h, w = image.shape[:2]
-    qu, qv = np.rint(pu.ravel()).astype(np.int64), np.rint(pv.ravel()).astype(np.int64)
-    take = (keep.ravel() & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
-    owner = take // per
-    counts = np.bincount(owner, minlength=n_sol)
-    face_sums = np.maximum(colours.sum(axis=1), 1.0)
-    cols = image[qv[take], qu[take]].astype(np.float64)
-    cols = cols[:, None] if cols.ndim == 1 else cols
-    sums = cols.sum(axis=1)
-    hue = colours / face_sums[:, None]
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[owner]).sum(axis=1)
-    brightest = (np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN) * face_sums
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sums[owner])
-          & (sums <= brightest[owner]))
-    if belt is not None:
-        ok &= np.abs(cols - np.reshape(belt, (1, -1))).max(axis=1) > BELT_DELTA
-    hits = np.bincount(owner, weights=ok, minlength=n_sol)
+    # One compiled pass (kernels.band_hits: the same tests and sums as the array form).
+    def rows(a: NDArray) -> NDArray:  # C order and writable: the compiled argument types
+        return np.require(a, requirements=("C", "W"))
+
+    pixels = image if image.ndim == 3 else image[:, :, None]
+    c = pixels.shape[2]
+    counts, hits = kernels.band_hits(
+        rows(pu), rows(pv), rows(keep), rows(pixels),
+        rows(np.broadcast_to(np.asarray(colours, np.float64), (keep.shape[0], c))),
+        np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN,
+        np.zeros(c) if belt is None else rows(np.broadcast_to(
+            np.asarray(belt, np.float64).reshape(-1), (c,))),
+        belt is not None, CHROMA_TOLERANCE, MIN_RELATIVE_BRIGHTNESS, BELT_DELTA)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
