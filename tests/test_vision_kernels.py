@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -316,3 +318,51 @@ def test_band_hits_match_the_array_tests(rng: np.random.Generator) -> None:
     assert np.array_equal(counts, np.bincount(owner, minlength=2))
     assert np.array_equal(hits, np.bincount(owner, weights=ok, minlength=2))
     assert hits[0] > 0
+
+
+def _corner_cuts_python(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool
+                        ) -> list[int]:
+    """The turn rule of segments.split_chain on Python floats, vertex by vertex."""
+    pl = poly.tolist()
+    verts = [pl[-1], *pl, pl[0]] if closed else pl
+    count = len(pl) if closed else len(pl) - 2
+    mag, sign = [], []
+    for (qx, qy), (rx, ry), (sx, sy) in zip(verts, verts[1:], verts[2:], strict=False):
+        x0, y0, x1, y1 = rx - qx, ry - qy, sx - rx, sy - ry
+        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        mag.append(abs(t))
+        sign.append(0 if abs(t) < 4.0 else (1 if t > 0 else -1))
+    at, last = [], 0
+    for k in range(count):
+        if closed:
+            before, after = mag[k - 1], mag[(k + 1) % count]
+        else:
+            before = mag[k - 1] if k else 0.0
+            after = mag[k + 1] if k + 1 < count else 0.0
+        cut = mag[k] > 80.0 or (mag[k] > 30.0 and mag[k] > 2.0 * max(before, after))
+        if sign[k]:
+            cut = cut or (last != 0 and sign[k] != last)
+            last = sign[k]
+        if cut:
+            at.append(k if closed else k + 1)
+    return sorted({next(i for i, p in enumerate(chain.tolist()) if p == pl[a]) for a in at})
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_corner_cuts_match_the_turn_rule_vertex_by_vertex(rng: np.random.Generator,
+                                                           closed: bool) -> None:
+    cut_any = 0
+    for _ in range(200):
+        # Random walks of a few straight runs: corners, spikes, sign flips and none.
+        steps = rng.integers(-1, 2, (int(rng.integers(3, 8)), 2))
+        steps[(steps == 0).all(axis=1)] = (1, 0)
+        runs = rng.integers(2, 12, steps.shape[0])
+        chain = np.cumsum(np.repeat(steps, runs, axis=0), axis=0).astype(np.int32) + 50
+        poly = np.asarray(cv2.approxPolyDP(chain.reshape(-1, 1, 2), 1.0, closed).reshape(-1, 2),
+                          np.int32)
+        if poly.shape[0] < 3:
+            continue
+        got = kernels.corner_cuts(chain, poly, closed, 80.0, 30.0, 2.0, 4.0).tolist()
+        assert got == _corner_cuts_python(chain, poly, closed)
+        cut_any += bool(got)
+    assert cut_any > 20

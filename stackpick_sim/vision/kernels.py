@@ -442,6 +442,60 @@ def band_hits(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np
 
 
 @_compiled
+def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
+                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
+                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Where an ordered (N, 2) ``chain`` is cut, ascending chain indices: the first pixel
+    equal to each vertex of its polygon ``poly`` (K, 2) (cyclic when ``closed``) that turns
+    by more than ``corner_deg``, by more than ``spike_deg`` and ``spike_ratio`` times either
+    neighbour, or against the sign of the previous vertex turning by ``signed_deg`` or more;
+    see :func:`~stackpick_sim.vision.segments.split_chain`."""
+    count = poly.shape[0]
+    verts = np.empty((count + 2, 2), np.int64)
+    if closed:
+        verts[0] = poly[count - 1]
+        verts[1:count + 1] = poly
+        verts[count + 1] = poly[0]
+    else:
+        verts[:count] = poly
+        count -= 2
+    mag = np.empty(count)
+    sign = np.zeros(count, np.int64)
+    for k in range(count):
+        x0, y0 = verts[k + 1, 0] - verts[k, 0], verts[k + 1, 1] - verts[k, 1]
+        x1, y1 = verts[k + 2, 0] - verts[k + 1, 0], verts[k + 2, 1] - verts[k + 1, 1]
+        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        mag[k] = abs(t)
+        if mag[k] >= signed_deg:
+            sign[k] = 1 if t > 0 else -1
+    at = np.empty(count, np.int64)
+    n_at = 0
+    last = 0
+    for k in range(count):
+        if closed:
+            before, after = mag[k - 1], mag[(k + 1) % count]
+        else:
+            before = mag[k - 1] if k else 0.0
+            after = mag[k + 1] if k + 1 < count else 0.0
+        cut = mag[k] > corner_deg or (mag[k] > spike_deg
+                                      and mag[k] > spike_ratio * max(before, after))
+        if sign[k] != 0:
+            cut = cut or (last != 0 and sign[k] != last)
+            last = sign[k]
+        if cut:
+            at[n_at] = k if closed else k + 1
+            n_at += 1
+    cuts = np.empty(n_at, np.int64)
+    for j in range(n_at):
+        u, v = poly[at[j], 0], poly[at[j], 1]
+        i = 0
+        while i < chain.shape[0] and (chain[i, 0] != u or chain[i, 1] != v):
+            i += 1
+        cuts[j] = i if i < chain.shape[0] else 0  # (a polygon keeps chain pixels)
+    return np.unique(cuts)
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -494,6 +548,7 @@ def warm_up() -> None:
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
+    corner_cuts(np.zeros((3, 2), np.int32), np.zeros((3, 2), np.int32), True, 1.0, 1.0, 1.0, 1.0)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
