@@ -366,3 +366,52 @@ def test_corner_cuts_match_the_turn_rule_vertex_by_vertex(rng: np.random.Generat
         assert got == _corner_cuts_python(chain, poly, closed)
         cut_any += bool(got)
     assert cut_any > 20
+
+
+def test_outline_near_shares_match_the_grouped_distances(rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 4).T.copy()
+    # Each other ellipse a near copy of the first: shares between 0 and 1.
+    others = rows.T.copy()
+    others[:2] += rng.normal(0, 1.0, (2, 4))
+    counts = rng.integers(16, 150, 4).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    d = kernels.grouped_distances(others, counts, cx + c * x - s * y, cy + s * x + c * y)
+    want = np.bincount(np.arange(4).repeat(counts), weights=d < 1.0) / counts
+    got = kernels.outline_near_shares(rows, counts, ct, st, others, 1.0)
+    assert np.array_equal(got, want)
+    assert np.any((got > 0) & (got < 1))
+
+
+def test_interior_counts_match_the_row_intervals(rng: np.random.Generator) -> None:
+    keys_uv = np.unique(rng.integers(0, 100, (1500, 2)), axis=0)
+    width = 102
+    keys = np.sort(keys_uv[:, 1] * width + keys_uv[:, 0]).astype(np.float64)
+    params, sizes = [], []
+    for _ in range(5):
+        cx, cy, a = rng.uniform(0, 100), rng.uniform(0, 100), rng.uniform(3, 40)
+        b, t = a * rng.uniform(0.3, 1.0), rng.uniform(0, np.pi)
+        c, s, ia, ib = np.cos(t), np.sin(t), 1 / a**2, 1 / b**2
+        p, q, r = c * c * ia + s * s * ib, 2 * c * s * (ia - ib), s * s * ia + c * c * ib
+        half = np.sqrt(p / (p * r - 0.25 * q * q))
+        first = np.ceil(cy - half)
+        params.append((cx, cy, p, q, r, first))
+        sizes.append(int(max(0, np.floor(cy + half) - first + 1)))
+    want = []
+    for (cx, cy, p, q, r, first), n in zip(params, sizes, strict=True):
+        row = first + np.arange(n)
+        dv = row - cy
+        qdv = q * dv
+        disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
+        hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+        hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
+        inside = (keys.searchsorted(row * width + hi)
+                  - keys.searchsorted(row * width + lo, side="right"))
+        want.append(int(np.maximum(inside, 0).sum()))
+    got = kernels.interior_counts(np.array(params), np.array(sizes, np.int64), keys, width)
+    assert got.tolist() == want
+    assert sum(want) > 0

@@ -149,7 +149,7 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
     reach = params[:, 2] + tol_px + 1.0
     # The box test and the distances in one compiled pass over (ellipse, point) pairs.
     return kernels.near_pairs(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                              _distance_rows(params), reach, tol_px)
+                              distance_rows(params), reach, tol_px)
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
@@ -170,12 +170,12 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
     ``counts[1]`` to ellipse 1, ... (the same values, in one compiled loop)."""
-    return kernels.grouped_distances(_distance_rows(params), np.asarray(counts, np.int64),
+    return kernels.grouped_distances(distance_rows(params), np.asarray(counts, np.int64),
                                      np.ascontiguousarray(pu, np.float64),
                                      np.ascontiguousarray(pv, np.float64))
 
 
-def _distance_rows(params: NDArray[np.float64]) -> NDArray[np.float64]:
+def distance_rows(params: NDArray[np.float64]) -> NDArray[np.float64]:
     """(6, E) rows cx, cy, a, b, cos angle, sin angle of (E, 5) ``params`` (numpy's cos and
     sin, as :func:`distances`), the compiled distance kernels' input."""
     rows = np.empty((6, params.shape[0]))

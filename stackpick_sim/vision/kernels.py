@@ -496,6 +496,80 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
 
 
 @_compiled
+def outline_near_shares(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                        ct: NDArray[np.float64], st: NDArray[np.float64],
+                        others: NDArray[np.float64], tol_px: float
+                        ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per pair e: the share of the ``counts[e]`` outline samples of ellipse e (row e of
+    (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine; parameters' cosines ``ct``
+    and sines ``st``, pair by pair) closer than ``tol_px`` to the other ellipse (column e of
+    (6, E) ``others``, as :func:`grouped_distances`); see
+    :func:`~stackpick_sim.vision.merging.boundary_shares`."""
+    out = np.empty(counts.shape[0])
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        ox, oy, oa, ob = others[0, e], others[1, e], others[2, e], others[3, e]
+        oc, os = others[4, e], others[5, e]
+        close = 0
+        for _ in range(counts[e]):
+            x, y = a * ct[k], b * st[k]
+            u = cx + c * x - s * y
+            v = cy + s * x + c * y
+            if _sampson(u - ox, v - oy, oa, ob, oc, os) < tol_px:
+                close += 1
+            k += 1
+        out[e] = close / counts[e]
+    return out
+
+
+@_compiled
+def _first_above(keys: NDArray[np.float64], x: float, strict: bool
+                 ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``keys`` whose key is above ``x`` (``strict``) or at
+    least ``x``: ``np.searchsorted``'s right or left side."""
+    lo, hi = 0, keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] > x or (not strict and keys[mid] == x):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+
+@_compiled
+def interior_counts(params: NDArray[np.float64], sizes: NDArray[np.int64],
+                    keys: NDArray[np.float64], width: int
+                    ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Per ellipse (row e of (E, 6) ``params``: cx, cy, the shrunk form's p, q, r and its
+    first row), the pixels inside it on its ``sizes[e]`` rows, the pixels given by ascending
+    row-major ``keys`` (v ``width`` + u): on each row the open interval of u between the
+    form's roots, two binary searches; see
+    :func:`~stackpick_sim.vision.occlusion._interior_counts` (the same arithmetic)."""
+    out = np.zeros(sizes.shape[0], np.int64)
+    for e in range(sizes.shape[0]):
+        cx, cy, p, q, r, first = (params[e, 0], params[e, 1], params[e, 2], params[e, 3],
+                                  params[e, 4], params[e, 5])
+        total = 0
+        for j in range(sizes[e]):
+            row = first + j
+            dv = row - cy
+            qdv = q * dv
+            disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+            root = math.sqrt(max(disc, 0.0))
+            lo = max((-qdv - root) / (2.0 * p) + cx, -0.5)
+            hi = min((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+            hi = max(hi, lo) if disc > 0.0 else lo
+            base = row * width
+            inside = _first_above(keys, base + hi, False) - _first_above(keys, base + lo, True)
+            total += max(inside, 0)
+        out[e] = total
+    return out
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -549,6 +623,8 @@ def warm_up() -> None:
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
     corner_cuts(np.zeros((3, 2), np.int32), np.zeros((3, 2), np.int32), True, 1.0, 1.0, 1.0, 1.0)
+    outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
+    interior_counts(np.ones((1, 6)), counts, col, 4)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)

@@ -32,6 +32,7 @@ from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
+    distance_rows,
     ellipse_distances,
     ellipse_params,
     fit_ellipse,
@@ -114,16 +115,13 @@ def boundary_shares(ways: list[tuple[Ellipse, Ellipse]], tol_px: float) -> list[
         sizes.append(max(16, math.ceil(perimeter_px(one))))
         th = math.radians(one.angle_deg)
         rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th)))
-    counts = np.array(sizes)
-    ct = np.concatenate([unit_circle(n)[0] for n in sizes])
-    st = np.concatenate([unit_circle(n)[1] for n in sizes])
-    cx, cy, a, b, c, s = np.array(rows, np.float64).T.repeat(counts, axis=1)
-    x, y = a * ct, b * st
-    d = grouped_distances(ellipse_params([other for _, other in ways]), counts,
-                          cx + c * x - s * y, cy + s * x + c * y)
-    close = np.bincount(np.arange(len(ways)).repeat(counts), weights=d < tol_px,
-                        minlength=len(ways))
-    return (close / counts).tolist()
+    circles = [unit_circle(n) for n in sizes]
+    # The samples and their distances to the other ellipse in one compiled pass.
+    shares = kernels.outline_near_shares(
+        np.array(rows, np.float64), np.array(sizes, np.int64),
+        np.concatenate([q[0] for q in circles]), np.concatenate([q[1] for q in circles]),
+        distance_rows(ellipse_params([other for _, other in ways])), tol_px)
+    return cast("list[float]", shares.tolist())
 
 
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:

@@ -48,11 +48,13 @@ import bisect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import (
     REFIT_INNER_REACH_PX,
     contrast_profiles,
@@ -310,25 +312,12 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
         first = math.ceil(e.cy - half)
         params.append((e.cx, e.cy, p, q, r, float(first)))
         sizes.append(max(0, math.floor(e.cy + half) - first + 1))
-    starts = np.zeros(len(sizes), np.int64)
-    np.cumsum(sizes[:-1], out=starts[1:])
-    cx, cy, p, q, r, first = np.array(params, np.float64).T.repeat(sizes, axis=1)
-    row = first + (np.arange(int(sum(sizes))) - starts.repeat(sizes))
-    dv = row - cy
-    qdv = q * dv
-    disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
-    root = np.sqrt(np.maximum(disc, 0.0))
-    # Open intervals of u, clipped to the keys' columns (an empty one where disc <= 0).
-    lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
-    hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
-    hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
-    base = row * width
-    inside = keys.searchsorted(base + hi) - keys.searchsorted(base + lo, side="right")
-    if not inside.size:
-        return [0] * len(sizes)
-    # Per ellipse: the sum over its rows (none for an ellipse spanning no row).
-    counts = np.add.reduceat(np.maximum(np.append(inside, 0), 0), starts).tolist()
-    return [k if n else 0 for k, n in zip(counts, sizes, strict=True)]
+    # Open intervals of u per row, clipped to the keys' columns (an empty one where the
+    # roots are not real), and the keys in each: one compiled pass (kernels.interior_counts).
+    counts = kernels.interior_counts(np.array(params, np.float64).reshape(-1, 6),
+                                     np.array(sizes, np.int64),
+                                     np.ascontiguousarray(keys, np.float64), width)
+    return cast("list[int]", counts.tolist())
 
 
 def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
