@@ -415,3 +415,25 @@ def test_interior_counts_match_the_row_intervals(rng: np.random.Generator) -> No
     got = kernels.interior_counts(np.array(params), np.array(sizes, np.int64), keys, width)
     assert got.tolist() == want
     assert sum(want) > 0
+
+
+def test_outline_samples_match_the_array_form(rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 5).T.copy()
+    counts = rng.integers(16, 150, 5).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    nx, ny = b * ct, a * st
+    norm = np.hypot(nx, ny)
+    nx, ny = nx / norm, ny / norm
+    pts, normals = kernels.outline_samples(rows, counts, ct, st)
+    assert np.array_equal(pts, [cx + c * x - s * y, cy + s * x + c * y])
+    assert np.array_equal(normals, [c * nx - s * ny, s * nx + c * ny])
+
+
+def test_a_division_by_zero_gives_numpys_values_not_an_error() -> None:
+    # A degenerate ellipse (zero axes): the array forms give NaN, so do the kernels.
+    pts, normals = kernels.outline_samples(np.zeros((1, 6)), np.array([4], np.int64),
+                                           np.ones(4), np.zeros(4))
+    assert np.isnan(normals).all() and np.array_equal(pts, np.zeros((2, 4)))

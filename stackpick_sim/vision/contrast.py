@@ -185,40 +185,21 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     for e in ellipses:
         t = math.radians(e.angle_deg)
         c, s = math.cos(t), math.sin(t)
-        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, c, s))
+        rows.append((e.cx, e.cy, e.a, e.b, c, s))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
         hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
         u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
         u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
     offsets = np.zeros(len(sizes) + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
-    n = int(offsets[-1])
-    # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
-    params = np.array(rows, np.float64).reshape(-1, 8).T.repeat(sizes, axis=1)
-    cx, cy, c, s = params[0], params[1], params[6], params[7]
-    trig = np.empty((2, n))  # cos t, sin t of every sample
     tables = [unit_circle(k) for k in sizes]
-    np.concatenate([t[0] for t in tables], out=trig[0])
-    np.concatenate([t[1] for t in tables], out=trig[1])
-    # Rows x = a cos t and its normal's nx = b cos t; y = b sin t and ny = a sin t (the
-    # gradient of the implicit form, scaled by a b), the normal then made unit.
-    along = params[2:4] * trig[0]
-    across = params[4:6] * trig[1]
-    norm = np.hypot(along[1], across[1])
-    along[1] /= norm
-    across[1] /= norm
-    # Points and normals as (N, 2) views of (2, N) arrays: contiguous columns, the same
-    # values as outline's cx + c x - s y etc.
-    c_along, s_across = c * along, s * across
-    s_along, c_across = s * along, c * across
-    pts = np.empty((2, n))
-    normals = np.empty((2, n))
-    np.add(cx, c_along[0], out=pts[0])
-    pts[0] -= s_across[0]
-    np.add(cy, s_along[0], out=pts[1])
-    pts[1] += c_across[0]
-    np.subtract(c_along[1], s_across[1], out=normals[0])
-    np.add(s_along[1], c_across[1], out=normals[1])
+    # Points cx + c x - s y, cy + s x + c y (x = a cos t, y = b sin t) and the unit normals
+    # of the implicit form's gradient (b cos t, a sin t), rotated: one compiled pass, as
+    # (2, N) arrays (the (N, 2) views below have contiguous columns).
+    pts, normals = kernels.outline_samples(
+        np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
+        np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
+        np.concatenate([t[1] for t in tables]) if tables else np.zeros(0))
     return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
 
 

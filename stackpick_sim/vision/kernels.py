@@ -28,8 +28,9 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 
 def _compiled(fn: _F) -> _F:
     """``fn`` compiled by numba on its first call (cached on disk), with its own signature
-    for the type checker."""
-    return cast("_F", njit(cache=True, nogil=True)(fn))
+    for the type checker; a division by zero gives what numpy's gives (inf or NaN), as in
+    the array expressions, rather than raising."""
+    return cast("_F", njit(cache=True, nogil=True, error_model="numpy")(fn))
 
 
 
@@ -570,6 +571,34 @@ def interior_counts(params: NDArray[np.float64], sizes: NDArray[np.int64],
 
 
 @_compiled
+def outline_samples(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                    ct: NDArray[np.float64], st: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """The outline samples of each ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the
+    angle's cosine and sine; ``counts[e]`` samples at parameters of cosines ``ct`` and sines
+    ``st``, ellipse by ellipse): (2, N) points and (2, N) unit outward normals (the implicit
+    form's gradient); see :func:`~stackpick_sim.vision.contrast.outlines`."""
+    n = ct.shape[0]
+    pts = np.empty((2, n))
+    normals = np.empty((2, n))
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        for _ in range(counts[e]):
+            x, nx = a * ct[k], b * ct[k]
+            y, ny = b * st[k], a * st[k]
+            norm = np.hypot(nx, ny)
+            nx /= norm
+            ny /= norm
+            pts[0, k] = cx + c * x - s * y
+            pts[1, k] = cy + s * x + c * y
+            normals[0, k] = c * nx - s * ny
+            normals[1, k] = s * nx + c * ny
+            k += 1
+    return pts, normals
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -625,6 +654,7 @@ def warm_up() -> None:
     corner_cuts(np.zeros((3, 2), np.int32), np.zeros((3, 2), np.int32), True, 1.0, 1.0, 1.0, 1.0)
     outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
     interior_counts(np.ones((1, 6)), counts, col, 4)
+    outline_samples(np.ones((1, 6)), counts, col, col)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
