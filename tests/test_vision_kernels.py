@@ -437,3 +437,27 @@ def test_a_division_by_zero_gives_numpys_values_not_an_error() -> None:
     pts, normals = kernels.outline_samples(np.zeros((1, 6)), np.array([4], np.int64),
                                            np.ones(4), np.zeros(4))
     assert np.isnan(normals).all() and np.array_equal(pts, np.zeros((2, 4)))
+
+
+def test_along_select_is_the_along_test_of_the_active_ellipses(
+        rng: np.random.Generator) -> None:
+    forms = np.column_stack([rng.uniform(20, 80, 4), rng.uniform(20, 80, 4),
+                             rng.uniform(1e-3, 1e-2, 4), rng.uniform(-1e-3, 1e-3, 4),
+                             rng.uniform(1e-3, 1e-2, 4)])
+    counts = rng.integers(50, 300, 4).astype(np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    n = int(counts.sum())
+    u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
+    t = rng.uniform(0, 2 * np.pi, n)
+    gu, gv = np.cos(t), np.sin(t)
+    pixels = rng.integers(0, 100, (n, 2)).astype(np.float32)
+    active = np.array([True, False, True, True])
+    passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
+    passed &= active.repeat(counts)
+    sel, bounds, pts = kernels.along_select(forms, starts, active, u, v, gu, gv, pixels, 16.0,
+                                            0.87 * 0.87)
+    assert np.array_equal(sel, passed.nonzero()[0])
+    assert np.array_equal(pts, pixels[sel])
+    owner = np.arange(4).repeat(counts)[sel]
+    assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
+    assert bounds[2] == bounds[1] and sel.size > 0

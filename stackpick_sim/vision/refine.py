@@ -209,38 +209,33 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
                                reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
-    counts = np.bincount(pe, minlength=n)
+    starts = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
     # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    columns: tuple[NDArray[np.float64], ...] = (pu[pm], pv[pm], grads[:, 0][pm],
-                                                  grads[:, 1][pm])
+    u, v, gu, gv = pu[pm], pv[pm], grads[:, 0][pm], grads[:, 1][pm]
     # The fits' input, built once: pixel coordinates are exact in float32.
     pair_points = points[pm].astype(np.float32)
-    active = [True] * n
+    active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
     for tol in TOLERANCES_PX:
-        if all(active):
-            idx, cols, live = None, columns, counts
-        else:
-            live = counts * np.array(active)
-            idx = np.array(active)[pe].nonzero()[0]
-            cols = tuple(c[idx] for c in columns)
-        keep = _along_grouped(current, live, cols, tol)
-        sel = keep.nonzero()[0] if idx is None else idx[keep]
-        bounds = pe[sel].searchsorted(np.arange(n + 1)).tolist()
-        for e in range(n):
-            if not active[e]:
-                continue
-            mine = sel[bounds[e]:bounds[e + 1]]
-            key = mine.tobytes()
+        # The pairs along each active fit, and their pixels, in one compiled pass.
+        forms = np.array([_form(e) for e in current], np.float64)
+        sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
+                                               pair_points, 4.0 * tol * tol,
+                                               MIN_NORMAL_COS * MIN_NORMAL_COS)
+        bounds = at.tolist()
+        for e in active.nonzero()[0].tolist():
+            lo, hi = bounds[e], bounds[e + 1]
+            key = sel[lo:hi].tobytes()
             if previous.get(e) == key:
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = key
-            fit = fit_ellipse(pair_points[mine]) if mine.size >= MIN_PIXELS else None
+            fit = fit_ellipse(pixels[lo:hi]) if hi - lo >= MIN_PIXELS else None
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
             current[e] = fit
-        if not any(active):
+        if not active.any():
             break
     return current
 
