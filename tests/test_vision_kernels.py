@@ -461,3 +461,33 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     owner = np.arange(4).repeat(counts)[sel]
     assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
     assert bounds[2] == bounds[1] and sel.size > 0
+
+
+def test_junction_ends_match_the_pair_form(rng: np.random.Generator) -> None:
+    # Edge pixels in row-major order, some on the two ellipses, some crossing them.
+    uv = np.unique(rng.integers(0, 100, (150, 2)), axis=0)  # (v, u), sorted by row v
+    pu, pv = uv[:, 1].astype(np.float64), uv[:, 0].astype(np.float64)
+    params = np.array([[50.0, 50.0, 1.0, 0.0, 20.0, 12.0, 18.5, 10.5],
+                       [30.0, 60.0, 0.6, 0.8, 15.0, 9.0, 13.5, 7.5]])
+    t = rng.uniform(0, 2 * np.pi, 12)
+    owner = rng.integers(0, 2, 12).astype(np.int64)
+    cx, cy, c, s, a, b = params[owner, :6].T
+    ends = np.column_stack([cx + c * a * np.cos(t) - s * b * np.sin(t),
+                            cy + s * a * np.cos(t) + c * b * np.sin(t)])
+    # The array form: every (end, pixel) pair of the rows within reach.
+    end_k, at = np.nonzero(np.abs(pv[None, :] - ends[:, 1:2]) <= 6.0)
+    d2 = (pu[at] - ends[end_k, 0]) ** 2 + (pv[at] - ends[end_k, 1]) ** 2
+    near = d2 <= 36.0
+    end_k, at, d2 = end_k[near], at[near], d2[near]
+    cx, cy, c, s, a, b, a_in, b_in = params[owner[end_k]].T
+    du, dv = pu[at] - cx, pv[at] - cy
+    xr, yr = c * du + s * dv, -s * du + c * dv
+    x, y = xr / a, yr / b
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
+    off = dist > 1.5
+    inner = off & ((xr / a_in) ** 2 + (yr / b_in) ** 2 < 1.0)
+    junction = np.bincount(end_k[off & (d2 <= 9.0)], minlength=12) > 0
+    crossing = np.bincount(end_k[inner & (d2 <= 36.0)], minlength=12) > 0
+    got = kernels.junction_ends(pu, pv, ends, owner, params, 6.0, 9.0, 36.0, 1.5)
+    assert np.array_equal(got, junction & crossing)
+    assert got.any() and not got.all()

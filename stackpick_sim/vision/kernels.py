@@ -630,6 +630,49 @@ def outline_samples(rows: NDArray[np.float64], counts: NDArray[np.int64],
 
 
 @_compiled
+def junction_ends(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                  ends: NDArray[np.float64], owner: NDArray[np.int64],
+                  params: NDArray[np.float64], reach: float, junction_sq: float,
+                  crossing_sq: float, tol_px: float
+                  ) -> NDArray[np.bool_]:  # pragma: no cover - compiled
+    """Per gap end k ((K, 2) ``ends``, of ellipse ``owner[k]``: row of (E, 8) ``params``,
+    cx, cy, the angle's cosine and sine, a, b and the axes less the inner margin): whether
+    among the edge pixels (pu, pv) (rows ascending) within ``reach`` of it one off the
+    ellipse (Sampson distance above ``tol_px``) lies within ``junction_sq`` (px^2) of it and
+    one off it and inside the inner axes within ``crossing_sq``; see
+    :func:`~stackpick_sim.vision.occlusion._junction_owners` (the same arithmetic)."""
+    out = np.zeros(ends.shape[0], np.bool_)
+    reach_sq = reach * reach
+    for k in range(ends.shape[0]):
+        eu, ev = ends[k, 0], ends[k, 1]
+        e = owner[k]
+        cx, cy, c, s, a, b = (params[e, 0], params[e, 1], params[e, 2], params[e, 3],
+                              params[e, 4], params[e, 5])
+        a_in, b_in = params[e, 6], params[e, 7]
+        junction = crossing = False
+        m = _first_above(pv, ev - reach, False)
+        stop = _first_above(pv, ev + reach, True)
+        while m < stop:
+            du_end, dv_end = pu[m] - eu, pv[m] - ev
+            d2 = du_end * du_end + dv_end * dv_end
+            if d2 <= reach_sq:
+                du, dv = pu[m] - cx, pv[m] - cy
+                xr, yr = c * du + s * dv, -s * du + c * dv
+                x, y = xr / a, yr / b
+                xa, yb = x / a, y / b
+                dist = abs(x * x + y * y - 1.0) / (2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12)
+                if dist > tol_px:
+                    if d2 <= junction_sq:
+                        junction = True
+                    xs, ys = xr / a_in, yr / b_in
+                    if xs * xs + ys * ys < 1.0 and d2 <= crossing_sq:
+                        crossing = True
+            m += 1
+        out[k] = junction and crossing
+    return out
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -686,6 +729,8 @@ def warm_up() -> None:
     outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
     interior_counts(np.ones((1, 6)), counts, col, 4)
     outline_samples(np.ones((1, 6)), counts, col, col)
+    junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
+                  1.0, 1.0, 1.0)
     along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_), col,
                  col, col, col, np.zeros((1, 2), np.float32), 1.0, 1.0)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)

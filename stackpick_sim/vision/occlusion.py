@@ -329,47 +329,20 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     more than MERGE_TOLERANCE_PX within CROSSING_REACH_PX of it. Only the pixels of the rows
     within reach of an end are tested, all (end, pixel) pairs in one pass."""
     reach = max(JUNCTION_RADIUS_PX, CROSSING_REACH_PX)
-    end_k, at = _row_pairs(edge_points[:, 1], ends[:, 1] - reach, ends[:, 1] + reach)
-    du_end = edge_points[at, 0] - ends[end_k, 0]
-    dv_end = edge_points[at, 1] - ends[end_k, 1]
-    d2 = du_end * du_end + dv_end * dv_end
-    near = (d2 <= reach ** 2).nonzero()[0]
-    if not near.size:
-        return []
-    end_k, at, d2 = end_k[near], at[near], d2[near]
     # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
-    # pixels run into the face); per pair, its end's ellipse's.
+    # pixels run into the face). The (end, pixel) tests in one compiled pass
+    # (kernels.junction_ends: the same arithmetic as the pairs' array form).
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
                      max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
-    cx, cy, c, s, a, b, a_in, b_in = np.array(rows, np.float64)[owner[end_k]].T
-    du = edge_points[at, 0] - cx
-    dv = edge_points[at, 1] - cy
-    xr, yr = c * du + s * dv, -s * du + c * dv
-    x, y = xr / a, yr / b
-    # Sampson distance, as fitting.distances.
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
-    off_curve = dist > MERGE_TOLERANCE_PX
-    xs, ys = xr / a_in, yr / b_in
-    inner = off_curve & (xs * xs + ys * ys < 1.0)
-    junction = np.bincount(end_k[off_curve & (d2 <= JUNCTION_RADIUS_PX ** 2)],
-                           minlength=owner.size)
-    crossing = np.bincount(end_k[inner & (d2 <= CROSSING_REACH_PX ** 2)], minlength=owner.size)
-    return owner[(junction > 0) & (crossing > 0)].tolist()
-
-
-def _row_pairs(rows: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """(query, point) index pairs of every point whose row (``rows``, (M,) ascending) lies in
-    [``low[k]``, ``high[k]``] of query k, query by query, in one array pass."""
-    start = rows.searchsorted(low)
-    size = np.maximum(rows.searchsorted(high, side="right") - start, 0)
-    query = np.arange(size.size).repeat(size)
-    # Each query's points: its start onwards (the running index less the sizes before it).
-    point = np.arange(query.size) + (start - (size.cumsum() - size)).repeat(size)
-    return query, point
+    both = kernels.junction_ends(
+        np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
+        np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
+        np.array(rows, np.float64).reshape(-1, 8), float(reach),
+        float(JUNCTION_RADIUS_PX ** 2), float(CROSSING_REACH_PX ** 2), MERGE_TOLERANCE_PX)
+    return cast("list[int]", owner[both].tolist())
 
 
 def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
