@@ -491,3 +491,18 @@ def test_junction_ends_match_the_pair_form(rng: np.random.Generator) -> None:
     got = kernels.junction_ends(pu, pv, ends, owner, params, 6.0, 9.0, 36.0, 1.5)
     assert np.array_equal(got, junction & crossing)
     assert got.any() and not got.all()
+
+
+def test_face_median_matches_the_sorted_channels(rng: np.random.Generator) -> None:
+    image = rng.integers(0, 256, (40, 50, 3)).astype(np.uint8)
+    t = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    for cx, cy, sa, sb, th in [(25.0, 20.0, 8.0, 5.0, 0.3), (2.0, 38.0, 10.0, 6.0, 2.0)]:
+        c, s = np.cos(th), np.sin(th)
+        x, y = sa * ct, sb * st
+        u = np.clip(np.rint(cx + c * x + -s * y).astype(int), 0, 49)
+        v = np.clip(np.rint(cy + s * x + c * y).astype(int), 0, 39)
+        ordered = np.sort(image[v, u].T, axis=1)
+        want = 0.5 * (ordered[:, 7].astype(np.float64) + ordered[:, 8])
+        got = kernels.face_median(image, cx, cy, sa, sb, c, s, ct, st)
+        assert np.array_equal(got, want)

@@ -673,6 +673,30 @@ def junction_ends(pu: NDArray[np.float64], pv: NDArray[np.float64],
 
 
 @_compiled
+def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: float,
+                c: float, s: float, ct: NDArray[np.float64], st: NDArray[np.float64]
+                ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per channel of the (H, W, C) ``image``, the median of its values at the pixels
+    nearest the points (cx + c x - s y, cy + s x + c y), x = ``sa`` ct, y = ``sb`` st
+    (clamped into the image): the mean of the two middle values of an even count; see
+    :func:`~stackpick_sim.vision.wall.face_colour`."""
+    h, w, chans = image.shape
+    n = ct.shape[0]
+    values = np.empty((chans, n), np.uint8)
+    for k in range(n):
+        x, y = sa * ct[k], sb * st[k]
+        u = min(max(np.int64(np.rint(cx + c * x + -s * y)), 0), w - 1)
+        v = min(max(np.int64(np.rint(cy + s * x + c * y)), 0), h - 1)
+        for ch in range(chans):
+            values[ch, k] = image[v, u, ch]
+    out = np.empty(chans)
+    for ch in range(chans):
+        ordered = np.sort(values[ch])
+        out[ch] = 0.5 * (float(ordered[(n - 1) // 2]) + ordered[n // 2])
+    return out
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -729,6 +753,7 @@ def warm_up() -> None:
     outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
     interior_counts(np.ones((1, 6)), counts, col, 4)
     outline_samples(np.ones((1, 6)), counts, col, col)
+    face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)
     along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_), col,

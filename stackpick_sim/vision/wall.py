@@ -65,6 +65,8 @@ BELT_DELTA = 14.0
 FACE_SAMPLE_SCALE = 0.5
 #: Interior sample count.
 FACE_SAMPLES = 16
+#: unit_circle(FACE_SAMPLES), writable: the compiled pass's argument type.
+_FACE_CIRCLE = tuple(t.copy() for t in unit_circle(FACE_SAMPLES))
 
 
 def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -118,26 +120,16 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8],
                 scale: float = FACE_SAMPLE_SCALE) -> NDArray[np.float64]:
     """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image, on
     the ellipse of ``scale`` times its semi-axes."""
-    ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
     c, s = math.cos(th), math.sin(th)
-    x, y = scale * ellipse.a * ct, scale * ellipse.b * st
-    # Rows u, v: (cx + c x) - s y and (cy + s x) + c y, as (2, n) arrays.
-    q = np.array([[ellipse.cx], [ellipse.cy]]) + np.array([[c], [s]]) * x
-    q += np.array([[-s], [c]]) * y
-    uv = np.rint(q).astype(np.int64)
-    h, w = image.shape[:2]
-    # min(max()): np.clip's Python wrapper costs more than the two ufuncs here.
-    np.minimum(np.maximum(uv, 0, out=uv), np.array([[w - 1], [h - 1]]), out=uv)
-    values = image[uv[1], uv[0]]
-    if values.ndim == 1:
-        return column_median(values.astype(np.float64))
-    # The median of each channel from a sort of its integer values (the same order
-    # statistics as sorting them as floats).
-    ordered = np.sort(values.T, axis=1)
-    n = ordered.shape[1]
-    return np.asarray(0.5 * (ordered[:, (n - 1) // 2].astype(np.float64) + ordered[:, n // 2]),
-                      np.float64)
+    # The sample pixels (cx + c x) - s y and (cy + s x) + c y, rounded and clamped into the
+    # image, and each channel's median from a sort of its integer values, in one compiled
+    # pass (kernels.face_median: the same values as the array form).
+    pixels = image if image.ndim == 3 else image[:, :, None]
+    colour = kernels.face_median(np.require(pixels, requirements=("C", "W")), ellipse.cx,
+                                 ellipse.cy, scale * ellipse.a, scale * ellipse.b, c, s,
+                                 *_FACE_CIRCLE)
+    return colour if image.ndim == 3 else np.asarray(colour[0], np.float64)
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
