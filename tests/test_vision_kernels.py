@@ -506,3 +506,20 @@ def test_face_median_matches_the_sorted_channels(rng: np.random.Generator) -> No
         want = 0.5 * (ordered[:, 7].astype(np.float64) + ordered[:, 8])
         got = kernels.face_median(image, cx, cy, sa, sb, c, s, ct, st)
         assert np.array_equal(got, want)
+
+
+def test_project_outside_matches_the_array_form(rng: np.random.Generator) -> None:
+    band = np.stack([rng.uniform(-0.05, 0.05, (2, 40)), rng.uniform(-0.05, 0.05, (2, 40)),
+                     rng.uniform(0.3, 0.5, (2, 40))])
+    terms = np.array([[160.0, 120.0, 1.0, 0.0, 30.0, 20.0], [150.0, 110.0, 0.6, 0.8, 25.0, 25.0]])
+    fx, fy, kcx, kcy = 290.0, 290.0, 159.5, 119.5
+    pu = fx * band[0] / band[2] + kcx
+    pv = fy * band[1] / band[2] + kcy
+    cx, cy, c, s, a, b = (terms[:, i:i + 1] for i in range(6))
+    du, dv = pu - cx, pv - cy
+    x, y = (c * du + s * dv) / a, (-s * du + c * dv) / b
+    rho = np.sqrt(x * x + y * y)
+    outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9) > 2.0
+    got = kernels.project_outside(band, terms, fx, fy, kcx, kcy, 2.0)
+    assert np.array_equal(got[0], pu) and np.array_equal(got[1], pv)
+    assert np.array_equal(got[2], outside) and outside.any() and not outside.all()

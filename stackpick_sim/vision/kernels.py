@@ -697,6 +697,33 @@ def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: f
 
 
 @_compiled
+def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
+                    fy: float, kcx: float, kcy: float, margin_px: float
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                               NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` (pinhole fx,
+    fy, kcx, kcy) and which lie more than ``margin_px`` outside face s (row s of (S, 6)
+    ``terms``: cx, cy, the angle's cosine and sine, a, b), by the radial distance; see
+    :func:`~stackpick_sim.vision.wall._project_outside` (the same arithmetic)."""
+    n_s, n_p = band.shape[1], band.shape[2]
+    pu, pv = np.empty((n_s, n_p)), np.empty((n_s, n_p))
+    out = np.empty((n_s, n_p), np.bool_)
+    for f in range(n_s):
+        cx, cy, c, s, a, b = (terms[f, 0], terms[f, 1], terms[f, 2], terms[f, 3],
+                              terms[f, 4], terms[f, 5])
+        for k in range(n_p):
+            u = fx * band[0, f, k] / band[2, f, k] + kcx
+            v = fy * band[1, f, k] / band[2, f, k] + kcy
+            du, dv = u - cx, v - cy
+            x = (c * du + s * dv) / a
+            y = (-s * du + c * dv) / b
+            rho = np.sqrt(x * x + y * y)
+            pu[f, k], pv[f, k] = u, v
+            out[f, k] = (rho - 1.0) * np.hypot(x * a, y * b) / max(rho, 1e-9) > margin_px
+    return pu, pv, out
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -753,6 +780,7 @@ def warm_up() -> None:
     outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
     interior_counts(np.ones((1, 6)), counts, col, 4)
     outline_samples(np.ones((1, 6)), counts, col, col)
+    project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)

@@ -189,24 +189,17 @@ def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellips
     """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` and which of them
     lie more than WALL_MARGIN_PX outside ``faces[s]`` (one per row s); for one face ellipse,
     the same of (3, N) points."""
-    pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
-    pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
-    cx, cy, c, s, a, b = _face_terms(faces)
-    du, dv = pu - cx, pv - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses).
-    rho = np.sqrt(x * x + y * y)
-    outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9)
-    return pu, pv, outside > WALL_MARGIN_PX
-
-
-def _face_terms(faces: Ellipse | Sequence[Ellipse]) -> tuple[float | NDArray[np.float64], ...]:
-    """Centre, cos and sin of the angle and semi-axes (cx, cy, c, s, a, b) of one ellipse as
-    Python floats, or of each of a sequence as (S, 1) columns (the same values)."""
-    if isinstance(faces, Ellipse):
-        return _terms(faces)
-    return tuple(np.array([_terms(e) for e in faces], np.float64).T[:, :, None])
+    # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses),
+    # in one compiled pass (kernels.project_outside: the same arithmetic as the array form).
+    one = isinstance(faces, Ellipse)
+    points = np.require(band.reshape(3, 1, -1) if one else band, np.float64, ("C", "W"))
+    terms = np.array([_terms(faces)] if isinstance(faces, Ellipse)
+                     else [_terms(e) for e in faces], np.float64).reshape(-1, 6)
+    pu, pv, outside = kernels.project_outside(points, terms, intrinsics.fx, intrinsics.fy,
+                                              intrinsics.cx, intrinsics.cy, WALL_MARGIN_PX)
+    if one:
+        return pu[0], pv[0], outside[0]
+    return pu, pv, outside
 
 
 def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
