@@ -523,3 +523,13 @@ def test_project_outside_matches_the_array_form(rng: np.random.Generator) -> Non
     got = kernels.project_outside(band, terms, fx, fy, kcx, kcy, 2.0)
     assert np.array_equal(got[0], pu) and np.array_equal(got[1], pv)
     assert np.array_equal(got[2], outside) and outside.any() and not outside.all()
+
+
+def test_point_distances_match_the_array_form(rng: np.random.Generator) -> None:
+    points = rng.uniform(0, 100, (500, 2))
+    cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
+    c, s = np.cos(t), np.sin(t)
+    du, dv = points[:, 0] - cx, points[:, 1] - cy
+    x, y = (c * du + s * dv) / a, (-s * du + c * dv) / b
+    want = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
+    assert np.array_equal(kernels.point_distances(points, cx, cy, a, b, c, s), want)

@@ -74,6 +74,17 @@ def _sampson(du: float, dv: float, a: float, b: float, c: float, s: float
 
 
 @_compiled
+def point_distances(points: NDArray[np.float64], cx: float, cy: float, a: float, b: float,
+                    c: float, s: float) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Sampson distances of (N, 2) ``points`` to the ellipse (cx, cy, a, b) of angle cosine
+    and sine (c, s); see :func:`~stackpick_sim.vision.fitting.ellipse_distances`."""
+    out = np.empty(points.shape[0])
+    for k in range(points.shape[0]):
+        out[k] = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+    return out
+
+
+@_compiled
 def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[np.float64],
                reach: NDArray[np.float64], tol_px: float
                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
@@ -780,6 +791,7 @@ def warm_up() -> None:
     outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
     interior_counts(np.ones((1, 6)), counts, col, 4)
     outline_samples(np.ones((1, 6)), counts, col, col)
+    point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
