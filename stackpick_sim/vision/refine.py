@@ -240,18 +240,6 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     return current
 
 
-def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
-                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
-    """(K,) bool: :func:`_along`'s test of K (ellipse, pixel) pairs given as columns (u, v,
-    gu, gv), each (K,): pixel and unit gradient. The pairs run ellipse by ellipse: the first
-    ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its
-    :func:`_form` repeated per pair)."""
-    forms = np.array([_form(e) for e in ellipses], np.float64).reshape(-1, 5)
-    u, v, gu, gv = (np.ascontiguousarray(c) for c in cols)
-    return kernels.along_grouped(forms, np.asarray(counts, np.int64), u, v, gu, gv,
-                                 4.0 * tol_px * tol_px, MIN_NORMAL_COS * MIN_NORMAL_COS)
-
-
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
 #: steps: covers the sub-pixel refit's error on a face whose faint arcs Canny dropped.
 PROFILE_REACH_PX = 2.0
