@@ -485,6 +485,19 @@ def band_hits(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np
 
 
 @_compiled
+def _insertion_sort(values: NDArray[Any]) -> None:  # pragma: no cover - compiled
+    """Sort a short 1-D array in place, ascending (np.sort's order; compiles in a fraction
+    of np.sort's time)."""
+    for i in range(1, values.shape[0]):
+        x = values[i]
+        j = i - 1
+        while j >= 0 and values[j] > x:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = x
+
+
+@_compiled
 def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
                 corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
                 ) -> NDArray[np.int64]:  # pragma: no cover - compiled
@@ -495,12 +508,11 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
     see :func:`~stackpick_sim.vision.segments.split_chain`."""
     count = poly.shape[0]
     verts = np.empty((count + 2, 2), np.int64)
-    if closed:
-        verts[0] = poly[count - 1]
-        verts[1:count + 1] = poly
-        verts[count + 1] = poly[0]
-    else:
-        verts[:count] = poly
+    shift = 1 if closed else 0
+    for k in range(count + 2):  # closed: the last vertex, the polygon, its first vertex
+        j = (k - shift) % count
+        verts[k, 0], verts[k, 1] = poly[j, 0], poly[j, 1]
+    if not closed:
         count -= 2
     mag = np.empty(count)
     sign = np.zeros(count, np.int64)
@@ -535,7 +547,13 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
         while i < chain.shape[0] and (chain[i, 0] != u or chain[i, 1] != v):
             i += 1
         cuts[j] = i if i < chain.shape[0] else 0  # (a polygon keeps chain pixels)
-    return np.unique(cuts)
+    _insertion_sort(cuts)
+    kept = 0  # each cut once
+    for j in range(n_at):
+        if kept == 0 or cuts[j] != cuts[kept - 1]:
+            cuts[kept] = cuts[j]
+            kept += 1
+    return cuts[:kept]
 
 
 @_compiled
@@ -702,7 +720,8 @@ def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: f
             values[ch, k] = image[v, u, ch]
     out = np.empty(chans)
     for ch in range(chans):
-        ordered = np.sort(values[ch])
+        ordered = values[ch]
+        _insertion_sort(ordered)
         out[ch] = 0.5 * (float(ordered[(n - 1) // 2]) + ordered[n // 2])
     return out
 
