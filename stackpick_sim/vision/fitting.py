@@ -234,51 +234,80 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
             + fit_or_split(points[half:], shape, depth - 1))
 
 
+#: A piece of a chain being fitted: (chain index, path of halves taken, e.g. "01", pixels).
+_Piece = tuple[int, str, NDArray]
+
+
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3
             ) -> list[tuple[int, NDArray, Ellipse, float]]:
     """:func:`fit_or_split` of every chain, level by level: the straightness test and the
     residuals of all pieces of one level are one array pass each (only the direct fit runs
     per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
     order :func:`fit_or_split` gives them chain after chain."""
-    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
+    pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     for level in range(depth + 1):
         if not pending:
             break
-        long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
-        bows = _bows([p[2] for p in long_enough])
-        fitted: list[tuple[tuple[int, str, NDArray], Ellipse]] = []
-        failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
-        for p, bow in zip(long_enough, bows, strict=True):
-            e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
-            if e is None or not plausible(e, shape):
-                failed.append(p)
-            else:
-                fitted.append((p, e))
-        if fitted:
-            # (2, N): contiguous u and v rows.
-            pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
-            counts = np.array([f[0][2].shape[0] for f in fitted])
-            # The pieces' pixels run piece by piece: each fit's parameters repeated.
-            d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0],
-                                  pts[1])
-            which = np.arange(len(fitted)).repeat(counts)
-            sums = np.bincount(which, weights=d * d).tolist()
-            rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
-            for (p, e), r in zip(fitted, rms, strict=True):
-                if r > MAX_RESIDUAL_PX:
-                    failed.append(p)
-                else:
-                    found.append(((p[0], p[1]), p[2], e, r))
-        pending = []
+        fitted, failed = _direct_fits(pending, shape)
+        accepted, rejected = _within_residual(fitted)
+        found += accepted
         if level == depth:
             break
-        for i, path, pts_ in failed:
-            if pts_.shape[0] >= 2 * MIN_FIT_PX:
-                half = pts_.shape[0] // 2
-                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+        pending = _halves(failed + rejected)
     found.sort(key=lambda f: f[0])
     return [(key[0], pts_, e, r) for key, pts_, e, r in found]
+
+
+def _direct_fits(pending: list[_Piece], shape: tuple[int, int]
+                 ) -> tuple[list[tuple[_Piece, Ellipse]], list[_Piece]]:
+    """The pieces long enough, bowed enough and with a plausible direct fit (with it), and
+    the others (too short first, then the failed ones in their order)."""
+    long_enough = [p for p in pending if p[2].shape[0] >= MIN_FIT_PX]
+    bows = _bows([p[2] for p in long_enough])
+    fitted: list[tuple[_Piece, Ellipse]] = []
+    failed = [p for p in pending if p[2].shape[0] < MIN_FIT_PX]
+    for p, bow in zip(long_enough, bows, strict=True):
+        e = fit_ellipse(p[2]) if bow >= MIN_BOW_PX else None
+        if e is None or not plausible(e, shape):
+            failed.append(p)
+        else:
+            fitted.append((p, e))
+    return fitted, failed
+
+
+def _within_residual(fitted: list[tuple[_Piece, Ellipse]]
+                     ) -> tuple[list[tuple[tuple[int, str], NDArray, Ellipse, float]],
+                                list[_Piece]]:
+    """The fitted pieces whose RMS residual is within MAX_RESIDUAL_PX, as ((chain, path),
+    pixels, ellipse, residual), and the others; all residuals in one array pass."""
+    if not fitted:
+        return [], []
+    # (2, N): contiguous u and v rows.
+    pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
+    counts = np.array([f[0][2].shape[0] for f in fitted])
+    # The pieces' pixels run piece by piece: each fit's parameters repeated.
+    d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0], pts[1])
+    which = np.arange(len(fitted)).repeat(counts)
+    sums = np.bincount(which, weights=d * d).tolist()
+    rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
+    accepted, rejected = [], []
+    for (p, e), r in zip(fitted, rms, strict=True):
+        if r > MAX_RESIDUAL_PX:
+            rejected.append(p)
+        else:
+            accepted.append(((p[0], p[1]), p[2], e, r))
+    return accepted, rejected
+
+
+def _halves(failed: list[_Piece]) -> list[_Piece]:
+    """The two halves of each failed piece long enough to fit both."""
+    pending: list[_Piece] = []
+    for i, path, pts_ in failed:
+        if pts_.shape[0] >= 2 * MIN_FIT_PX:
+            half = pts_.shape[0] // 2
+            pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+    return pending
 
 
 def _bows(pieces: list[NDArray]) -> list[float]:

@@ -498,14 +498,10 @@ def _insertion_sort(values: NDArray[Any]) -> None:  # pragma: no cover - compile
 
 
 @_compiled
-def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
-                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
-                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
-    """Where an ordered (N, 2) ``chain`` is cut, ascending chain indices: the first pixel
-    equal to each vertex of its polygon ``poly`` (K, 2) (cyclic when ``closed``) that turns
-    by more than ``corner_deg``, by more than ``spike_deg`` and ``spike_ratio`` times either
-    neighbour, or against the sign of the previous vertex turning by ``signed_deg`` or more;
-    see :func:`~stackpick_sim.vision.segments.split_chain`."""
+def _turns(poly: NDArray[np.int32], closed: bool, signed_deg: float
+           ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The turn (deg, absolute) at each vertex of a polygon (K, 2) (every vertex when
+    ``closed``, the inner ones otherwise) and its sign (0 below ``signed_deg``)."""
     count = poly.shape[0]
     verts = np.empty((count + 2, 2), np.int64)
     shift = 1 if closed else 0
@@ -523,6 +519,15 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
         mag[k] = abs(t)
         if mag[k] >= signed_deg:
             sign[k] = 1 if t > 0 else -1
+    return mag, sign
+
+
+@_compiled
+def _cut_vertices(mag: NDArray[np.float64], sign: NDArray[np.int64], closed: bool,
+                  corner_deg: float, spike_deg: float, spike_ratio: float
+                  ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """The polygon vertices (indices) where :func:`corner_cuts` cuts, given :func:`_turns`."""
+    count = mag.shape[0]
     at = np.empty(count, np.int64)
     n_at = 0
     last = 0
@@ -540,8 +545,22 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
         if cut:
             at[n_at] = k if closed else k + 1
             n_at += 1
-    cuts = np.empty(n_at, np.int64)
-    for j in range(n_at):
+    return at[:n_at]
+
+
+@_compiled
+def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
+                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
+                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Where an ordered (N, 2) ``chain`` is cut, ascending chain indices: the first pixel
+    equal to each vertex of its polygon ``poly`` (K, 2) (cyclic when ``closed``) that turns
+    by more than ``corner_deg``, by more than ``spike_deg`` and ``spike_ratio`` times either
+    neighbour, or against the sign of the previous vertex turning by ``signed_deg`` or more;
+    see :func:`~stackpick_sim.vision.segments.split_chain`."""
+    mag, sign = _turns(poly, closed, signed_deg)
+    at = _cut_vertices(mag, sign, closed, corner_deg, spike_deg, spike_ratio)
+    cuts = np.empty(at.shape[0], np.int64)
+    for j in range(at.shape[0]):
         u, v = poly[at[j], 0], poly[at[j], 1]
         i = 0
         while i < chain.shape[0] and (chain[i, 0] != u or chain[i, 1] != v):
@@ -549,7 +568,7 @@ def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
         cuts[j] = i if i < chain.shape[0] else 0  # (a polygon keeps chain pixels)
     _insertion_sort(cuts)
     kept = 0  # each cut once
-    for j in range(n_at):
+    for j in range(cuts.shape[0]):
         if kept == 0 or cuts[j] != cuts[kept - 1]:
             cuts[kept] = cuts[j]
             kept += 1
