@@ -1,4 +1,4 @@
-"""Compiled per-pixel and per-pair loops of the ellipse stages (numba).
+"""Compiled per-pixel, per-sample and per-pair loops of the detector's stages (numba).
 
 Each kernel computes, element by element, the same IEEE operations in the same order as the
 numpy expression it stands for (no fast-math: no reassociation, no fused multiply-add), so
@@ -7,10 +7,13 @@ and its temporaries on the few hundred to few thousand elements of a frame, and 
 (ellipse, pixel) matrices the array versions build (their memory grows with ellipses x edge
 pixels).
 
-Compilation happens on a kernel's first call and is cached on disk (``cache=True``) beside
-this module, or where ``NUMBA_CACHE_DIR`` points: a fresh process with a warm cache loads
-each kernel in about a millisecond. numba writes each cache file to a temporary name and
-renames it into place, so workers compiling at the same time do not corrupt it.
+Compilation happens on a kernel's first call for each combination of argument types and is
+cached on disk (``cache=True``) beside this module, or where ``NUMBA_CACHE_DIR`` points;
+:func:`warm_up` (the Makefile's install step) compiles every kernel for the types the
+detector passes (C-ordered, writable arrays: a read-only or strided array is another type),
+so a fresh process with a warm cache only loads them (about 20 ms each). numba writes each
+cache file to a temporary name and renames it into place, so workers compiling at the same
+time do not corrupt it. A division by zero gives numpy's inf or NaN, as in the array forms.
 """
 
 from __future__ import annotations
