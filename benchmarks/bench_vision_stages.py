@@ -1,7 +1,7 @@
 """Per-stage time of the detector against a baseline commit, as ratios, on the same frames.
 
     python benchmarks/bench_vision_stages.py --data DATA --seeds 0:400 \\
-        [--baseline main] [--rounds 3] [--repeats 3]
+        [--scene paper] [--baseline main] [--rounds 3] [--repeats 3]
 
 The baseline commit's ``stackpick_sim`` is exported to a temporary directory; the baseline and
 the working tree then run in alternation (``--rounds`` times each), each in its own process
@@ -12,7 +12,8 @@ the work done. Per frame the fastest repeat counts; the table gives medians over
 and rounds and the ratio baseline / working tree. The outputs (ellipses, top, pose) of the two
 are compared as well: a speed-up should not change them.
 
-DATA is a ``stackpick dataset --scene paper --seeds 0:400`` directory. Time on seeds outside
+DATA is a ``stackpick dataset --scene SCENE --seeds 0:400`` directory (``--scene``: the
+same scene, whose object kinds the detector is given). Time on seeds outside
 the held-out ranges of the reported figures (docs/figures.md).
 """
 
@@ -42,6 +43,11 @@ time.perf_counter = time.thread_time  # the detector's stage clock: this thread'
 from stackpick_sim.geometry import CameraIntrinsics
 from stackpick_sim.vision.detector import (DEFAULT_RADII_M, DetectorConfig, TopObjectDetector,
                                            object_kinds)
+try:  # the compiled kernels loaded (or compiled) before any timing
+    from stackpick_sim.vision.kernels import warm_up
+    warm_up()
+except ImportError:  # a baseline without them
+    pass
 frames_path, repeats, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 with open(frames_path, "rb") as f:
     frames = pickle.load(f)
@@ -69,15 +75,15 @@ with open(out, "wb") as f:
 """
 
 
-def save_frames(data: Path, seeds: list[int], out: Path) -> int:
-    """The frames of a data set as plain values (readable by any version of the package),
-    pickled to ``out``; returns how many."""
+def save_frames(data: Path, seeds: list[int], out: Path, scene: str = "paper") -> int:
+    """The frames of a data set of ``scene`` as plain values (readable by any version of
+    the package), pickled to ``out``; returns how many."""
     from stackpick_sim.config.loader import load_scene
     from stackpick_sim.vision.benchmark.frames import iter_dataset
 
     frames = [{"image": f.image_rgb, "depth_range_m": f.depth_range_m, "kinds": f.kinds,
                "intrinsics": dataclasses.asdict(f.intrinsics)}
-              for f in iter_dataset(data, seeds, load_scene("paper"))]
+              for f in iter_dataset(data, seeds, load_scene(scene))]
     with open(out, "wb") as fh:
         pickle.dump(frames, fh)
     return len(frames)
@@ -137,6 +143,7 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, required=True, help="a `stackpick dataset` directory")
     p.add_argument("--seeds", default="0:400", help="seeds of the data set to time (default 0:400)")
+    p.add_argument("--scene", default="paper", help="the data set's scene (default paper)")
     p.add_argument("--baseline", default="main", help="git ref of the baseline (default main)")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--repeats", type=int, default=3)
@@ -144,7 +151,7 @@ def main() -> int:
     seeds = parse_seeds(args.seeds)
     with tempfile.TemporaryDirectory() as tmp:
         frames = Path(tmp) / "frames.pkl"
-        if save_frames(args.data, seeds, frames) == 0:
+        if save_frames(args.data, seeds, frames, args.scene) == 0:
             print(f"no frames of seeds {args.seeds} in {args.data}", file=sys.stderr)
             return 1
         base_root = export(args.baseline, Path(tmp))

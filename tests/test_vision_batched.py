@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_profile, contrast_profiles, outline, outlines
 from stackpick_sim.vision.edges import adaptive_thresholds, edge_image, noise_level
 from stackpick_sim.vision.fitting import (
@@ -23,8 +24,8 @@ from stackpick_sim.vision.occlusion import INTERIOR_MARGIN_PX, OcclusionEvidence
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
     _along,
-    _along_grouped,
     _along_mask,
+    _form,
     edge_points,
     refine_all,
 )
@@ -138,14 +139,20 @@ def test_refine_collects_the_pixels_along_each_fit(
     assert np.all(distances(ellipse_params([STACK[0]]), kept)[0] < 1.5)
 
 
-def test_along_grouped_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+def test_along_select_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellipse]]) -> None:
     image, probes = scene
     points, grads = edge_points(edge_image(image))
-    counts = np.full(len(probes), points.shape[0])
-    cols = tuple(np.tile(c, len(probes)) for c in (*points.T, *grads.T))
+    n = points.shape[0]
+    starts = np.arange(len(probes) + 1, dtype=np.int64) * n
+    u, v, gu, gv = (np.tile(c, len(probes)) for c in (*points.T, *grads.T))
+    forms = np.array([_form(e) for e in probes])
+    pixels = np.tile(points, (len(probes), 1)).astype(np.float32)
     for tol in (1.2, 2.5):
         expected = np.concatenate([_along_mask(e, *points.T, *grads.T, tol) for e in probes])
-        np.testing.assert_array_equal(_along_grouped(probes, counts, cols, tol), expected)
+        sel, _, _ = kernels.along_select(forms, starts, np.ones(len(probes), np.bool_), u, v,
+                                         gu, gv, pixels, 4.0 * tol * tol,
+                                         MIN_NORMAL_COS * MIN_NORMAL_COS)
+        np.testing.assert_array_equal(sel, expected.nonzero()[0])
 
 
 def test_along_mask_is_the_sampson_distance_and_normal_angle_test() -> None:

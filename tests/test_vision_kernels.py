@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -106,3 +112,424 @@ def test_along_grouped_matches_the_array_test(rng: np.random.Generator) -> None:
     want = (f * f < 4.0 * 2.0 * 2.0 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
     got = kernels.along_grouped(forms, counts, u, v, gu, gv, 4.0 * 2.0 * 2.0, 0.87 * 0.87)
     assert np.array_equal(got, want)
+
+
+def _ellipse_rows(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
+    """(6, n) rows cx, cy, a, b, cos, sin of random ellipses in a 100 px square."""
+    t = rng.uniform(0, np.pi, n)
+    a = rng.uniform(8, 40, n)
+    return np.vstack([rng.uniform(0, 100, n), rng.uniform(0, 100, n), a,
+                      a * rng.uniform(0.3, 1.0, n), np.cos(t), np.sin(t)])
+
+
+def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
+        rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 6)
+    # Points scattered near the outlines too, so that both sides of the tolerance occur.
+    t = rng.uniform(0, 2 * np.pi, 3000)
+    e = rng.integers(0, 6, 3000)
+    x, y = rows[2, e] * np.cos(t), rows[3, e] * np.sin(t)
+    pu = np.rint(rows[0, e] + rows[4, e] * x - rows[5, e] * y + rng.normal(0, 1.5, 3000))
+    pv = np.rint(rows[1, e] + rows[5, e] * x + rows[4, e] * y + rng.normal(0, 1.5, 3000))
+    reach = rows[2] + 1.5 + 1.0
+    be, bm = kernels.box_pairs(pu, pv, rows[0].copy(), rows[1].copy(), reach)
+    d = kernels.grouped_distances(rows, np.bincount(be, minlength=6).astype(np.int64),
+                                  pu[bm], pv[bm])
+    close = d < 1.5
+    got = kernels.near_pairs(pu, pv, rows, reach, 1.5)
+    assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
+    assert 0 < close.sum() < close.size
+
+
+def test_bows_match_the_per_piece_sums(rng: np.random.Generator) -> None:
+    counts = rng.integers(10, 120, 9).astype(np.int64)
+    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(np.float64)
+    # The array form: per-piece sums in pixel order (np.bincount's), then the smallest
+    # eigenvalue of the 2x2 scatter.
+    which = np.arange(counts.size).repeat(counts)
+    mu = (np.bincount(which, weights=pixels[:, 0]) / counts).repeat(counts)
+    mv = (np.bincount(which, weights=pixels[:, 1]) / counts).repeat(counts)
+    cu, cv = pixels[:, 0] - mu, pixels[:, 1] - mv
+    sxx, syy, sxy = (np.bincount(which, weights=w) for w in (cu * cu, cv * cv, cu * cv))
+    half, det = 0.5 * (sxx + syy) / counts, (sxx * syy - sxy * sxy) / (counts * counts)
+    want = np.sqrt(np.maximum(0.0, half - np.sqrt(np.maximum(0.0, half * half - det))))
+    got = kernels.bows(pixels, counts)
+    assert np.array_equal(got, want)
+    # And a straight run has none.
+    line = np.column_stack([np.arange(20.0), 2.0 * np.arange(20.0)])
+    assert kernels.bows(line, np.array([20], np.int64))[0] < 1e-6
+
+
+def test_outline_support_is_the_lookup_of_the_rounded_samples(
+        rng: np.random.Generator) -> None:
+    support = (rng.uniform(0, 1, (70, 90)) < 0.4).astype(np.uint8)
+    rows = _ellipse_rows(rng, 5).T.copy()  # ellipses reaching off the map too
+    counts = rng.integers(16, 200, 5).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    u, v = np.rint(c * x + cx - s * y), np.rint(s * x + cy + c * y)
+    inside = (u >= 0) & (u < 90) & (v >= 0) & (v < 70)
+    hit = np.zeros(u.size, bool)
+    hit[inside] = support[v[inside].astype(int), u[inside].astype(int)] > 0
+    want = np.bincount(np.arange(5).repeat(counts), weights=hit) / counts
+    got = kernels.outline_support(support, rows, counts, ct, st)
+    assert np.array_equal(got, want)
+    assert not inside.all()
+
+
+def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
+        rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    cx, cy, a, b, th = 40.0, 30.0, 20.0, 12.0, 0.4
+    c, s = np.cos(th), np.sin(th)
+    form = np.array([cx, cy, c * c / a**2 + s * s / b**2, c * s * (1 / a**2 - 1 / b**2),
+                     s * s / a**2 + c * c / b**2])
+    t = rng.uniform(0, 2 * np.pi, 4000)
+    pu = np.rint(cx + c * a * np.cos(t) - s * b * np.sin(t) + rng.normal(0, 2, 4000))
+    pv = np.rint(cy + s * a * np.cos(t) + c * b * np.sin(t) + rng.normal(0, 2, 4000))
+    g = rng.uniform(0, 2 * np.pi, 4000)
+    gu, gv = np.cos(g), np.sin(g)
+    reach = a + 1.2 + 1
+    near = (np.abs(pu - cx) <= reach) & (np.abs(pv - cy) <= reach)
+    du, dv = pu - cx, pv - cy
+    nu, nv = form[2] * du + form[3] * dv, form[4] * dv + form[3] * du
+    f = du * nu + dv * nv - 1.0
+    n2 = nu * nu + nv * nv
+    dot = nu * gu + nv * gv
+    keep = near & (f * f < 4 * 1.2 * 1.2 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
+    su, sv = kernels.subpixel_columns(gx, gy, pu[keep], pv[keep], gu[keep], gv[keep], 0.5)
+    got = kernels.subpixel_along(pu, pv, gu, gv, form, reach, 4 * 1.2 * 1.2, 0.87 * 0.87,
+                                 gx, gy, 0.5)
+    assert got.dtype == np.float32 and 0 < got.shape[0] < near.sum()
+    assert np.array_equal(got, np.column_stack([su, sv]).astype(np.float32))
+
+
+def test_profile_peaks_match_the_grid_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    n = 300
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pu, pv = 40 + 25 * np.cos(t), 30 + 20 * np.sin(t)
+    nu, nv = np.cos(t), np.sin(t)
+    steps = np.arange(-2.0, 2.0 + 1e-9, 0.5)
+    k = steps.size
+    qu = pu[:, None] + steps * nu[:, None]
+    qv = pv[:, None] + steps * nv[:, None]
+    bx, by = _bilinear_numpy(gx, gy, qu.ravel(), qv.ravel())
+    g = np.abs(bx.reshape(n, k) * nu[:, None] + by.reshape(n, k) * nv[:, None])
+    best = g[:, 1:-1].argmax(axis=1) + 1
+    rows = np.arange(n)
+    before, centre, after = g[rows, best - 1], g[rows, best], g[rows, best + 1]
+    curvature = before - 2.0 * centre + after
+    peaked = curvature < -1e-9
+    shift = np.where(peaked, 0.5 * (before - after) / np.where(peaked, curvature, -1.0), 0.0)
+    threshold = float(np.median(centre))
+    ok = centre >= threshold
+    offset = steps[best] + np.minimum(np.maximum(shift, -0.5), 0.5) * 0.5
+    want = np.column_stack([(pu + offset * nu)[ok], (pv + offset * nv)[ok]])
+    got = kernels.profile_peaks(gx, gy, pu, pv, nu, nv, steps, 0.5, threshold)
+    assert 0 < got.shape[0] < n
+    assert np.array_equal(got, want)
+
+
+#: Run in a fresh interpreter: warm the kernels, then detect on the pinned paper-scene frames
+#: (colour and gray) and print every kernel that had to compile for a new argument type.
+_COMPILES_AFTER_WARM_UP = r"""
+import sys
+from pathlib import Path
+from numba.core.registry import CPUDispatcher
+from stackpick_sim.config.loader import load_scene
+from stackpick_sim.vision import kernels
+from stackpick_sim.vision.benchmark.frames import load_frame
+from stackpick_sim.vision.benchmark.methods import detector_config
+from stackpick_sim.vision.detector import TopObjectDetector
+kernels.warm_up()
+compiled = {n: k for n, k in vars(kernels).items() if isinstance(k, CPUDispatcher)}
+warm = {n: set(k.signatures) for n, k in compiled.items()}
+scene = load_scene("paper")
+kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
+              for t in scene.object_types.values())
+folder = Path(sys.argv[1])
+for png in sorted(folder.glob("*.png")):
+    frame = load_frame(folder, int(png.stem), scene.conveyor.top_z,
+                       scene.objects.max_face_height, kinds)
+    detector = TopObjectDetector(detector_config(frame))
+    detector.detect(frame.image_rgb)
+    detector.detect(frame.image_rgb.mean(axis=2).astype("uint8"))
+print(sorted(n for n, k in compiled.items() if set(k.signatures) - warm[n]))
+"""
+
+
+def test_warm_up_compiles_every_argument_type_the_detector_passes() -> None:
+    frames = Path(__file__).parent / "data" / "paper_dev_frames"
+    out = subprocess.run([sys.executable, "-c", _COMPILES_AFTER_WARM_UP, str(frames)],
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_outline_contrasts_match_the_gather_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    sizes = [40, 75]
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in sizes])
+    # The second outline runs off the image: its samples there read nothing.
+    cx, cy = np.repeat([40.0, 70.0], sizes), np.repeat([30.0, 50.0], sizes)
+    r = np.repeat([15.0, 20.0], sizes)
+    pu, pv = cx + r * np.cos(t), cy + r * np.sin(t)
+    nu, nv = np.cos(t), np.sin(t)
+    half = 2
+    shifts = np.array([0, *range(-half, 0), *range(1, half + 1)])
+    window = np.concatenate([(np.arange(n) + shifts[:, None]) % n + start
+                             for n, start in zip(sizes, [0, sizes[0]], strict=True)], axis=1)
+    offsets = np.array([-1.0, 0.0, 1.0])
+    g = []
+    for o in offsets:
+        u, v = np.rint(pu + o * nu).astype(int), np.rint(pv + o * nv).astype(int)
+        inside = (u >= 0) & (u < 80) & (v >= 0) & (v < 60)
+        uc, vc = np.clip(u, 0, 79), np.clip(v, 0, 59)
+        g.append(np.where(inside, gx[vc, uc] * nu + gy[vc, uc] * nv, 0.0))
+    mags = np.abs(g)
+    best = np.take_along_axis(np.array(g), mags.argmax(axis=0)[None], axis=0)[0]
+    want = np.abs(best[window].sum(axis=0) / window.shape[0]) / 8.0
+    got = kernels.outline_contrasts(pu, pv, nu, nv, gx, gy, offsets, window, 8.0)
+    assert np.array_equal(got, want)
+
+
+def test_band_hits_match_the_array_tests(rng: np.random.Generator) -> None:
+    image = rng.integers(0, 256, (50, 60, 3)).astype(np.uint8)
+    image[10:30, 10:40] = (120, 40, 30)  # a wall of the face's hue
+    pu, pv = rng.uniform(-5, 65, (2, 300)), rng.uniform(-5, 55, (2, 300))
+    keep = rng.uniform(0, 1, (2, 300)) < 0.8
+    colours = np.array([[200.0, 66.0, 50.0], [90.0, 90.0, 95.0]])
+    tans = np.array([1.5, 0.4])
+    belt = np.array([30.0, 32.0, 35.0])
+    qu, qv = np.rint(pu), np.rint(pv)
+    take = keep & (qu >= 0) & (qu < 60) & (qv >= 0) & (qv < 50)
+    owner = np.nonzero(take)[0]
+    cols = image[qv[take].astype(int), qu[take].astype(int)].astype(np.float64)
+    face = np.maximum(colours.sum(axis=1), 1.0)
+    sums = cols.sum(axis=1)
+    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - (colours / face[:, None])[owner])
+    ok = ((chroma.sum(axis=1) <= 0.12) & (sums >= 0.12 * face[owner])
+          & (sums <= ((tans + 0.3) * face)[owner])
+          & (np.abs(cols - belt).max(axis=1) > 14.0))
+    counts, hits = kernels.band_hits(pu, pv, keep, image, colours, tans + 0.3, belt, True,
+                                     0.12, 0.12, 14.0)
+    assert np.array_equal(counts, np.bincount(owner, minlength=2))
+    assert np.array_equal(hits, np.bincount(owner, weights=ok, minlength=2))
+    assert hits[0] > 0
+
+
+def _corner_cuts_python(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool
+                        ) -> list[int]:
+    """The turn rule of segments.split_chain on Python floats, vertex by vertex."""
+    pl = poly.tolist()
+    verts = [pl[-1], *pl, pl[0]] if closed else pl
+    count = len(pl) if closed else len(pl) - 2
+    mag, sign = [], []
+    for (qx, qy), (rx, ry), (sx, sy) in zip(verts, verts[1:], verts[2:], strict=False):
+        x0, y0, x1, y1 = rx - qx, ry - qy, sx - rx, sy - ry
+        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        mag.append(abs(t))
+        sign.append(0 if abs(t) < 4.0 else (1 if t > 0 else -1))
+    at, last = [], 0
+    for k in range(count):
+        if closed:
+            before, after = mag[k - 1], mag[(k + 1) % count]
+        else:
+            before = mag[k - 1] if k else 0.0
+            after = mag[k + 1] if k + 1 < count else 0.0
+        cut = mag[k] > 80.0 or (mag[k] > 30.0 and mag[k] > 2.0 * max(before, after))
+        if sign[k]:
+            cut = cut or (last != 0 and sign[k] != last)
+            last = sign[k]
+        if cut:
+            at.append(k if closed else k + 1)
+    return sorted({next(i for i, p in enumerate(chain.tolist()) if p == pl[a]) for a in at})
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_corner_cuts_match_the_turn_rule_vertex_by_vertex(rng: np.random.Generator,
+                                                           closed: bool) -> None:
+    cut_any = 0
+    for _ in range(200):
+        # Random walks of a few straight runs: corners, spikes, sign flips and none.
+        steps = rng.integers(-1, 2, (int(rng.integers(3, 8)), 2))
+        steps[(steps == 0).all(axis=1)] = (1, 0)
+        runs = rng.integers(2, 12, steps.shape[0])
+        chain = np.cumsum(np.repeat(steps, runs, axis=0), axis=0).astype(np.int32) + 50
+        poly = np.asarray(cv2.approxPolyDP(chain.reshape(-1, 1, 2), 1.0, closed).reshape(-1, 2),
+                          np.int32)
+        if poly.shape[0] < 3:
+            continue
+        got = kernels.corner_cuts(chain, poly, closed, 80.0, 30.0, 2.0, 4.0).tolist()
+        assert got == _corner_cuts_python(chain, poly, closed)
+        cut_any += bool(got)
+    assert cut_any > 20
+
+
+def test_outline_near_shares_match_the_grouped_distances(rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 4).T.copy()
+    # Each other ellipse a near copy of the first: shares between 0 and 1.
+    others = rows.T.copy()
+    others[:2] += rng.normal(0, 1.0, (2, 4))
+    counts = rng.integers(16, 150, 4).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    d = kernels.grouped_distances(others, counts, cx + c * x - s * y, cy + s * x + c * y)
+    want = np.bincount(np.arange(4).repeat(counts), weights=d < 1.0) / counts
+    got = kernels.outline_near_shares(rows, counts, ct, st, others, 1.0)
+    assert np.array_equal(got, want)
+    assert np.any((got > 0) & (got < 1))
+
+
+def test_interior_counts_match_the_row_intervals(rng: np.random.Generator) -> None:
+    keys_uv = np.unique(rng.integers(0, 100, (1500, 2)), axis=0)
+    width = 102
+    keys = np.sort(keys_uv[:, 1] * width + keys_uv[:, 0]).astype(np.float64)
+    params, sizes = [], []
+    for _ in range(5):
+        cx, cy, a = rng.uniform(0, 100), rng.uniform(0, 100), rng.uniform(3, 40)
+        b, t = a * rng.uniform(0.3, 1.0), rng.uniform(0, np.pi)
+        c, s, ia, ib = np.cos(t), np.sin(t), 1 / a**2, 1 / b**2
+        p, q, r = c * c * ia + s * s * ib, 2 * c * s * (ia - ib), s * s * ia + c * c * ib
+        half = np.sqrt(p / (p * r - 0.25 * q * q))
+        first = np.ceil(cy - half)
+        params.append((cx, cy, p, q, r, first))
+        sizes.append(int(max(0, np.floor(cy + half) - first + 1)))
+    want = []
+    for (cx, cy, p, q, r, first), n in zip(params, sizes, strict=True):
+        row = first + np.arange(n)
+        dv = row - cy
+        qdv = q * dv
+        disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
+        hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+        hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
+        inside = (keys.searchsorted(row * width + hi)
+                  - keys.searchsorted(row * width + lo, side="right"))
+        want.append(int(np.maximum(inside, 0).sum()))
+    got = kernels.interior_counts(np.array(params), np.array(sizes, np.int64), keys, width)
+    assert got.tolist() == want
+    assert sum(want) > 0
+
+
+def test_outline_samples_match_the_array_form(rng: np.random.Generator) -> None:
+    rows = _ellipse_rows(rng, 5).T.copy()
+    counts = rng.integers(16, 150, 5).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    cx, cy, a, b, c, s = rows.T.repeat(counts, axis=1)
+    x, y = a * ct, b * st
+    nx, ny = b * ct, a * st
+    norm = np.hypot(nx, ny)
+    nx, ny = nx / norm, ny / norm
+    pts, normals = kernels.outline_samples(rows, counts, ct, st)
+    assert np.array_equal(pts, [cx + c * x - s * y, cy + s * x + c * y])
+    assert np.array_equal(normals, [c * nx - s * ny, s * nx + c * ny])
+
+
+def test_a_division_by_zero_gives_numpys_values_not_an_error() -> None:
+    # A degenerate ellipse (zero axes): the array forms give NaN, so do the kernels.
+    pts, normals = kernels.outline_samples(np.zeros((1, 6)), np.array([4], np.int64),
+                                           np.ones(4), np.zeros(4))
+    assert np.isnan(normals).all() and np.array_equal(pts, np.zeros((2, 4)))
+
+
+def test_along_select_is_the_along_test_of_the_active_ellipses(
+        rng: np.random.Generator) -> None:
+    forms = np.column_stack([rng.uniform(20, 80, 4), rng.uniform(20, 80, 4),
+                             rng.uniform(1e-3, 1e-2, 4), rng.uniform(-1e-3, 1e-3, 4),
+                             rng.uniform(1e-3, 1e-2, 4)])
+    counts = rng.integers(50, 300, 4).astype(np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    n = int(counts.sum())
+    u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
+    t = rng.uniform(0, 2 * np.pi, n)
+    gu, gv = np.cos(t), np.sin(t)
+    pixels = rng.integers(0, 100, (n, 2)).astype(np.float32)
+    active = np.array([True, False, True, True])
+    passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
+    passed &= active.repeat(counts)
+    sel, bounds, pts = kernels.along_select(forms, starts, active, u, v, gu, gv, pixels, 16.0,
+                                            0.87 * 0.87)
+    assert np.array_equal(sel, passed.nonzero()[0])
+    assert np.array_equal(pts, pixels[sel])
+    owner = np.arange(4).repeat(counts)[sel]
+    assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
+    assert bounds[2] == bounds[1] and sel.size > 0
+
+
+def test_junction_ends_match_the_pair_form(rng: np.random.Generator) -> None:
+    # Edge pixels in row-major order, some on the two ellipses, some crossing them.
+    uv = np.unique(rng.integers(0, 100, (150, 2)), axis=0)  # (v, u), sorted by row v
+    pu, pv = uv[:, 1].astype(np.float64), uv[:, 0].astype(np.float64)
+    params = np.array([[50.0, 50.0, 1.0, 0.0, 20.0, 12.0, 18.5, 10.5],
+                       [30.0, 60.0, 0.6, 0.8, 15.0, 9.0, 13.5, 7.5]])
+    t = rng.uniform(0, 2 * np.pi, 12)
+    owner = rng.integers(0, 2, 12).astype(np.int64)
+    cx, cy, c, s, a, b = params[owner, :6].T
+    ends = np.column_stack([cx + c * a * np.cos(t) - s * b * np.sin(t),
+                            cy + s * a * np.cos(t) + c * b * np.sin(t)])
+    # The array form: every (end, pixel) pair of the rows within reach.
+    end_k, at = np.nonzero(np.abs(pv[None, :] - ends[:, 1:2]) <= 6.0)
+    d2 = (pu[at] - ends[end_k, 0]) ** 2 + (pv[at] - ends[end_k, 1]) ** 2
+    near = d2 <= 36.0
+    end_k, at, d2 = end_k[near], at[near], d2[near]
+    cx, cy, c, s, a, b, a_in, b_in = params[owner[end_k]].T
+    du, dv = pu[at] - cx, pv[at] - cy
+    xr, yr = c * du + s * dv, -s * du + c * dv
+    x, y = xr / a, yr / b
+    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
+    off = dist > 1.5
+    inner = off & ((xr / a_in) ** 2 + (yr / b_in) ** 2 < 1.0)
+    junction = np.bincount(end_k[off & (d2 <= 9.0)], minlength=12) > 0
+    crossing = np.bincount(end_k[inner & (d2 <= 36.0)], minlength=12) > 0
+    got = kernels.junction_ends(pu, pv, ends, owner, params, 6.0, 9.0, 36.0, 1.5)
+    assert np.array_equal(got, junction & crossing)
+    assert got.any() and not got.all()
+
+
+def test_face_median_matches_the_sorted_channels(rng: np.random.Generator) -> None:
+    image = rng.integers(0, 256, (40, 50, 3)).astype(np.uint8)
+    t = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    for cx, cy, sa, sb, th in [(25.0, 20.0, 8.0, 5.0, 0.3), (2.0, 38.0, 10.0, 6.0, 2.0)]:
+        c, s = np.cos(th), np.sin(th)
+        x, y = sa * ct, sb * st
+        u = np.clip(np.rint(cx + c * x + -s * y).astype(int), 0, 49)
+        v = np.clip(np.rint(cy + s * x + c * y).astype(int), 0, 39)
+        ordered = np.sort(image[v, u].T, axis=1)
+        want = 0.5 * (ordered[:, 7].astype(np.float64) + ordered[:, 8])
+        got = kernels.face_median(image, cx, cy, sa, sb, c, s, ct, st)
+        assert np.array_equal(got, want)
+
+
+def test_project_outside_matches_the_array_form(rng: np.random.Generator) -> None:
+    band = np.stack([rng.uniform(-0.05, 0.05, (2, 40)), rng.uniform(-0.05, 0.05, (2, 40)),
+                     rng.uniform(0.3, 0.5, (2, 40))])
+    terms = np.array([[160.0, 120.0, 1.0, 0.0, 30.0, 20.0], [150.0, 110.0, 0.6, 0.8, 25.0, 25.0]])
+    fx, fy, kcx, kcy = 290.0, 290.0, 159.5, 119.5
+    pu = fx * band[0] / band[2] + kcx
+    pv = fy * band[1] / band[2] + kcy
+    cx, cy, c, s, a, b = (terms[:, i:i + 1] for i in range(6))
+    du, dv = pu - cx, pv - cy
+    x, y = (c * du + s * dv) / a, (-s * du + c * dv) / b
+    rho = np.sqrt(x * x + y * y)
+    outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9) > 2.0
+    got = kernels.project_outside(band, terms, fx, fy, kcx, kcy, 2.0)
+    assert np.array_equal(got[0], pu) and np.array_equal(got[1], pv)
+    assert np.array_equal(got[2], outside) and outside.any() and not outside.all()
+
+
+def test_point_distances_match_the_array_form(rng: np.random.Generator) -> None:
+    points = rng.uniform(0, 100, (500, 2))
+    cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
+    c, s = np.cos(t), np.sin(t)
+    du, dv = points[:, 0] - cx, points[:, 1] - cy
+    x, y = (c * du + s * dv) / a, (-s * du + c * dv) / b
+    want = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
+    assert np.array_equal(kernels.point_distances(points, cx, cy, a, b, c, s), want)

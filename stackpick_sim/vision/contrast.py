@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import fit_ellipse
 
@@ -100,8 +101,8 @@ def contrast_profile(ellipse: Ellipse, image: EdgeImage,
     return np.abs(smooth) / SOBEL_GAIN
 
 
-#: Margin (px) for the rounding of outline samples against their ellipses' bounding box.
-_BOX_MARGIN_PX = 1e-6
+#: NORMAL_OFFSETS_PX as the compiled pass takes them.
+_OFFSETS = np.array(NORMAL_OFFSETS_PX, np.float64)
 
 
 @functools.lru_cache(maxsize=1024)
@@ -184,40 +185,21 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     for e in ellipses:
         t = math.radians(e.angle_deg)
         c, s = math.cos(t), math.sin(t)
-        rows.append((e.cx, e.cy, e.a, e.b, e.b, e.a, c, s))
+        rows.append((e.cx, e.cy, e.a, e.b, c, s))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
         hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
         u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
         u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
     offsets = np.zeros(len(sizes) + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
-    n = int(offsets[-1])
-    # Each ellipse's parameters repeated per sample, as contiguous rows (one call).
-    params = np.array(rows, np.float64).reshape(-1, 8).T.repeat(sizes, axis=1)
-    cx, cy, c, s = params[0], params[1], params[6], params[7]
-    trig = np.empty((2, n))  # cos t, sin t of every sample
     tables = [unit_circle(k) for k in sizes]
-    np.concatenate([t[0] for t in tables], out=trig[0])
-    np.concatenate([t[1] for t in tables], out=trig[1])
-    # Rows x = a cos t and its normal's nx = b cos t; y = b sin t and ny = a sin t (the
-    # gradient of the implicit form, scaled by a b), the normal then made unit.
-    along = params[2:4] * trig[0]
-    across = params[4:6] * trig[1]
-    norm = np.hypot(along[1], across[1])
-    along[1] /= norm
-    across[1] /= norm
-    # Points and normals as (N, 2) views of (2, N) arrays: contiguous columns, the same
-    # values as outline's cx + c x - s y etc.
-    c_along, s_across = c * along, s * across
-    s_along, c_across = s * along, c * across
-    pts = np.empty((2, n))
-    normals = np.empty((2, n))
-    np.add(cx, c_along[0], out=pts[0])
-    pts[0] -= s_across[0]
-    np.add(cy, s_along[0], out=pts[1])
-    pts[1] += c_across[0]
-    np.subtract(c_along[1], s_across[1], out=normals[0])
-    np.add(s_along[1], c_across[1], out=normals[1])
+    # Points cx + c x - s y, cy + s x + c y (x = a cos t, y = b sin t) and the unit normals
+    # of the implicit form's gradient (b cos t, a sin t), rotated: one compiled pass, as
+    # (2, N) arrays (the (N, 2) views below have contiguous columns).
+    pts, normals = kernels.outline_samples(
+        np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
+        np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
+        np.concatenate([t[1] for t in tables]) if tables else np.zeros(0))
     return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
 
 
@@ -225,44 +207,12 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
     """(N,) :func:`contrast_profile` of every outline of ``lines`` in one pass (the same
     values: every offset of every sample read in one gather, the window summed from
     :attr:`Outlines.window`)."""
-    h, w = image.gx.shape
-    pts, normals = lines.points.T, lines.normals.T  # (2, N) each: u, v rows
-    n = pts.shape[1]
-    # (2, k, N): u and v of every sample at every offset across its outline (p + o n, as
-    # contrast_profile's, written as sums and differences for the offsets -1, 0, 1).
-    q = np.empty((2, len(NORMAL_OFFSETS_PX), n))
-    for k, offset in enumerate(NORMAL_OFFSETS_PX):
-        if offset == 0.0:
-            q[:, k] = pts
-        elif abs(offset) == 1.0:
-            (np.add if offset > 0 else np.subtract)(pts, normals, out=q[:, k])
-        else:
-            np.add(pts, offset * normals, out=q[:, k])
-    at = np.rint(q, out=q).astype(np.int64)
-    # Every sample inside the image (the usual case) when the outlines' box, widened by the
-    # offsets and the rounding (and a margin for the samples' own rounding), is: no clamping.
-    reach = max(abs(o) for o in NORMAL_OFFSETS_PX) + 0.5 + _BOX_MARGIN_PX
-    u0, v0, u1, v1 = lines.box
-    if u0 - reach >= 0.0 and v0 - reach >= 0.0 and u1 + reach < w - 1 and v1 + reach < h - 1:
-        flat = at[1] * w + at[0]
-        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
-    else:
-        u = np.minimum(np.maximum(at[0], 0), w - 1)
-        v = np.minimum(np.maximum(at[1], 0), h - 1)
-        flat = v * w + u
-        g = image.gx.take(flat) * normals[0] + image.gy.take(flat) * normals[1]
-        g = np.where((u == at[0]) & (v == at[1]), g, 0.0)
-    # The strongest offset per sample (the first of equals, as a running strict maximum).
-    mag = np.abs(g)
-    best, top = g[0], mag[0]
-    for k in range(1, g.shape[0]):
-        better = mag[k] > top
-        best = np.where(better, g[k], best)
-        if k + 1 < g.shape[0]:
-            top = np.maximum(top, mag[k])
-    # The window's sum in the order of a running sum from the sample itself (row by row).
-    total = best[lines.window].sum(axis=0)
-    return np.asarray(np.abs(total / WINDOW_SAMPLES) / SOBEL_GAIN, np.float64)
+    # One compiled pass (kernels.outline_contrasts: the same values as the array form).
+    pts, normals = lines.points, lines.normals
+    return kernels.outline_contrasts(
+        np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+        np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+        image.gx, image.gy, _OFFSETS, lines.window, SOBEL_GAIN)
 
 
 def contrast_threshold(image: EdgeImage) -> float:

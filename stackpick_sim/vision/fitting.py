@@ -122,15 +122,10 @@ def ellipse_distances(ellipse: Ellipse, points: NDArray) -> NDArray[np.float64]:
 
 def _scalar_distances(cx: float, cy: float, a: float, b: float, t: float, points: NDArray
                       ) -> NDArray[np.float64]:
-    """(N,) :func:`distances` to the ellipse (cx, cy, a, b, angle t rad) of points (N, 2)."""
-    p = np.asarray(points, np.float64)
-    c, s = math.cos(t), math.sin(t)
-    du, dv = p[:, 0] - cx, p[:, 1] - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    q = x * x + y * y - 1.0
-    grad = 2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12
-    return cast("NDArray[np.float64]", np.abs(q) / grad)
+    """(N,) :func:`distances` to the ellipse (cx, cy, a, b, angle t rad) of points (N, 2),
+    in one compiled pass (the same arithmetic)."""
+    return kernels.point_distances(np.ascontiguousarray(points, np.float64), cx, cy, a, b,
+                                   math.cos(t), math.sin(t))
 
 
 def within(params: NDArray[np.float64], points: NDArray, tol_px: float) -> NDArray[np.bool_]:
@@ -146,15 +141,10 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
     """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
     ``np.nonzero`` order, without the (E, N) matrix."""
     p = np.asarray(points, np.float64)
-    pu, pv = p[:, 0], p[:, 1]
     reach = params[:, 2] + tol_px + 1.0
-    e, n = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv),
-                             np.ascontiguousarray(params[:, 0]),
-                             np.ascontiguousarray(params[:, 1]), reach)
-    # The pairs run ellipse by ellipse: each ellipse's parameters repeated, not gathered.
-    d = grouped_distances(params, np.bincount(e, minlength=params.shape[0]), pu[n], pv[n])
-    close = (d < tol_px).nonzero()[0]
-    return e[close], n[close]
+    # The box test and the distances in one compiled pass over (ellipse, point) pairs.
+    return kernels.near_pairs(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                              distance_rows(params), reach, tol_px)
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
@@ -175,13 +165,19 @@ def grouped_distances(params: NDArray[np.float64], counts: NDArray[np.int64],
     """(K,) :func:`pair_distances` of points given as columns ``pu``, ``pv`` (K,) that run
     ellipse by ellipse: the first ``counts[0]`` to ellipse 0 of (E, 5) ``params``, the next
     ``counts[1]`` to ellipse 1, ... (the same values, in one compiled loop)."""
+    return kernels.grouped_distances(distance_rows(params), np.asarray(counts, np.int64),
+                                     np.ascontiguousarray(pu, np.float64),
+                                     np.ascontiguousarray(pv, np.float64))
+
+
+def distance_rows(params: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(6, E) rows cx, cy, a, b, cos angle, sin angle of (E, 5) ``params`` (numpy's cos and
+    sin, as :func:`distances`), the compiled distance kernels' input."""
     rows = np.empty((6, params.shape[0]))
     rows[:4] = params[:, :4].T
     np.cos(params[:, 4], out=rows[4])
     np.sin(params[:, 4], out=rows[5])
-    return kernels.grouped_distances(rows, np.asarray(counts, np.int64),
-                                     np.ascontiguousarray(pu, np.float64),
-                                     np.ascontiguousarray(pv, np.float64))
+    return rows
 
 
 def rms_residual(ellipse: Ellipse, points: NDArray) -> float:
@@ -238,73 +234,86 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
             + fit_or_split(points[half:], shape, depth - 1))
 
 
+#: A piece of a chain being fitted: (chain index, path of halves taken, e.g. "01", pixels).
+_Piece = tuple[int, str, NDArray]
+
+
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
     """:func:`fit_or_split` of every chain, level by level: the straightness test and the
     residuals of all pieces of one level are one array pass each (only the direct fit runs
     per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
     order :func:`fit_or_split` gives them chain after chain (with the default ``params``)."""
-    shortest = params.min_fit_px
-    pending: list[tuple[int, str, NDArray]] = [(i, "", c) for i, c in enumerate(chains)]
+    pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     for level in range(depth + 1):
         if not pending:
             break
-        long_enough = [p for p in pending if p[2].shape[0] >= shortest]
-        bows = _bows([p[2] for p in long_enough])
-        fitted: list[tuple[tuple[int, str, NDArray], Ellipse]] = []
-        failed = [p for p in pending if p[2].shape[0] < shortest]
-        for p, bow in zip(long_enough, bows, strict=True):
-            e = fit_ellipse(p[2]) if bow >= params.min_bow_px else None
-            if e is None or not plausible(e, shape):
-                failed.append(p)
-            else:
-                fitted.append((p, e))
-        if fitted:
-            # (2, N): contiguous u and v rows.
-            pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
-            counts = np.array([f[0][2].shape[0] for f in fitted])
-            # The pieces' pixels run piece by piece: each fit's parameters repeated.
-            d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0],
-                                  pts[1])
-            which = np.arange(len(fitted)).repeat(counts)
-            sums = np.bincount(which, weights=d * d).tolist()
-            rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
-            for (p, e), r in zip(fitted, rms, strict=True):
-                if r > params.max_residual_px:
-                    failed.append(p)
-                else:
-                    found.append(((p[0], p[1]), p[2], e, r))
-        pending = []
+        fitted, failed = _direct_fits(pending, shape, params)
+        accepted, rejected = _within_residual(fitted, params.max_residual_px)
+        found += accepted
         if level == depth:
             break
-        for i, path, pts_ in failed:
-            if pts_.shape[0] >= 2 * shortest:
-                half = pts_.shape[0] // 2
-                pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+        pending = _halves(failed + rejected, params.min_fit_px)
     found.sort(key=lambda f: f[0])
     return [(key[0], pts_, e, r) for key, pts_, e, r in found]
 
 
+def _direct_fits(pending: list[_Piece], shape: tuple[int, int], params: FitParams
+                 ) -> tuple[list[tuple[_Piece, Ellipse]], list[_Piece]]:
+    """The pieces long enough, bowed enough and with a plausible direct fit (with it), and
+    the others (too short first, then the failed ones in their order)."""
+    long_enough = [p for p in pending if p[2].shape[0] >= params.min_fit_px]
+    bows = _bows([p[2] for p in long_enough])
+    fitted: list[tuple[_Piece, Ellipse]] = []
+    failed = [p for p in pending if p[2].shape[0] < params.min_fit_px]
+    for p, bow in zip(long_enough, bows, strict=True):
+        e = fit_ellipse(p[2]) if bow >= params.min_bow_px else None
+        if e is None or not plausible(e, shape):
+            failed.append(p)
+        else:
+            fitted.append((p, e))
+    return fitted, failed
+
+
+def _within_residual(fitted: list[tuple[_Piece, Ellipse]], max_residual_px: float
+                     ) -> tuple[list[tuple[tuple[int, str], NDArray, Ellipse, float]],
+                                list[_Piece]]:
+    """The fitted pieces whose RMS residual is within ``max_residual_px``, as ((chain, path),
+    pixels, ellipse, residual), and the others; all residuals in one array pass."""
+    if not fitted:
+        return [], []
+    # (2, N): contiguous u and v rows.
+    pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
+    counts = np.array([f[0][2].shape[0] for f in fitted])
+    # The pieces' pixels run piece by piece: each fit's parameters repeated.
+    d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0], pts[1])
+    which = np.arange(len(fitted)).repeat(counts)
+    sums = np.bincount(which, weights=d * d).tolist()
+    rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
+    accepted, rejected = [], []
+    for (p, e), r in zip(fitted, rms, strict=True):
+        if r > max_residual_px:
+            rejected.append(p)
+        else:
+            accepted.append(((p[0], p[1]), p[2], e, r))
+    return accepted, rejected
+
+
+def _halves(failed: list[_Piece], min_fit_px: int) -> list[_Piece]:
+    """The two halves of each failed piece long enough to fit both (``min_fit_px`` each)."""
+    pending: list[_Piece] = []
+    for i, path, pts_ in failed:
+        if pts_.shape[0] >= 2 * min_fit_px:
+            half = pts_.shape[0] // 2
+            pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
+    return pending
+
+
 def _bows(pieces: list[NDArray]) -> list[float]:
-    """:func:`bow_px` of each piece (N_i, 2), in one pass."""
+    """:func:`bow_px` of each piece (N_i, 2), in one compiled pass (the same sums)."""
     if not pieces:
         return []
-    u, v = np.concatenate(pieces).T.astype(np.float64)  # contiguous rows
-    counts = np.array([q.shape[0] for q in pieces])
-    which = np.arange(len(pieces)).repeat(counts)
-    mean_u = np.bincount(which, weights=u) / counts
-    mean_v = np.bincount(which, weights=v) / counts
-    cu, cv = u - mean_u.repeat(counts), v - mean_v.repeat(counts)
-    sxx = np.bincount(which, weights=cu * cu).tolist()
-    syy = np.bincount(which, weights=cv * cv).tolist()
-    sxy = np.bincount(which, weights=cu * cv).tolist()
-    # Per piece, as bow_px (a handful of pieces: scalars cost less than array passes).
-    bows = []
-    sqrt = math.sqrt
-    for xx, yy, xy, k in zip(sxx, syy, sxy, counts.tolist(), strict=True):
-        n = max(1, k)
-        half_trace, det = 0.5 * (xx + yy) / n, (xx * yy - xy * xy) / (n * n)
-        smallest = half_trace - sqrt(max(0.0, half_trace * half_trace - det))
-        bows.append(sqrt(max(0.0, smallest)))
-    return bows
+    counts = np.array([q.shape[0] for q in pieces], np.int64)
+    bows = kernels.bows(np.concatenate(pieces).astype(np.float64), counts)
+    return cast("list[float]", bows.tolist())

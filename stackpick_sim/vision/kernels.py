@@ -1,4 +1,4 @@
-"""Compiled per-pixel and per-pair loops of the ellipse stages (numba).
+"""Compiled per-pixel, per-sample and per-pair loops of the detector's stages (numba).
 
 Each kernel computes, element by element, the same IEEE operations in the same order as the
 numpy expression it stands for (no fast-math: no reassociation, no fused multiply-add), so
@@ -7,10 +7,13 @@ and its temporaries on the few hundred to few thousand elements of a frame, and 
 (ellipse, pixel) matrices the array versions build (their memory grows with ellipses x edge
 pixels).
 
-Compilation happens on a kernel's first call and is cached on disk (``cache=True``) beside
-this module, or where ``NUMBA_CACHE_DIR`` points: a fresh process with a warm cache loads
-each kernel in about a millisecond. numba writes each cache file to a temporary name and
-renames it into place, so workers compiling at the same time do not corrupt it.
+Compilation happens on a kernel's first call for each combination of argument types and is
+cached on disk (``cache=True``) beside this module, or where ``NUMBA_CACHE_DIR`` points;
+:func:`warm_up` (the Makefile's install step) compiles every kernel for the types the
+detector passes (C-ordered, writable arrays: a read-only or strided array is another type),
+so a fresh process with a warm cache only loads them (about 20 ms each). numba writes each
+cache file to a temporary name and renames it into place, so workers compiling at the same
+time do not corrupt it. A division by zero gives numpy's inf or NaN, as in the array forms.
 """
 
 from __future__ import annotations
@@ -28,8 +31,9 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 
 def _compiled(fn: _F) -> _F:
     """``fn`` compiled by numba on its first call (cached on disk), with its own signature
-    for the type checker."""
-    return cast("_F", njit(cache=True, nogil=True)(fn))
+    for the type checker; a division by zero gives what numpy's gives (inf or NaN), as in
+    the array expressions, rather than raising."""
+    return cast("_F", njit(cache=True, nogil=True, error_model="numpy")(fn))
 
 
 
@@ -58,6 +62,116 @@ def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.f
                 pm[k] = m
                 k += 1
     return pe, pm
+
+
+@_compiled
+def _sampson(du: float, dv: float, a: float, b: float, c: float, s: float
+             ) -> float:  # pragma: no cover - compiled
+    """Sampson distance of a point at (du, dv) from the centre of the ellipse of semi-axes
+    (a, b) and angle cosine and sine (c, s); see :func:`grouped_distances`."""
+    x = (c * du + s * dv) / a
+    y = (c * dv - s * du) / b
+    xa, yb = x / a, y / b
+    grad = 2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12
+    return abs(x * x + y * y - 1.0) / grad
+
+
+@_compiled
+def point_distances(points: NDArray[np.float64], cx: float, cy: float, a: float, b: float,
+                    c: float, s: float) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Sampson distances of (N, 2) ``points`` to the ellipse (cx, cy, a, b) of angle cosine
+    and sine (c, s); see :func:`~stackpick_sim.vision.fitting.ellipse_distances`."""
+    out = np.empty(points.shape[0])
+    for k in range(points.shape[0]):
+        out[k] = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+    return out
+
+
+@_compiled
+def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[np.float64],
+               reach: NDArray[np.float64], tol_px: float
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """(ellipse, point) index pairs, ellipse by ellipse and points ascending, of the points
+    (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
+    closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
+    column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
+    n_e, n_p = rows.shape[1], pu.shape[0]
+    count = 0
+    for e in range(n_e):
+        x, y, r = rows[0, e], rows[1, e], reach[e]
+        for m in range(n_p):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                count += 1
+    pe = np.empty(count, np.int64)
+    pm = np.empty(count, np.int64)
+    k = 0
+    for e in range(n_e):
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        r = reach[e]
+        for m in range(n_p):
+            if (abs(pu[m] - cx) <= r and abs(pv[m] - cy) <= r
+                    and _sampson(pu[m] - cx, pv[m] - cy, a, b, c, s) < tol_px):
+                pe[k] = e
+                pm[k] = m
+                k += 1
+    return pe[:k], pm[:k]
+
+
+@_compiled
+def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
+         ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """RMS spread (px) across its principal line of each piece of (N, 2) ``pixels``, the
+    pieces running one after another (``counts[i]`` pixels each); see
+    :func:`~stackpick_sim.vision.fitting.bow_px` (the same sums, in pixel order)."""
+    out = np.empty(counts.shape[0])
+    start = 0
+    for i in range(counts.shape[0]):
+        n = counts[i]
+        su = 0.0
+        sv = 0.0
+        for j in range(start, start + n):
+            su += pixels[j, 0]
+            sv += pixels[j, 1]
+        mu, mv = su / n, sv / n
+        sxx = 0.0
+        syy = 0.0
+        sxy = 0.0
+        for j in range(start, start + n):
+            cu, cv = pixels[j, 0] - mu, pixels[j, 1] - mv
+            sxx += cu * cu
+            syy += cv * cv
+            sxy += cu * cv
+        k = max(1, n)
+        half_trace, det = 0.5 * (sxx + syy) / k, (sxx * syy - sxy * sxy) / (k * k)
+        smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
+        out[i] = math.sqrt(max(0.0, smallest))
+        start += n
+    return out
+
+
+@_compiled
+def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
+                    counts: NDArray[np.int64], ct: NDArray[np.float64],
+                    st: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+    """Per ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine),
+    the share of its ``counts[e]`` outline samples (parameters' cosines ``ct`` and sines
+    ``st``, ellipse by ellipse) whose rounded pixel is set in the (H, W) ``support`` map
+    (off the map: not); see :func:`~stackpick_sim.vision.merging.support_shares`."""
+    h, w = support.shape
+    out = np.empty(counts.shape[0])
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        hits = 0
+        for _ in range(counts[e]):
+            x, y = a * ct[k], b * st[k]
+            u = np.rint(c * x + cx - s * y)
+            v = np.rint(s * x + cy + c * y)
+            if 0.0 <= u < w and 0.0 <= v < h and support[np.int64(v), np.int64(u)] > 0:
+                hits += 1
+            k += 1
+        out[e] = hits / counts[e]
+    return out
 
 
 @_compiled
@@ -167,6 +281,501 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
 
 
 @_compiled
+def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, v: float,
+               gu: float, gv: float, dist_sq: float, cos_sq: float
+               ) -> bool:  # pragma: no cover - compiled
+    """:func:`along_grouped`'s test of one pixel (u, v) with unit gradient (gu, gv)."""
+    du = u - cx
+    dv = v - cy
+    nu = fa * du + fh * dv
+    nv = fb * dv + fh * du
+    f = du * nu + dv * nv - 1.0
+    n2 = nu * nu + nv * nv
+    dot = nu * gu + nv * gv
+    return f * f < dist_sq * n2 and dot * dot >= cos_sq * n2
+
+
+@_compiled
+def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
+                 active: NDArray[np.bool_], u: NDArray[np.float64], v: NDArray[np.float64],
+                 gu: NDArray[np.float64], gv: NDArray[np.float64], pixels: NDArray[np.float32],
+                 dist_sq: float, cos_sq: float
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                            NDArray[np.float32]]:  # pragma: no cover - compiled
+    """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
+    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test: their indices
+    (ascending), where each ellipse's run of them starts and ends ((E + 1,) bounds), and
+    their rows of the (K, 2) ``pixels`` (the fits' input); see
+    :func:`~stackpick_sim.vision.refine.refine_all`."""
+    n_e = forms.shape[0]
+    sel = np.empty(u.shape[0], np.int64)
+    bounds = np.zeros(n_e + 1, np.int64)
+    count = 0
+    for e in range(n_e):
+        if active[e]:
+            cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
+            for k in range(starts[e], starts[e + 1]):
+                if _along_one(cx, cy, fa, fh, fb, u[k], v[k], gu[k], gv[k], dist_sq, cos_sq):
+                    sel[count] = k
+                    count += 1
+        bounds[e + 1] = count
+    out = np.empty((count, 2), np.float32)
+    for j in range(count):
+        out[j, 0] = pixels[sel[j], 0]
+        out[j, 1] = pixels[sel[j], 1]
+    return sel[:count], bounds, out
+
+
+@_compiled
+def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray[np.float64],
+                   gv: NDArray[np.float64], form: NDArray[np.float64], reach: float,
+                   dist_sq: float, cos_sq: float, gx: NDArray[np.int16],
+                   gy: NDArray[np.int16], max_shift: float
+                   ) -> NDArray[np.float32]:  # pragma: no cover - compiled
+    """The edge pixels (pu, pv) with unit gradients (gu, gv) that lie along one ellipse
+    (``form``: its (cx, cy, A, H, B); within ``reach`` of its centre on both axes, then
+    :func:`along_grouped`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
+    as (K, 2) float32 in pixel order; see :func:`~stackpick_sim.vision.refine.
+    refine_subpixel`."""
+    cx, cy, fa, fh, fb = form[0], form[1], form[2], form[3], form[4]
+    keep = np.empty(pu.shape[0], np.int64)
+    count = 0
+    for k in range(pu.shape[0]):
+        if (abs(pu[k] - cx) <= reach and abs(pv[k] - cy) <= reach
+                and _along_one(cx, cy, fa, fh, fb, pu[k], pv[k], gu[k], gv[k], dist_sq,
+                               cos_sq)):
+            keep[count] = k
+            count += 1
+    at = keep[:count]
+    su, sv = subpixel_columns(gx, gy, pu[at], pv[at], gu[at], gv[at], max_shift)
+    out = np.empty((count, 2), np.float32)
+    for k in range(count):
+        out[k, 0] = su[k]
+        out[k, 1] = sv[k]
+    return out
+
+
+@_compiled
+def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.float64],
+                  pv: NDArray[np.float64], nu: NDArray[np.float64], nv: NDArray[np.float64],
+                  steps: NDArray[np.float64], step_px: float, threshold: float
+                  ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The gradient peaks across an outline: at each sample (pu, pv) with unit normal
+    (nu, nv), the normal gradient |(gx, gy) . n| read bilinearly at offsets ``steps`` (px,
+    ``step_px`` apart), its strongest interior sample (the first of equals) placed by a
+    parabola through its neighbours (shift clamped to half a step); the (K, 2) peaks of the
+    samples whose strongest value reaches ``threshold``, in sample order; see
+    :func:`~stackpick_sim.vision.refine.refine_on_profile`."""
+    n, k = pu.shape[0], steps.shape[0]
+    qu, qv = np.empty(n * k), np.empty(n * k)
+    for i in range(n):
+        for j in range(k):
+            qu[i * k + j] = pu[i] + steps[j] * nu[i]
+            qv[i * k + j] = pv[i] + steps[j] * nv[i]
+    bx, by = bilinear_uv(gx, gy, qu, qv)
+    g = np.empty(n * k)
+    for i in range(n):
+        for j in range(k):
+            g[i * k + j] = abs(bx[i * k + j] * nu[i] + by[i * k + j] * nv[i])
+    out = np.empty((n, 2))
+    count = 0
+    for i in range(n):
+        best, top = 1, g[i * k + 1]
+        for j in range(2, k - 1):
+            if g[i * k + j] > top:
+                best, top = j, g[i * k + j]
+        if top < threshold:
+            continue
+        before, after = g[i * k + best - 1], g[i * k + best + 1]
+        curvature = before - 2.0 * top + after
+        shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
+        offset = steps[best] + min(max(shift, -0.5), 0.5) * step_px
+        out[count, 0] = pu[i] + offset * nu[i]
+        out[count, 1] = pv[i] + offset * nv[i]
+        count += 1
+    return out[:count]
+
+
+@_compiled
+def outline_contrasts(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                      nu: NDArray[np.float64], nv: NDArray[np.float64],
+                      gx: NDArray[np.int16], gy: NDArray[np.int16],
+                      offsets: NDArray[np.float64], window: NDArray[np.int64], gain: float
+                      ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per outline sample (pu, pv) with unit normal (nu, nv): the normal gradient read at the
+    pixel nearest each of the ``offsets`` along the normal (0 off the image), the strongest
+    of them (the first of equals), then its signed mean over the sample's ``window`` (rows:
+    sample indices, summed row by row), as an absolute value over ``gain``; see
+    :func:`~stackpick_sim.vision.contrast.contrast_profiles`."""
+    h, w = gx.shape
+    n = pu.shape[0]
+    best = np.empty(n)
+    for i in range(n):
+        top = -1.0
+        for k in range(offsets.shape[0]):
+            o = offsets[k]
+            if o == 0.0:
+                qu, qv = pu[i], pv[i]
+            elif o == 1.0:
+                qu, qv = pu[i] + nu[i], pv[i] + nv[i]
+            elif o == -1.0:
+                qu, qv = pu[i] - nu[i], pv[i] - nv[i]
+            else:
+                qu, qv = pu[i] + o * nu[i], pv[i] + o * nv[i]
+            ru, rv = np.rint(qu), np.rint(qv)
+            g = 0.0
+            if 0.0 <= ru < w and 0.0 <= rv < h:  # tested as floats: any value is safe
+                u, v = np.int64(ru), np.int64(rv)
+                g = gx[v, u] * nu[i] + gy[v, u] * nv[i]
+            if k == 0 or abs(g) > top:
+                best[i], top = g, abs(g)
+    out = np.empty(n)
+    rows = window.shape[0]
+    for i in range(n):
+        total = best[window[0, i]]
+        for r in range(1, rows):
+            total += best[window[r, i]]
+        out[i] = abs(total / rows) / gain
+    return out
+
+
+@_compiled
+def band_hits(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
+              image: NDArray[np.uint8], colours: NDArray[np.float64],
+              brightest: NDArray[np.float64], belt: NDArray[np.float64], use_belt: bool,
+              chroma_tolerance: float, min_brightness: float, belt_delta: float
+              ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover
+    """Per row s of the (S, P) band pixels (pu, pv) (those ``keep`` marks, on the (H, W, C)
+    ``image``): how many there are and how many show the face's colour ``colours[s]`` (C,):
+    its chromaticity within ``chroma_tolerance`` (L1), a channel sum between
+    ``min_brightness`` times the face's and ``brightest[s]`` times the face's, and (with
+    ``use_belt``) some channel more than ``belt_delta`` off the ``belt`` colour; see
+    :func:`~stackpick_sim.vision.wall.band_evidences` (the same sums, left to right)."""
+    n_sol, per = keep.shape
+    h, w, chans = image.shape
+    counts = np.zeros(n_sol, np.int64)
+    hits = np.zeros(n_sol)
+    for s in range(n_sol):
+        face_sum = colours[s, 0]
+        for c in range(1, chans):
+            face_sum += colours[s, c]
+        face_sum = max(face_sum, 1.0)
+        for k in range(per):
+            if not keep[s, k]:
+                continue
+            ru, rv = np.rint(pu[s, k]), np.rint(pv[s, k])
+            if not (0.0 <= ru < w and 0.0 <= rv < h):  # as floats: inf and NaN are off
+                continue
+            u, v = np.int64(ru), np.int64(rv)
+            counts[s] += 1
+            total = float(image[v, u, 0])
+            for c in range(1, chans):
+                total += float(image[v, u, c])
+            scale = max(total, 1.0)
+            chroma = abs(image[v, u, 0] / scale - colours[s, 0] / face_sum)
+            for c in range(1, chans):
+                chroma += abs(image[v, u, c] / scale - colours[s, c] / face_sum)
+            ok = (chroma <= chroma_tolerance and total >= min_brightness * face_sum
+                  and total <= brightest[s] * face_sum)
+            if ok and use_belt:
+                off = abs(image[v, u, 0] - belt[0])
+                for c in range(1, chans):
+                    off = max(off, abs(image[v, u, c] - belt[c]))
+                ok = off > belt_delta
+            if ok:
+                hits[s] += 1.0
+    return counts, hits
+
+
+@_compiled
+def _insertion_sort(values: NDArray[Any]) -> None:  # pragma: no cover - compiled
+    """Sort a short 1-D array in place, ascending (np.sort's order; compiles in a fraction
+    of np.sort's time)."""
+    for i in range(1, values.shape[0]):
+        x = values[i]
+        j = i - 1
+        while j >= 0 and values[j] > x:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = x
+
+
+@_compiled
+def _turns(poly: NDArray[np.int32], closed: bool, signed_deg: float
+           ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The turn (deg, absolute) at each vertex of a polygon (K, 2) (every vertex when
+    ``closed``, the inner ones otherwise) and its sign (0 below ``signed_deg``)."""
+    count = poly.shape[0]
+    verts = np.empty((count + 2, 2), np.int64)
+    shift = 1 if closed else 0
+    for k in range(count + 2):  # closed: the last vertex, the polygon, its first vertex
+        j = (k - shift) % count
+        verts[k, 0], verts[k, 1] = poly[j, 0], poly[j, 1]
+    if not closed:
+        count -= 2
+    mag = np.empty(count)
+    sign = np.zeros(count, np.int64)
+    for k in range(count):
+        x0, y0 = verts[k + 1, 0] - verts[k, 0], verts[k + 1, 1] - verts[k, 1]
+        x1, y1 = verts[k + 2, 0] - verts[k + 1, 0], verts[k + 2, 1] - verts[k + 1, 1]
+        t = math.degrees(math.atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
+        mag[k] = abs(t)
+        if mag[k] >= signed_deg:
+            sign[k] = 1 if t > 0 else -1
+    return mag, sign
+
+
+@_compiled
+def _cut_vertices(mag: NDArray[np.float64], sign: NDArray[np.int64], closed: bool,
+                  corner_deg: float, spike_deg: float, spike_ratio: float
+                  ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """The polygon vertices (indices) where :func:`corner_cuts` cuts, given :func:`_turns`."""
+    count = mag.shape[0]
+    at = np.empty(count, np.int64)
+    n_at = 0
+    last = 0
+    for k in range(count):
+        if closed:
+            before, after = mag[k - 1], mag[(k + 1) % count]
+        else:
+            before = mag[k - 1] if k else 0.0
+            after = mag[k + 1] if k + 1 < count else 0.0
+        cut = mag[k] > corner_deg or (mag[k] > spike_deg
+                                      and mag[k] > spike_ratio * max(before, after))
+        if sign[k] != 0:
+            cut = cut or (last != 0 and sign[k] != last)
+            last = sign[k]
+        if cut:
+            at[n_at] = k if closed else k + 1
+            n_at += 1
+    return at[:n_at]
+
+
+@_compiled
+def corner_cuts(chain: NDArray[np.int32], poly: NDArray[np.int32], closed: bool,
+                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
+                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Where an ordered (N, 2) ``chain`` is cut, ascending chain indices: the first pixel
+    equal to each vertex of its polygon ``poly`` (K, 2) (cyclic when ``closed``) that turns
+    by more than ``corner_deg``, by more than ``spike_deg`` and ``spike_ratio`` times either
+    neighbour, or against the sign of the previous vertex turning by ``signed_deg`` or more;
+    see :func:`~stackpick_sim.vision.segments.split_chain`."""
+    mag, sign = _turns(poly, closed, signed_deg)
+    at = _cut_vertices(mag, sign, closed, corner_deg, spike_deg, spike_ratio)
+    cuts = np.empty(at.shape[0], np.int64)
+    for j in range(at.shape[0]):
+        u, v = poly[at[j], 0], poly[at[j], 1]
+        i = 0
+        while i < chain.shape[0] and (chain[i, 0] != u or chain[i, 1] != v):
+            i += 1
+        cuts[j] = i if i < chain.shape[0] else 0  # (a polygon keeps chain pixels)
+    _insertion_sort(cuts)
+    kept = 0  # each cut once
+    for j in range(cuts.shape[0]):
+        if kept == 0 or cuts[j] != cuts[kept - 1]:
+            cuts[kept] = cuts[j]
+            kept += 1
+    return cuts[:kept]
+
+
+@_compiled
+def outline_near_shares(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                        ct: NDArray[np.float64], st: NDArray[np.float64],
+                        others: NDArray[np.float64], tol_px: float
+                        ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per pair e: the share of the ``counts[e]`` outline samples of ellipse e (row e of
+    (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine; parameters' cosines ``ct``
+    and sines ``st``, pair by pair) closer than ``tol_px`` to the other ellipse (column e of
+    (6, E) ``others``, as :func:`grouped_distances`); see
+    :func:`~stackpick_sim.vision.merging.boundary_shares`."""
+    out = np.empty(counts.shape[0])
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        ox, oy, oa, ob = others[0, e], others[1, e], others[2, e], others[3, e]
+        oc, os = others[4, e], others[5, e]
+        close = 0
+        for _ in range(counts[e]):
+            x, y = a * ct[k], b * st[k]
+            u = cx + c * x - s * y
+            v = cy + s * x + c * y
+            if _sampson(u - ox, v - oy, oa, ob, oc, os) < tol_px:
+                close += 1
+            k += 1
+        out[e] = close / counts[e]
+    return out
+
+
+@_compiled
+def _first_above(keys: NDArray[np.float64], x: float, strict: bool
+                 ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``keys`` whose key is above ``x`` (``strict``) or at
+    least ``x``: ``np.searchsorted``'s right or left side."""
+    lo, hi = 0, keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] > x or (not strict and keys[mid] == x):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+
+@_compiled
+def interior_counts(params: NDArray[np.float64], sizes: NDArray[np.int64],
+                    keys: NDArray[np.float64], width: int
+                    ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Per ellipse (row e of (E, 6) ``params``: cx, cy, the shrunk form's p, q, r and its
+    first row), the pixels inside it on its ``sizes[e]`` rows, the pixels given by ascending
+    row-major ``keys`` (v ``width`` + u): on each row the open interval of u between the
+    form's roots, two binary searches; see
+    :func:`~stackpick_sim.vision.occlusion._interior_counts` (the same arithmetic)."""
+    out = np.zeros(sizes.shape[0], np.int64)
+    for e in range(sizes.shape[0]):
+        cx, cy, p, q, r, first = (params[e, 0], params[e, 1], params[e, 2], params[e, 3],
+                                  params[e, 4], params[e, 5])
+        total = 0
+        for j in range(sizes[e]):
+            row = first + j
+            dv = row - cy
+            qdv = q * dv
+            disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
+            root = math.sqrt(max(disc, 0.0))
+            lo = max((-qdv - root) / (2.0 * p) + cx, -0.5)
+            hi = min((-qdv + root) / (2.0 * p) + cx, width - 1.5)
+            hi = max(hi, lo) if disc > 0.0 else lo
+            base = row * width
+            inside = _first_above(keys, base + hi, False) - _first_above(keys, base + lo, True)
+            total += max(inside, 0)
+        out[e] = total
+    return out
+
+
+@_compiled
+def outline_samples(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                    ct: NDArray[np.float64], st: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """The outline samples of each ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the
+    angle's cosine and sine; ``counts[e]`` samples at parameters of cosines ``ct`` and sines
+    ``st``, ellipse by ellipse): (2, N) points and (2, N) unit outward normals (the implicit
+    form's gradient); see :func:`~stackpick_sim.vision.contrast.outlines`."""
+    n = ct.shape[0]
+    pts = np.empty((2, n))
+    normals = np.empty((2, n))
+    k = 0
+    for e in range(counts.shape[0]):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        for _ in range(counts[e]):
+            x, nx = a * ct[k], b * ct[k]
+            y, ny = b * st[k], a * st[k]
+            norm = np.hypot(nx, ny)
+            nx /= norm
+            ny /= norm
+            pts[0, k] = cx + c * x - s * y
+            pts[1, k] = cy + s * x + c * y
+            normals[0, k] = c * nx - s * ny
+            normals[1, k] = s * nx + c * ny
+            k += 1
+    return pts, normals
+
+
+@_compiled
+def junction_ends(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                  ends: NDArray[np.float64], owner: NDArray[np.int64],
+                  params: NDArray[np.float64], reach: float, junction_sq: float,
+                  crossing_sq: float, tol_px: float
+                  ) -> NDArray[np.bool_]:  # pragma: no cover - compiled
+    """Per gap end k ((K, 2) ``ends``, of ellipse ``owner[k]``: row of (E, 8) ``params``,
+    cx, cy, the angle's cosine and sine, a, b and the axes less the inner margin): whether
+    among the edge pixels (pu, pv) (rows ascending) within ``reach`` of it one off the
+    ellipse (Sampson distance above ``tol_px``) lies within ``junction_sq`` (px^2) of it and
+    one off it and inside the inner axes within ``crossing_sq``; see
+    :func:`~stackpick_sim.vision.occlusion._junction_owners` (the same arithmetic)."""
+    out = np.zeros(ends.shape[0], np.bool_)
+    reach_sq = reach * reach
+    for k in range(ends.shape[0]):
+        eu, ev = ends[k, 0], ends[k, 1]
+        e = owner[k]
+        cx, cy, c, s, a, b = (params[e, 0], params[e, 1], params[e, 2], params[e, 3],
+                              params[e, 4], params[e, 5])
+        a_in, b_in = params[e, 6], params[e, 7]
+        junction = crossing = False
+        m = _first_above(pv, ev - reach, False)
+        stop = _first_above(pv, ev + reach, True)
+        while m < stop:
+            du_end, dv_end = pu[m] - eu, pv[m] - ev
+            d2 = du_end * du_end + dv_end * dv_end
+            if d2 <= reach_sq:
+                du, dv = pu[m] - cx, pv[m] - cy
+                xr, yr = c * du + s * dv, -s * du + c * dv
+                x, y = xr / a, yr / b
+                xa, yb = x / a, y / b
+                dist = abs(x * x + y * y - 1.0) / (2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12)
+                if dist > tol_px:
+                    if d2 <= junction_sq:
+                        junction = True
+                    xs, ys = xr / a_in, yr / b_in
+                    if xs * xs + ys * ys < 1.0 and d2 <= crossing_sq:
+                        crossing = True
+            m += 1
+        out[k] = junction and crossing
+    return out
+
+
+@_compiled
+def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: float,
+                c: float, s: float, ct: NDArray[np.float64], st: NDArray[np.float64]
+                ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per channel of the (H, W, C) ``image``, the median of its values at the pixels
+    nearest the points (cx + c x - s y, cy + s x + c y), x = ``sa`` ct, y = ``sb`` st
+    (clamped into the image): the mean of the two middle values of an even count; see
+    :func:`~stackpick_sim.vision.wall.face_colour`."""
+    h, w, chans = image.shape
+    n = ct.shape[0]
+    values = np.empty((chans, n), np.uint8)
+    for k in range(n):
+        x, y = sa * ct[k], sb * st[k]
+        u = min(max(np.int64(np.rint(cx + c * x + -s * y)), 0), w - 1)
+        v = min(max(np.int64(np.rint(cy + s * x + c * y)), 0), h - 1)
+        for ch in range(chans):
+            values[ch, k] = image[v, u, ch]
+    out = np.empty(chans)
+    for ch in range(chans):
+        ordered = values[ch]
+        _insertion_sort(ordered)
+        out[ch] = 0.5 * (float(ordered[(n - 1) // 2]) + ordered[n // 2])
+    return out
+
+
+@_compiled
+def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
+                    fy: float, kcx: float, kcy: float, margin_px: float
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                               NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` (pinhole fx,
+    fy, kcx, kcy) and which lie more than ``margin_px`` outside face s (row s of (S, 6)
+    ``terms``: cx, cy, the angle's cosine and sine, a, b), by the radial distance; see
+    :func:`~stackpick_sim.vision.wall._project_outside` (the same arithmetic)."""
+    n_s, n_p = band.shape[1], band.shape[2]
+    pu, pv = np.empty((n_s, n_p)), np.empty((n_s, n_p))
+    out = np.empty((n_s, n_p), np.bool_)
+    for f in range(n_s):
+        cx, cy, c, s, a, b = (terms[f, 0], terms[f, 1], terms[f, 2], terms[f, 3],
+                              terms[f, 4], terms[f, 5])
+        for k in range(n_p):
+            u = fx * band[0, f, k] / band[2, f, k] + kcx
+            v = fy * band[1, f, k] / band[2, f, k] + kcy
+            du, dv = u - cx, v - cy
+            x = (c * du + s * dv) / a
+            y = (-s * du + c * dv) / b
+            rho = np.sqrt(x * x + y * y)
+            pu[f, k], pv[f, k] = u, v
+            out[f, k] = (rho - 1.0) * np.hypot(x * a, y * b) / max(rho, 1e-9) > margin_px
+    return pu, pv, out
+
+
+@_compiled
 def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
                   reach_sq: float) -> NDArray[np.bool_]:  # pragma: no cover - compiled
     """Per pixel of the chains (all (N, 2) pixels concatenated, chain k at
@@ -219,3 +828,23 @@ def warm_up() -> None:
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
+    corner_cuts(np.zeros((3, 2), np.int32), np.zeros((3, 2), np.int32), True, 1.0, 1.0, 1.0, 1.0)
+    outline_near_shares(np.ones((1, 6)), counts, col, col, np.ones((6, 1)), 1.0)
+    interior_counts(np.ones((1, 6)), counts, col, 4)
+    outline_samples(np.ones((1, 6)), counts, col, col)
+    point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+    project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
+    face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
+    junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
+                  1.0, 1.0, 1.0)
+    along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_), col,
+                 col, col, col, np.zeros((1, 2), np.float32), 1.0, 1.0)
+    subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
+    profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
+    near_pairs(col, col, np.ones((6, 1)), col, 1.0)
+    bows(np.zeros((1, 2)), counts)
+    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
+    outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
+    band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
+              np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
+              1.0)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import cast
 
 import cv2
@@ -28,9 +28,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
+    distance_rows,
     ellipse_distances,
     ellipse_params,
     fit_ellipse,
@@ -113,16 +115,13 @@ def boundary_shares(ways: list[tuple[Ellipse, Ellipse]], tol_px: float) -> list[
         sizes.append(max(16, math.ceil(perimeter_px(one))))
         th = math.radians(one.angle_deg)
         rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th)))
-    counts = np.array(sizes)
-    ct = np.concatenate([unit_circle(n)[0] for n in sizes])
-    st = np.concatenate([unit_circle(n)[1] for n in sizes])
-    cx, cy, a, b, c, s = np.array(rows, np.float64).T.repeat(counts, axis=1)
-    x, y = a * ct, b * st
-    d = grouped_distances(ellipse_params([other for _, other in ways]), counts,
-                          cx + c * x - s * y, cy + s * x + c * y)
-    close = np.bincount(np.arange(len(ways)).repeat(counts), weights=d < tol_px,
-                        minlength=len(ways))
-    return (close / counts).tolist()
+    circles = [unit_circle(n) for n in sizes]
+    # The samples and their distances to the other ellipse in one compiled pass.
+    shares = kernels.outline_near_shares(
+        np.array(rows, np.float64), np.array(sizes, np.int64),
+        np.concatenate([q[0] for q in circles]), np.concatenate([q[1] for q in circles]),
+        distance_rows(ellipse_params([other for _, other in ways])), tol_px)
+    return cast("list[float]", shares.tolist())
 
 
 def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]:
@@ -145,32 +144,11 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
     circles = [unit_circle(n) for n in counts]
-    ct = np.concatenate([q[0] for q in circles])
-    st = np.concatenate([q[1] for q in circles])
-    # Each parameter repeated per sample as one contiguous row (a row gather of (E, 6) would
-    # leave strided columns, slower in every operation below).
-    cx, cy, a, b, c, s = np.array(rows).T.repeat(counts, axis=1)
-    x, y = a * ct, b * st  # as boundary_samples, all ellipses at once
-    # The rounded samples (cx + c x - s y, cy + s x + c y, summed in that order), clamped one
-    # pixel outside the map, onto a zero border added around it (off-image samples are
-    # unsupported), as flat indices into that framed map: integers all along, in float64.
-    h, w = support.shape
-    u = c * x
-    u += cx
-    u -= s * y
-    np.clip(np.rint(u, out=u), -1, w, out=u)
-    v = s * x
-    v += cy
-    v += c * y
-    np.clip(np.rint(v, out=v), -1, h, out=v)
-    v *= w + 2
-    v += u
-    v += w + 3
-    framed = cv2.copyMakeBorder(support, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    hit = framed.ravel()[v.astype(np.int64)] > 0
-    starts = np.array([0, *itertools.accumulate(counts[:-1])])
-    return cast("NDArray[np.float64]", np.add.reduceat(hit, starts, dtype=np.int64)
-                / np.array(counts))
+    # The rounded samples (as boundary_samples' points) looked up in one compiled pass.
+    return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
+                                   np.array(rows, np.float64), np.array(counts, np.int64),
+                                   np.concatenate([q[0] for q in circles]),
+                                   np.concatenate([q[1] for q in circles]))
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
@@ -183,6 +161,51 @@ def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64
                        minlength=n_groups * n_groups).reshape(n_groups, n_groups)
     counts = np.bincount(owner, minlength=n_groups).astype(np.float64)
     return cast("NDArray[np.float64]", hits / np.maximum(counts, 1.0))
+
+
+@dataclass(kw_only=True)
+class _Groups:
+    """The merge's working state: per group (one per fit at first) its ``members`` (the
+    segment indices of its pieces) and ellipse (None once merged into another); ``owner``
+    (N,) the group of each piece pixel; the (group, pixel) pairs within tolerance of the
+    group's ellipse, ``pair_g`` and ``pair_p`` (K,) each; the ``refused`` pairs of groups;
+    ``rest``: the pairs of the later chains' pixels with the fits as they were (None once a
+    merge changed an ellipse)."""
+
+    members: list[list[int]]
+    ellipses: list[Ellipse | None]
+    owner: NDArray[np.int64]
+    pair_g: NDArray[np.int64]
+    pair_p: NDArray[np.int64]
+    refused: set[tuple[int, int]] = field(default_factory=set)
+    rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+
+    def alive(self) -> list[int]:
+        """The groups not merged into another."""
+        return [g for g, e in enumerate(self.ellipses) if e is not None]
+
+    def join(self, gi: int, gj: int, merged: Ellipse, d: NDArray[np.float64]) -> None:
+        """Merge group ``gj`` into ``gi``, whose ellipse becomes ``merged`` (``d``: the
+        distances of every piece pixel to it)."""
+        self.ellipses[gi], self.ellipses[gj] = merged, None
+        self.rest = None  # the later chains' pairs are for the fits as they were
+        self.members[gi] += self.members[gj]
+        self.owner[self.owner == gj] = gi
+        other = (self.pair_g != gi) & (self.pair_g != gj)
+        close = (d < MERGE_TOLERANCE_PX).nonzero()[0]
+        self.pair_g = np.concatenate([self.pair_g[other], np.full(close.shape[0], gi)])
+        self.pair_p = np.concatenate([self.pair_p[other], close])
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Pieces:
+    """The fitted pieces' pixels: ``pixels`` (N, 2) int32 (the fits' input) and ``points``,
+    the same as float64; ``everything``: all the chains' pixels (float64) when the pieces
+    lead the chains (None otherwise)."""
+
+    pixels: NDArray[np.int32]
+    points: NDArray[np.float64]
+    everything: NDArray[np.float64] | None
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
@@ -203,93 +226,115 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     if not fits:
         return []
-    members: list[list[int]] = [[i] for i, _ in fits]
-    ellipses: list[Ellipse | None] = [e for _, e in fits]
     seg_of_piece = [i for i, _ in fits]
+    # The pieces lead ``chains`` (as the detector passes them): the pairs of all the later
+    # chains' pixels come in the same pass and serve the absorbing step while no merge
+    # changes an ellipse.
     leading = seg_of_piece == list(range(len(fits)))
+    pieces, state = _start(chains, fits, leading)
+    while _merge_best(state, pieces, shape):
+        pass
+    # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
+    kept = state.alive()
+    if len(kept) == len(state.ellipses):  # no merge: the groups keep their indices
+        final_g = state.pair_g
+    else:
+        final = np.full(len(state.ellipses), -1, np.int64)
+        final[kept] = np.arange(len(kept))
+        final_g = final[state.pair_g]
+    # A group still one fit on its own segment has that fit's residual, when given.
+    own = [None if residuals is None or len(m) > 1 else residuals[g]
+           for g, m in enumerate(state.members)]
+    return _absorb_and_validate(chains, state.members, state.ellipses, edges,
+                                (final_g, state.pair_p, pieces.points.shape[0]) if leading
+                                else None, state.rest, pieces.everything, own)
+
+
+def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
+           leading: bool) -> tuple[_Pieces, _Groups]:
+    """The pieces' pixels and the merge's first state (a group per fit), with the (group,
+    pixel) pairs within tolerance of each fit; when the pieces are the ``leading`` chains,
+    those of the later chains' pixels too (:attr:`_Groups.rest`)."""
+    seg_of_piece = [i for i, _ in fits]
     params = ellipse_params([e for _, e in fits])
     rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
     everything: NDArray[np.float64] | None = None
     if leading:
-        # The pieces lead ``chains``: the (group, pixel) pairs of their pixels and of all the
-        # later chains' in one pass; the latter serve the absorbing step while no merge
-        # changes an ellipse.
         all_pixels = np.concatenate(chains)
-        all_points = all_pixels.astype(np.float64)
+        everything = all_pixels.astype(np.float64)
         done = sum(chains[i].shape[0] for i in seg_of_piece)
-        pixels, points = all_pixels[:done], all_points[:done]  # int32: the fits' input
-        g_all, p_all = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
+        pixels, points = all_pixels[:done], everything[:done]  # int32: the fits' input
+        g_all, p_all = within_pairs(params, everything, MERGE_TOLERANCE_PX)
         piece = p_all < done
         pair_g, pair_p = g_all[piece], p_all[piece]
         rest = (g_all[~piece], p_all[~piece])
-        everything = all_points
     else:
         pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
         points = pixels.astype(np.float64)
-        # The (group, pixel) pairs within tolerance of the group's ellipse.
         pair_g, pair_p = within_pairs(params, points, MERGE_TOLERANCE_PX)
     owner = np.arange(len(fits)).repeat([chains[i].shape[0] for i in seg_of_piece])
-    refused: set[tuple[int, int]] = set()
-    changed = True
-    while changed:
-        changed = False
-        alive = [g for g, e in enumerate(ellipses) if e is not None]
-        if len(alive) < 2:
-            break
-        if len(alive) == len(ellipses):  # no merge yet: the identity map, nothing refused
-            n = _pertain_matrix(pair_g, owner[pair_p], owner, len(alive))
-            remap = list(range(len(ellipses)))
-        else:
-            index = np.full(len(ellipses), -1, np.int64)
-            index[alive] = np.arange(len(alive))
-            group = index[owner]
-            n = _pertain_matrix(index[pair_g], group[pair_p], group, len(alive))
-            remap = index.tolist()
-        c = n * n.T
-        c.flat[:: len(alive) + 1] = 0.0  # the diagonal (np.fill_diagonal's own step)
-        for i, j in refused:
-            if remap[i] >= 0 and remap[j] >= 0:
-                c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
-        while True:
-            best = int(c.argmax())
-            bi, bj = divmod(best, len(alive))
-            if c[bi, bj] <= MERGE_K:
-                break
-            gi, gj = alive[bi], alive[bj]
-            in_union = (owner == gi) | (owner == gj)
-            merged = fit_ellipse(pixels[in_union])
-            d = (None if merged is None or not plausible(merged, shape)
-                 else ellipse_distances(merged, points))
-            if (merged is None or d is None
-                    or float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
-                    or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, (gi, gj))):
-                refused.add((gi, gj))
-                c[bi, bj] = c[bj, bi] = 0.0
-                continue
-            ellipses[gi], ellipses[gj] = merged, None
-            rest = None  # the later chains' pairs are for the fits as they were
-            members[gi] += members[gj]
-            owner[owner == gj] = gi
-            other = (pair_g != gi) & (pair_g != gj)
-            close = (d < MERGE_TOLERANCE_PX).nonzero()[0]
-            pair_g = np.concatenate([pair_g[other], np.full(close.shape[0], gi)])
-            pair_p = np.concatenate([pair_p[other], close])
-            changed = True
-            break
-    # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
-    kept = [g for g, e in enumerate(ellipses) if e is not None]
-    if len(kept) == len(ellipses):  # no merge: the groups keep their indices
-        final_g = pair_g
+    state = _Groups(members=[[i] for i in seg_of_piece], ellipses=[e for _, e in fits],
+                    owner=owner, pair_g=pair_g, pair_p=pair_p, rest=rest)
+    return _Pieces(pixels=pixels, points=points, everything=everything), state
+
+
+def _pair_scores(state: _Groups, alive: list[int]) -> NDArray[np.float64]:
+    """(G, G) Eq. 3 products C = N_{A/B} N_{B/A} of the ``alive`` groups (in that order),
+    0 on the diagonal and for refused pairs."""
+    owner = state.owner
+    if len(alive) == len(state.ellipses):  # no merge yet: the identity map, nothing refused
+        n = _pertain_matrix(state.pair_g, owner[state.pair_p], owner, len(alive))
+        remap = list(range(len(state.ellipses)))
     else:
-        final = np.full(len(ellipses), -1, np.int64)
-        final[kept] = np.arange(len(kept))
-        final_g = final[pair_g]
-    # A group still one fit on its own segment has that fit's residual, when given.
-    own = [None if residuals is None or len(m) > 1 else residuals[g]
-           for g, m in enumerate(members)]
-    return _absorb_and_validate(chains, members, ellipses, edges,
-                                (final_g, pair_p, points.shape[0]) if leading else None,
-                                rest, everything, own)
+        index = np.full(len(state.ellipses), -1, np.int64)
+        index[alive] = np.arange(len(alive))
+        group = index[owner]
+        n = _pertain_matrix(index[state.pair_g], group[state.pair_p], group, len(alive))
+        remap = index.tolist()
+    c = n * n.T
+    c.flat[:: len(alive) + 1] = 0.0  # the diagonal (np.fill_diagonal's own step)
+    for i, j in state.refused:
+        if remap[i] >= 0 and remap[j] >= 0:
+            c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
+    return c
+
+
+def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int]) -> bool:
+    """Merge the best-scoring pair of groups whose union refits (refusing, in turn, those
+    that do not); whether a pair merged."""
+    alive = state.alive()
+    if len(alive) < 2:
+        return False
+    c = _pair_scores(state, alive)
+    while True:
+        bi, bj = divmod(int(c.argmax()), len(alive))
+        if c[bi, bj] <= MERGE_K:
+            return False
+        gi, gj = alive[bi], alive[bj]
+        union = _union_fit(pieces, state.owner, (gi, gj), shape)
+        if union is None:
+            state.refused.add((gi, gj))
+            c[bi, bj] = c[bj, bi] = 0.0
+            continue
+        state.join(gi, gj, *union)
+        return True
+
+
+def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int],
+               shape: tuple[int, int]) -> tuple[Ellipse, NDArray[np.float64]] | None:
+    """The refit on the union of two ``groups`` and the distances of every piece pixel to
+    it, when it is plausible, within MERGE_MAX_RESIDUAL_PX and keeps each group on it
+    (:func:`_keeps_members`); None otherwise."""
+    gi, gj = groups
+    in_union = (owner == gi) | (owner == gj)
+    merged = fit_ellipse(pieces.pixels[in_union])
+    if merged is None or not plausible(merged, shape):
+        return None
+    d = ellipse_distances(merged, pieces.points)
+    if (float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
+            or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, groups)):
+        return None
+    return merged, d
 
 
 def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
@@ -313,6 +358,145 @@ def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tupl
     return all(float(on[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
 
 
+@dataclass(frozen=True, kw_only=True)
+class _Chains:
+    """All the chains' pixels at once: their ``sizes``, ``starts`` (S + 1,) and ``points``
+    (N, 2) float64, concatenated in order."""
+
+    sizes: list[int]
+    starts: NDArray[np.int64]
+    points: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, chains: tuple[NDArray[np.int32], ...],
+           everything: NDArray[np.float64] | None) -> _Chains:
+        """The table of ``chains`` (``everything``: their pixels concatenated, float64, when
+        at hand)."""
+        sizes = [c.shape[0] for c in chains]
+        return cls(sizes=sizes, starts=np.array([0, *itertools.accumulate(sizes)], np.int64),
+                   points=(np.concatenate(chains).astype(np.float64) if everything is None
+                           else everything))
+
+    def rms(self, pairs: list[tuple[Ellipse, list[int]]]) -> list[float]:
+        """RMS residual of each (ellipse, segments) pair, all in one pass."""
+        if not pairs:
+            return []
+        # Each pair's pixels in ascending order (its segments ascending, each segment's
+        # pixel range in turn): the order of the sums does not change.
+        segs_all: list[int] = []
+        count = []
+        for _, segs in pairs:
+            ordered = sorted(set(segs))
+            segs_all += ordered
+            count.append(sum(self.sizes[k] for k in ordered))
+        first = self.starts[segs_all]
+        lens = self.starts[np.array(segs_all) + 1] - first
+        at = np.arange(sum(count)) + (first - (lens.cumsum() - lens)).repeat(lens)
+        d = grouped_distances(ellipse_params([e for e, _ in pairs]), np.array(count),
+                              self.points[:, 0][at], self.points[:, 1][at])
+        which = np.arange(len(pairs)).repeat(count)
+        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
+                       / np.array(count)).tolist()
+
+
+def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
+                    known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None,
+                    rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None
+                    ) -> list[list[int]]:
+    """Per group, the segments (ascending) with ABSORB_FRACTION of their pixels within
+    tolerance of its ellipse (``known``, ``rest``: see :func:`_absorb_and_validate`)."""
+    params = ellipse_params([e for _, e in groups])
+    # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
+    if known is None:
+        g_on, p_on = within_pairs(params, table.points, MERGE_TOLERANCE_PX)
+    else:
+        g_known, p_known, done = known
+        if rest is None:
+            g_rest, p_rest = within_pairs(params, table.points[done:], MERGE_TOLERANCE_PX)
+            p_rest = p_rest + done
+        else:
+            g_rest, p_rest = rest
+        g_on = np.concatenate([g_known, g_rest])
+        p_on = np.concatenate([p_known, p_rest])
+    n_chains = len(table.sizes)
+    seg_id = np.arange(n_chains).repeat(table.sizes)
+    hits = np.bincount(g_on * n_chains + seg_id[p_on],
+                       minlength=len(groups) * n_chains).reshape(len(groups), n_chains)
+    frac = hits / np.array(table.sizes, np.float64)[None, :]
+    lying: list[list[int]] = [[] for _ in groups]
+    on_g, on_s = (frac >= ABSORB_FRACTION).nonzero()
+    for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
+        lying[g].append(s)
+    return lying
+
+
+def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int], Ellipse]],
+            extras: list[list[int]], shape: tuple[int, int]
+            ) -> tuple[dict[int, Ellipse | None], dict[int, float]]:
+    """Each group refitted with its ``extras`` (the segments lying on it besides its own),
+    unless they only repeat its pixels; the refits (None: failed or implausible) and the
+    RMS residuals of those that came out, by group."""
+    refits: dict[int, Ellipse | None] = {}
+    refit_rms: dict[int, float] = {}
+    for g, (segs, _) in enumerate(groups):
+        # Extras that only repeat the group's pixels (the chains its pieces were cut from
+        # whole) would refit the same points, each twice: the fit in hand, up to rounding.
+        if not extras[g] or _repeats(chains, extras[g], segs):
+            continue
+        # The chains themselves (int32, in this order): the fit's input as it stands.
+        union = np.concatenate([chains[s] for s in segs + extras[g]])
+        refit = fit_ellipse(union)
+        refits[g] = refit if refit is not None and plausible(refit, shape) else None
+        if (e := refits[g]) is not None:
+            # One ellipse, about one a frame: its residual on the fit's own input (the
+            # same pixels) costs a third of a batched pass.
+            refit_rms[g] = rms_residual(e, union)
+    return refits, refit_rms
+
+
+def _finals(groups: list[tuple[list[int], Ellipse]], extras: list[list[int]],
+            refits: dict[int, Ellipse | None], refit_rms: dict[int, float],
+            known_rms: list[float | None], table: _Chains
+            ) -> tuple[list[tuple[list[int], Ellipse]], list[float]]:
+    """Per group, its final (segments, ellipse): the refit with its extras when that stays
+    within MAX_RESIDUAL_PX, the fit in hand without them when the refit strays, the fit in
+    hand with them otherwise (not refitted, or the refit failed); and their RMS residuals
+    (``known_rms``: per group, the residual of its fit on its own segments when known)."""
+    residuals = _unrefitted_residuals(groups, extras, refits, known_rms, table)
+    finals: list[tuple[list[int], Ellipse]] = []
+    for g, (segs, ellipse) in enumerate(groups):
+        refit = refits.get(g)
+        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
+            finals.append((segs + extras[g], refit))
+            residuals[g] = refit_rms[g]
+        elif refit is not None:
+            finals.append((segs, ellipse))  # the refit strays: the extras are not on it
+            if (r := known_rms[g]) is not None:
+                residuals[g] = r
+        else:
+            # Not refitted, or the fit failed: keep all, as fitted.
+            finals.append((segs + extras[g], ellipse))
+    todo = [g for g in range(len(finals)) if g not in residuals]
+    residuals.update(zip(todo, table.rms([(finals[g][1], finals[g][0]) for g in todo]),
+                         strict=True))
+    return finals, [residuals[g] for g in range(len(finals))]
+
+
+def _unrefitted_residuals(groups: list[tuple[list[int], Ellipse]], extras: list[list[int]],
+                          refits: dict[int, Ellipse | None], known_rms: list[float | None],
+                          table: _Chains) -> dict[int, float]:
+    """The RMS residuals of the groups not refitted (kept as fitted, with any extras that
+    only repeat their pixels), by group: the known one, else all computed in one pass."""
+    plain = [g for g in range(len(groups)) if g not in refits and known_rms[g] is None]
+    residuals: dict[int, float] = dict(zip(
+        plain, table.rms([(groups[g][1], groups[g][0] + extras[g]) for g in plain]),
+        strict=True))
+    for g, r in enumerate(known_rms):
+        if r is not None and g not in refits:
+            residuals[g] = r  # as fitted, with only repeating extras: the same pixels
+    return residuals
+
+
 def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[list[int]],
                          ellipses: list[Ellipse | None], edges: NDArray[np.uint8],
                          known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None,
@@ -333,95 +517,12 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     if not groups:
         return []
     known_rms = [None if own is None else own[g] for g in alive]
-    sizes = [c.shape[0] for c in chains]
-    starts = np.array([0, *itertools.accumulate(sizes)], np.int64)
-    all_points = (np.concatenate(chains).astype(np.float64) if everything is None
-                  else everything)
-    seg_id = np.arange(len(chains)).repeat(sizes)
-    params = ellipse_params([e for _, e in groups])
-    # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
-    if known is None:
-        g_on, p_on = within_pairs(params, all_points, MERGE_TOLERANCE_PX)
-    else:
-        g_known, p_known, done = known
-        if rest is None:
-            g_rest, p_rest = within_pairs(params, all_points[done:], MERGE_TOLERANCE_PX)
-            p_rest = p_rest + done
-        else:
-            g_rest, p_rest = rest
-        g_on = np.concatenate([g_known, g_rest])
-        p_on = np.concatenate([p_known, p_rest])
-    lengths = np.array(sizes, np.float64)
-    hits = np.bincount(g_on * len(chains) + seg_id[p_on],
-                       minlength=len(groups) * len(chains)).reshape(len(groups), len(chains))
-    frac = hits / lengths[None, :]
-    shape = (int(edges.shape[0]), int(edges.shape[1]))
-
-    def rms(pairs: list[tuple[Ellipse, list[int]]]) -> list[float]:
-        """RMS residual of each (ellipse, segments) pair, all in one pass."""
-        if not pairs:
-            return []
-        # Each pair's pixels in ascending order (its segments ascending, each segment's
-        # pixel range in turn): the order of the sums does not change.
-        segs_all: list[int] = []
-        count = []
-        for _, segs in pairs:
-            ordered = sorted(set(segs))
-            segs_all += ordered
-            count.append(sum(sizes[k] for k in ordered))
-        first = starts[segs_all]
-        lens = starts[np.array(segs_all) + 1] - first
-        at = np.arange(sum(count)) + (first - (lens.cumsum() - lens)).repeat(lens)
-        d = grouped_distances(ellipse_params([e for e, _ in pairs]), np.array(count),
-                              all_points[:, 0][at], all_points[:, 1][at])
-        which = np.arange(len(pairs)).repeat(count)
-        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
-                       / np.array(count)).tolist()
-
-    # Refit each group with the segments lying on it; residuals of all refits at once.
-    lying: list[list[int]] = [[] for _ in groups]
-    on_g, on_s = (frac >= ABSORB_FRACTION).nonzero()
-    for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
-        lying[g].append(s)
+    table = _Chains.of(chains, everything)
+    lying = _lying_segments(table, groups, known, rest)
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
-    refits: dict[int, Ellipse | None] = {}
-    refit_rms: dict[int, float] = {}
-    for g, (segs, _) in enumerate(groups):
-        # Extras that only repeat the group's pixels (the chains its pieces were cut from
-        # whole) would refit the same points, each twice: the fit in hand, up to rounding.
-        if extras[g] and not _repeats(chains, extras[g], segs):
-            # The chains themselves (int32, in this order): the fit's input as it stands.
-            union = np.concatenate([chains[s] for s in segs + extras[g]])
-            refit = fit_ellipse(union)
-            refits[g] = refit if refit is not None and plausible(refit, shape) else None
-            if (e := refits[g]) is not None:
-                # One ellipse, about one a frame: its residual on the fit's own input (the
-                # same pixels) costs a third of a batched pass.
-                refit_rms[g] = rms_residual(e, union)
-    # One residual pass for the groups not refitted (kept as fitted, with any repeating
-    # extras) whose residual is not known; only a failed or refused refit needs a second.
-    plain = [g for g in range(len(groups)) if g not in refits and known_rms[g] is None]
-    residuals: dict[int, float] = dict(zip(
-        plain, rms([(groups[g][1], groups[g][0] + extras[g]) for g in plain]), strict=True))
-    for g, r in enumerate(known_rms):
-        if r is not None and g not in refits:
-            residuals[g] = r  # as fitted, with only repeating extras: the same pixels
-    finals: list[tuple[list[int], Ellipse]] = []
-    for g, (segs, ellipse) in enumerate(groups):
-        refit = refits.get(g)
-        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
-            finals.append((segs + extras[g], refit))
-            residuals[g] = refit_rms[g]
-        elif g in refits and refit is not None:
-            finals.append((segs, ellipse))  # the refit strays: the extras are not on it
-            if (r := known_rms[g]) is not None:
-                residuals[g] = r
-        else:
-            # Not refitted, or the fit failed: keep all, as fitted.
-            finals.append((segs + extras[g], ellipse))
-    todo = [g for g in range(len(finals)) if g not in residuals]
-    residuals.update(zip(todo, rms([(finals[g][1], finals[g][0]) for g in todo]),
-                         strict=True))
+    shape = (int(edges.shape[0]), int(edges.shape[1]))
+    refits, refit_rms = _refits(chains, groups, extras, shape)
+    finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table)
     shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= MIN_SUPPORT]

@@ -49,11 +49,13 @@ import bisect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import (
     REFIT_INNER_REACH_PX,
     contrast_profiles,
@@ -314,25 +316,12 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
         first = math.ceil(e.cy - half)
         params.append((e.cx, e.cy, p, q, r, float(first)))
         sizes.append(max(0, math.floor(e.cy + half) - first + 1))
-    starts = np.zeros(len(sizes), np.int64)
-    np.cumsum(sizes[:-1], out=starts[1:])
-    cx, cy, p, q, r, first = np.array(params, np.float64).T.repeat(sizes, axis=1)
-    row = first + (np.arange(int(sum(sizes))) - starts.repeat(sizes))
-    dv = row - cy
-    qdv = q * dv
-    disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
-    root = np.sqrt(np.maximum(disc, 0.0))
-    # Open intervals of u, clipped to the keys' columns (an empty one where disc <= 0).
-    lo = np.maximum((-qdv - root) / (2.0 * p) + cx, -0.5)
-    hi = np.minimum((-qdv + root) / (2.0 * p) + cx, width - 1.5)
-    hi = np.where(disc > 0.0, np.maximum(hi, lo), lo)
-    base = row * width
-    inside = keys.searchsorted(base + hi) - keys.searchsorted(base + lo, side="right")
-    if not inside.size:
-        return [0] * len(sizes)
-    # Per ellipse: the sum over its rows (none for an ellipse spanning no row).
-    counts = np.add.reduceat(np.maximum(np.append(inside, 0), 0), starts).tolist()
-    return [k if n else 0 for k, n in zip(counts, sizes, strict=True)]
+    # Open intervals of u per row, clipped to the keys' columns (an empty one where the
+    # roots are not real), and the keys in each: one compiled pass (kernels.interior_counts).
+    counts = kernels.interior_counts(np.array(params, np.float64).reshape(-1, 6),
+                                     np.array(sizes, np.int64),
+                                     np.ascontiguousarray(keys, np.float64), width)
+    return cast("list[int]", counts.tolist())
 
 
 def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
@@ -344,47 +333,20 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     more than MERGE_TOLERANCE_PX within CROSSING_REACH_PX of it. Only the pixels of the rows
     within reach of an end are tested, all (end, pixel) pairs in one pass."""
     reach = max(JUNCTION_RADIUS_PX, CROSSING_REACH_PX)
-    end_k, at = _row_pairs(edge_points[:, 1], ends[:, 1] - reach, ends[:, 1] + reach)
-    du_end = edge_points[at, 0] - ends[end_k, 0]
-    dv_end = edge_points[at, 1] - ends[end_k, 1]
-    d2 = du_end * du_end + dv_end * dv_end
-    near = (d2 <= reach ** 2).nonzero()[0]
-    if not near.size:
-        return []
-    end_k, at, d2 = end_k[near], at[near], d2[near]
     # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
-    # pixels run into the face); per pair, its end's ellipse's.
+    # pixels run into the face). The (end, pixel) tests in one compiled pass
+    # (kernels.junction_ends: the same arithmetic as the pairs' array form).
     rows = []
     for e in ellipses:
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
                      max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
-    cx, cy, c, s, a, b, a_in, b_in = np.array(rows, np.float64)[owner[end_k]].T
-    du = edge_points[at, 0] - cx
-    dv = edge_points[at, 1] - cy
-    xr, yr = c * du + s * dv, -s * du + c * dv
-    x, y = xr / a, yr / b
-    # Sampson distance, as fitting.distances.
-    dist = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
-    off_curve = dist > MERGE_TOLERANCE_PX
-    xs, ys = xr / a_in, yr / b_in
-    inner = off_curve & (xs * xs + ys * ys < 1.0)
-    junction = np.bincount(end_k[off_curve & (d2 <= JUNCTION_RADIUS_PX ** 2)],
-                           minlength=owner.size)
-    crossing = np.bincount(end_k[inner & (d2 <= CROSSING_REACH_PX ** 2)], minlength=owner.size)
-    return owner[(junction > 0) & (crossing > 0)].tolist()
-
-
-def _row_pairs(rows: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """(query, point) index pairs of every point whose row (``rows``, (M,) ascending) lies in
-    [``low[k]``, ``high[k]``] of query k, query by query, in one array pass."""
-    start = rows.searchsorted(low)
-    size = np.maximum(rows.searchsorted(high, side="right") - start, 0)
-    query = np.arange(size.size).repeat(size)
-    # Each query's points: its start onwards (the running index less the sizes before it).
-    point = np.arange(query.size) + (start - (size.cumsum() - size)).repeat(size)
-    return query, point
+    both = kernels.junction_ends(
+        np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
+        np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
+        np.array(rows, np.float64).reshape(-1, 8), float(reach),
+        float(JUNCTION_RADIUS_PX ** 2), float(CROSSING_REACH_PX ** 2), MERGE_TOLERANCE_PX)
+    return cast("list[int]", owner[both].tolist())
 
 
 def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,

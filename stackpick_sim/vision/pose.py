@@ -112,9 +112,9 @@ def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     q00, q01, q02 = fx * fx * m00, fx * fy * m01, fx * r0
     q11, q12 = fy * fy * m11, fy * r1
     q22 = cx * r0 + cy * r1 + (d0 * cx + d1 * cy + f)
-    evals, evecs = np.linalg.eigh(np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]]))
-    l_lo, l_mid, l_hi = evals.tolist()
-    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs.tolist()
+    evals, evecs = _eigh([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+    l_lo, l_mid, l_hi = evals
+    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs
     if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:  # one positive: negate the form
         q00, q01, q02, q11, q12, q22 = -q00, -q01, -q02, -q11, -q12, -q22
         l3, l2, l1 = -l_hi, -l_mid, -l_lo
@@ -161,6 +161,27 @@ def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
         centre.setflags(write=False)
         out.append(CirclePose(normal_cam=normal, centre_cam=centre))
     return out[0], out[1]
+
+
+#: numpy's own eigh kernel (the gufunc np.linalg.eigh calls; None where numpy keeps it
+#: elsewhere): a third of eigh's cost on a 3x3 matrix, the rest being its checks and error
+#: state. Entries beyond this magnitude (and non-finite ones) go to np.linalg.eigh itself,
+#: whose error state keeps overflow quiet and raises on non-convergence.
+_EIGH_LO = getattr(getattr(np.linalg, "_umath_linalg", None), "eigh_lo", None)
+_EIGH_DIRECT_MAX = 1e100
+
+
+def _eigh(rows: list[list[float]]) -> tuple[list[float], list[list[float]]]:
+    """``np.linalg.eigh`` of the symmetric 3x3 matrix ``rows`` (the same values), as lists:
+    its kernel called directly on moderate finite entries (no floating-point warning can
+    arise there), ``np.linalg.eigh`` otherwise and wherever the result is not finite."""
+    if _EIGH_LO is not None and all(abs(x) <= _EIGH_DIRECT_MAX for row in rows for x in row):
+        w, v = _EIGH_LO(np.array(rows), signature="d->dd")
+        evals, evecs = w.tolist(), v.tolist()
+        if all(map(math.isfinite, evals)) and all(math.isfinite(x) for r in evecs for x in r):
+            return evals, evecs
+    w, v = np.linalg.eigh(np.array(rows))
+    return w.tolist(), v.tolist()
 
 
 def _conic_terms(ellipse: Ellipse) -> tuple[tuple[float, float, float],

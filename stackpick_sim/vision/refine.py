@@ -86,17 +86,19 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
                     grads: NDArray[np.float64], shape: tuple[int, int]) -> Ellipse:
     """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
     unit gradients (M, 2) along it (within SUBPIXEL_TOLERANCE_PX, gradient normal to it)."""
-    reach = ellipse.a + SUBPIXEL_TOLERANCE_PX + 1
-    near = ((np.abs(points[:, 0] - ellipse.cx) <= reach)
-            & (np.abs(points[:, 1] - ellipse.cy) <= reach)).nonzero()[0]
-    u, v = points[:, 0][near], points[:, 1][near]
-    gu, gv = grads[:, 0][near], grads[:, 1][near]
-    keep = _along_mask(ellipse, u, v, gu, gv, SUBPIXEL_TOLERANCE_PX).nonzero()[0]
-    if keep.shape[0] < MIN_PIXELS:
+    def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.ascontiguousarray(c, np.float64)
+
+    # One compiled pass: the pixels near the ellipse (its box grown by the tolerance), those
+    # along it, their sub-pixel positions (float32: the fit's input type).
+    pts = kernels.subpixel_along(col(points[:, 0]), col(points[:, 1]), col(grads[:, 0]),
+                                 col(grads[:, 1]), np.array(_form(ellipse)),
+                                 ellipse.a + SUBPIXEL_TOLERANCE_PX + 1,
+                                 4.0 * SUBPIXEL_TOLERANCE_PX * SUBPIXEL_TOLERANCE_PX,
+                                 MIN_NORMAL_COS * MIN_NORMAL_COS, image.gx, image.gy,
+                                 MAX_SHIFT_PX)
+    if pts.shape[0] < MIN_PIXELS:
         return ellipse
-    su, sv = _subpixel_columns(image, u[keep], v[keep], gu[keep], gv[keep])
-    pts = np.empty((keep.shape[0], 2), np.float32)  # the fit's input type
-    pts[:, 0], pts[:, 1] = su, sv
     fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape) else ellipse
 
@@ -211,53 +213,35 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
                                reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
-    counts = np.bincount(pe, minlength=n)
+    starts = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
     # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    columns: tuple[NDArray[np.float64], ...] = (pu[pm], pv[pm], grads[:, 0][pm],
-                                                  grads[:, 1][pm])
+    u, v, gu, gv = pu[pm], pv[pm], grads[:, 0][pm], grads[:, 1][pm]
     # The fits' input, built once: pixel coordinates are exact in float32.
     pair_points = points[pm].astype(np.float32)
-    active = [True] * n
+    active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
     for tol in params.tolerances_px:
-        if all(active):
-            idx, cols, live = None, columns, counts
-        else:
-            live = counts * np.array(active)
-            idx = np.array(active)[pe].nonzero()[0]
-            cols = tuple(c[idx] for c in columns)
-        keep = _along_grouped(current, live, cols, tol)
-        sel = keep.nonzero()[0] if idx is None else idx[keep]
-        bounds = pe[sel].searchsorted(np.arange(n + 1)).tolist()
-        for e in range(n):
-            if not active[e]:
-                continue
-            mine = sel[bounds[e]:bounds[e + 1]]
-            key = mine.tobytes()
+        # The pairs along each active fit, and their pixels, in one compiled pass.
+        forms = np.array([_form(e) for e in current], np.float64)
+        sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
+                                               pair_points, 4.0 * tol * tol,
+                                               MIN_NORMAL_COS * MIN_NORMAL_COS)
+        bounds = at.tolist()
+        for e in active.nonzero()[0].tolist():
+            lo, hi = bounds[e], bounds[e + 1]
+            key = sel[lo:hi].tobytes()
             if previous.get(e) == key:
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = key
-            fit = (fit_ellipse(pair_points[mine]) if mine.size >= params.min_pixels
-                   else None)
+            fit = fit_ellipse(pixels[lo:hi]) if hi - lo >= params.min_pixels else None
             if fit is None or not plausible(fit, shape):
                 active[e] = False
                 continue
             current[e] = fit
-        if not any(active):
+        if not active.any():
             break
     return current
-
-
-def _along_grouped(ellipses: list[Ellipse], counts: NDArray[np.int64],
-                   cols: tuple[NDArray[np.float64], ...], tol_px: float) -> NDArray[np.bool_]:
-    """(K,) bool: :func:`_along`'s test of K (ellipse, pixel) pairs given as columns (u, v,
-    gu, gv), each (K,): pixel and unit gradient. The pairs run ellipse by ellipse: the first
-    ``counts[0]`` are of ellipse 0, the next ``counts[1]`` of ellipse 1, ... (its
-    :func:`_form` repeated per pair)."""
-    forms = np.array([_form(e) for e in ellipses], np.float64).reshape(-1, 5)
-    u, v, gu, gv = (np.ascontiguousarray(c) for c in cols)
-    return kernels.along_grouped(forms, np.asarray(counts, np.int64), u, v, gu, gv,
-                                 4.0 * tol_px * tol_px, MIN_NORMAL_COS * MIN_NORMAL_COS)
 
 
 #: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
@@ -267,6 +251,8 @@ PROFILE_STEP_PX = 0.5
 #: The search offsets, px.
 PROFILE_STEPS = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
 PROFILE_STEPS.setflags(write=False)
+#: The same, writable: the compiled pass's argument type (a read-only array is another).
+_STEPS = PROFILE_STEPS.copy()
 #: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
 #: from the sub-pixel refit, already within a fraction of a pixel (a second round does not
 #: help on rendered paper-scene frames).
@@ -292,33 +278,15 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     arcs only. Returns ``ellipse`` when too little of the outline shows a peak.
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
-    steps = PROFILE_STEPS
-    k = steps.shape[0]
     current = ellipse
     for round_ in range(PROFILE_ROUNDS):
         pu, pv, nu, nv = _outline_columns(current)
         n = pu.shape[0]
-        # The (n, k) sample grid across the outline, one coordinate at a time.
-        qu = pu[:, None] + steps * nu[:, None]
-        qv = pv[:, None] + steps * nv[:, None]
-        bx, by = _bilinear_uv(image.gx, image.gy, qu.ravel(), qv.ravel())
-        g = np.abs(bx.reshape(n, k) * nu[:, None] + by.reshape(n, k) * nv[:, None])
-        best = g[:, 1:-1].argmax(axis=1) + 1
-        at = np.arange(0, n * k, k) + best
-        flat = g.ravel()
-        before, centre, after = flat[at - 1], flat[at], flat[at + 1]
-        curvature = before - 2.0 * centre + after
-        peaked = curvature < -1e-9
-        shift = np.where(peaked, 0.5 * (before - after) / np.where(peaked, curvature, -1.0),
-                         0.0)
-        ok = centre >= threshold
-        count = int(np.count_nonzero(ok))
-        if count < PROFILE_MIN_SHARE * n:
+        # The (n, k) sample grid across the outline and each sample's peak, in one pass.
+        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, _STEPS,
+                                      PROFILE_STEP_PX, threshold)
+        if peaks.shape[0] < PROFILE_MIN_SHARE * n:
             return current
-        offset = steps[best] + np.minimum(np.maximum(shift, -0.5), 0.5) * PROFILE_STEP_PX
-        peaks = np.empty((count, 2))
-        peaks[:, 0] = (pu + offset * nu)[ok]
-        peaks[:, 1] = (pv + offset * nv)[ok]
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape):
             return current

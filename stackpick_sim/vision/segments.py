@@ -13,13 +13,14 @@ Everything per pixel is done by OpenCV or numpy; Python loops run over segments 
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 from typing import cast
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+from stackpick_sim.vision import kernels
 
 #: Chains shorter than this (px) are dropped: too short to constrain an ellipse.
 MIN_CHAIN_PX = 6
@@ -110,54 +111,17 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     faces has a reflex corner where it passes from one to the other, even when Canny left no
     junction pixel there; S-bends flip too.
     """
-    poly = cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX, closed).reshape(-1, 2)
+    poly = cast("NDArray[np.int32]", cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX,
+                                                     closed).reshape(-1, 2))
     count = poly.shape[0]
     if count < 3:
         return [chain]
-    # A handful of vertices: plain Python beats numpy's per-call cost here, in one pass for
-    # the turns. mag[k], sign[k]: the turn at poly[k] if closed, at poly[k + 1] if open.
-    pl = poly.tolist()
-    if closed:
-        verts = [pl[-1], *pl, pl[0]]
-    else:
-        verts = pl
-        count -= 2
-    atan2, degrees = math.atan2, math.degrees
-    mag: list[float] = []
-    sign: list[int] = []
-    (qx, qy), (rx, ry) = verts[0], verts[1]
-    x0, y0 = rx - qx, ry - qy
-    for rx1, ry1 in verts[2:]:
-        x1, y1 = rx1 - rx, ry1 - ry
-        t = degrees(atan2(x0 * y1 - y0 * x1, x0 * x1 + y0 * y1))
-        m = abs(t)
-        mag.append(m)
-        sign.append(0 if m < MIN_SIGNED_TURN_DEG else (1 if t > 0 else -1))
-        rx, ry, x0, y0 = rx1, ry1, x1, y1
-    if max(mag) <= SPIKE_MIN_DEG and not (1 in sign and -1 in sign):
-        return [chain]  # no corner, no spike and one turning sign: no cut
-    at = []
-    last = 0  # the sign of the previous signed vertex
-    for k in range(count):
-        m = mag[k]
-        if closed:
-            before, after = mag[k - 1], mag[(k + 1) % count]
-        else:
-            before = mag[k - 1] if k else 0.0
-            after = mag[k + 1] if k + 1 < count else 0.0
-        cut = m > CORNER_ANGLE_DEG or (m > SPIKE_MIN_DEG and m > SPIKE_RATIO * max(before, after))
-        sk = sign[k]
-        if sk:
-            cut = cut or (last != 0 and sk != last)
-            last = sk
-        if cut:
-            at.append(k if closed else k + 1)
-    if not at:
+    # The turns at the vertices and the cut pixels, in one compiled pass.
+    found = kernels.corner_cuts(chain, poly, closed, CORNER_ANGLE_DEG, SPIKE_MIN_DEG,
+                                SPIKE_RATIO, MIN_SIGNED_TURN_DEG)
+    if not found.size:
         return [chain]
-    # Each cut vertex's first index in the chain, all at once.
-    cv = poly[at]
-    hits = (chain[:, 0:1] == cv[None, :, 0]) & (chain[:, 1:2] == cv[None, :, 1])
-    cuts = sorted(set(hits.argmax(axis=0).tolist()))
+    cuts = found.tolist()
     if closed:
         first = cuts[0]
         chain = np.concatenate([chain[first:], chain[:first]])

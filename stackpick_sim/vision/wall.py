@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import unit_circle
 
 #: Depths along the axis, as fractions of the face radius, at which the band is sampled.
@@ -64,6 +65,8 @@ BELT_DELTA = 14.0
 FACE_SAMPLE_SCALE = 0.5
 #: Interior sample count.
 FACE_SAMPLES = 16
+#: unit_circle(FACE_SAMPLES), writable: the compiled pass's argument type.
+_FACE_CIRCLE = tuple(t.copy() for t in unit_circle(FACE_SAMPLES))
 
 
 def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -117,26 +120,16 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8],
                 scale: float = FACE_SAMPLE_SCALE) -> NDArray[np.float64]:
     """(3,) median colour of FACE_SAMPLES points inside ``ellipse`` of an (H, W, 3) image, on
     the ellipse of ``scale`` times its semi-axes."""
-    ct, st = unit_circle(FACE_SAMPLES)
     th = math.radians(ellipse.angle_deg)
     c, s = math.cos(th), math.sin(th)
-    x, y = scale * ellipse.a * ct, scale * ellipse.b * st
-    # Rows u, v: (cx + c x) - s y and (cy + s x) + c y, as (2, n) arrays.
-    q = np.array([[ellipse.cx], [ellipse.cy]]) + np.array([[c], [s]]) * x
-    q += np.array([[-s], [c]]) * y
-    uv = np.rint(q).astype(np.int64)
-    h, w = image.shape[:2]
-    # min(max()): np.clip's Python wrapper costs more than the two ufuncs here.
-    np.minimum(np.maximum(uv, 0, out=uv), np.array([[w - 1], [h - 1]]), out=uv)
-    values = image[uv[1], uv[0]]
-    if values.ndim == 1:
-        return column_median(values.astype(np.float64))
-    # The median of each channel from a sort of its integer values (the same order
-    # statistics as sorting them as floats).
-    ordered = np.sort(values.T, axis=1)
-    n = ordered.shape[1]
-    return np.asarray(0.5 * (ordered[:, (n - 1) // 2].astype(np.float64) + ordered[:, n // 2]),
-                      np.float64)
+    # The sample pixels (cx + c x) - s y and (cy + s x) + c y, rounded and clamped into the
+    # image, and each channel's median from a sort of its integer values, in one compiled
+    # pass (kernels.face_median: the same values as the array form).
+    pixels = image if image.ndim == 3 else image[:, :, None]
+    colour = kernels.face_median(np.require(pixels, requirements=("C", "W")), ellipse.cx,
+                                 ellipse.cy, scale * ellipse.a, scale * ellipse.b, c, s,
+                                 *_FACE_CIRCLE)
+    return colour if image.ndim == 3 else np.asarray(colour[0], np.float64)
 
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
@@ -196,24 +189,17 @@ def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellips
     """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` and which of them
     lie more than WALL_MARGIN_PX outside ``faces[s]`` (one per row s); for one face ellipse,
     the same of (3, N) points."""
-    pu = intrinsics.fx * band[0] / band[2] + intrinsics.cx
-    pv = intrinsics.fy * band[1] / band[2] + intrinsics.cy
-    cx, cy, c, s, a, b = _face_terms(faces)
-    du, dv = pu - cx, pv - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses).
-    rho = np.sqrt(x * x + y * y)
-    outside = (rho - 1.0) * np.hypot(x * a, y * b) / np.maximum(rho, 1e-9)
-    return pu, pv, outside > WALL_MARGIN_PX
-
-
-def _face_terms(faces: Ellipse | Sequence[Ellipse]) -> tuple[float | NDArray[np.float64], ...]:
-    """Centre, cos and sin of the angle and semi-axes (cx, cy, c, s, a, b) of one ellipse as
-    Python floats, or of each of a sequence as (S, 1) columns (the same values)."""
-    if isinstance(faces, Ellipse):
-        return _terms(faces)
-    return tuple(np.array([_terms(e) for e in faces], np.float64).T[:, :, None])
+    # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses),
+    # in one compiled pass (kernels.project_outside: the same arithmetic as the array form).
+    one = isinstance(faces, Ellipse)
+    points = np.require(band.reshape(3, 1, -1) if one else band, np.float64, ("C", "W"))
+    terms = np.array([_terms(faces)] if isinstance(faces, Ellipse)
+                     else [_terms(e) for e in faces], np.float64).reshape(-1, 6)
+    pu, pv, outside = kernels.project_outside(points, terms, intrinsics.fx, intrinsics.fy,
+                                              intrinsics.cx, intrinsics.cy, WALL_MARGIN_PX)
+    if one:
+        return pu[0], pv[0], outside[0]
+    return pu, pv, outside
 
 
 def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
@@ -264,24 +250,19 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
     ``image`` and ``tans`` (S,) its :func:`tan_tilt`; ``belt`` the bare belt's colour (C,)
     or None. Band pixels off the image are not samples. One array pass for every solution,
     of one face or of several."""
-    n_sol, per = keep.shape
-    h, w = image.shape[:2]
-    qu, qv = np.rint(pu.ravel()).astype(np.int64), np.rint(pv.ravel()).astype(np.int64)
-    take = (keep.ravel() & (qu >= 0) & (qu < w) & (qv >= 0) & (qv < h)).nonzero()[0]
-    owner = take // per
-    counts = np.bincount(owner, minlength=n_sol)
-    face_sums = np.maximum(colours.sum(axis=1), 1.0)
-    cols = image[qv[take], qu[take]].astype(np.float64)
-    cols = cols[:, None] if cols.ndim == 1 else cols
-    sums = cols.sum(axis=1)
-    hue = colours / face_sums[:, None]
-    chroma = np.abs(cols / np.maximum(sums, 1.0)[:, None] - hue[owner]).sum(axis=1)
-    brightest = (np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN) * face_sums
-    ok = ((chroma <= CHROMA_TOLERANCE) & (sums >= MIN_RELATIVE_BRIGHTNESS * face_sums[owner])
-          & (sums <= brightest[owner]))
-    if belt is not None:
-        ok &= np.abs(cols - np.reshape(belt, (1, -1))).max(axis=1) > BELT_DELTA
-    hits = np.bincount(owner, weights=ok, minlength=n_sol)
+    # One compiled pass (kernels.band_hits: the same tests and sums as the array form).
+    def rows(a: NDArray) -> NDArray:  # C order and writable: the compiled argument types
+        return np.require(a, requirements=("C", "W"))
+
+    pixels = image if image.ndim == 3 else image[:, :, None]
+    c = pixels.shape[2]
+    counts, hits = kernels.band_hits(
+        rows(pu), rows(pv), rows(keep), rows(pixels),
+        rows(np.broadcast_to(np.asarray(colours, np.float64), (keep.shape[0], c))),
+        np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN,
+        np.zeros(c) if belt is None else rows(np.broadcast_to(
+            np.asarray(belt, np.float64).reshape(-1), (c,))),
+        belt is not None, CHROMA_TOLERANCE, MIN_RELATIVE_BRIGHTNESS, BELT_DELTA)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
