@@ -378,17 +378,17 @@ class EllipsesParams(Section):
     """Cosine of the largest angle between an outline sample's gradient and the outline's
     normal for the sample to count (0.87: 30 deg, as the edge refit's test): texture and glyph
     edges crossing an outline meet it at any angle, a rim's gradient runs along its normal."""
-    stroke_reach_px: float = 8.0
+    stroke_reach_px: float = 12.0
     """Thin strokes (the rings of letters O, o, 0, @, printed circles, embossed outlines):
-    how far (px of the searched image) inside and outside the outline to look for the
-    stroke's other edge, an edge of the opposite polarity running along it (0: no stroke
-    test). 8 px covers printed and glyph strokes up to a few px wide with the blur's spread;
-    a disc's face holds no such edge within this reach of its rim."""
-    stroke_reach_axis: float = 1.0
-    """The stroke test's reach as a multiple of the ellipse's semi-minor axis, the smaller of
-    this and ``stroke_reach_px`` applying: a small ellipse's other side (at 2 b) is never
-    taken for a stroke's other edge, while the hole of a bold letter, about as wide as its
-    stroke, is reached."""
+    how far (px of the searched image) outside and inside the outline to look for the
+    stroke's other edge, an edge of the opposite polarity running along it (below 2: no
+    stroke test). 12 px covers the strokes of bold print and glyphs (up to ~10 px wide) with
+    the blur's spread; a disc's face holds no such edge near its rim."""
+    stroke_reach_axis: float = 1.5
+    """The inward reach as a multiple of the ellipse's semi-minor axis (the smaller of this
+    and ``stroke_reach_px`` applying inside): below 2 so that the search never reaches a
+    disc's own far rim (2 b across at the minor axis, of opposite polarity along the same
+    normal), while the outer edge of a bold letter's stroke, about as wide as its hole, is."""
     stroke_min_ratio: float = 0.5
     """Smallest strength of the opposite edge, as a share of the outline's own edge there,
     for it to count as the stroke's other edge (0.5: a printed stroke's two edges are equally

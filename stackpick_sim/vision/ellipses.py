@@ -6,7 +6,10 @@ edge runs along enough of its outline: the signed gradient across the outline, a
 a few samples (:mod:`~stackpick_sim.vision.contrast`), must reach the image's noise-relative
 contrast threshold along ``min_support`` of it. Arcs of texture, glyphs and reliefs fit
 ellipses whose outlines leave the arcs they were fitted on after a short stretch: their
-support stays low, while a whole or mostly visible rim keeps it high.
+support stays low, while a whole or mostly visible rim keeps it high. The outline of a thin
+stroke (a letter O, a printed ring, an embossed contour) is supported too; it is rejected by
+its other edge, of the opposite polarity, running alongside (``max_stroke_share`` of
+:class:`~stackpick_sim.config.vision_params.EllipsesParams`).
 """
 
 from __future__ import annotations
@@ -133,13 +136,13 @@ def _stroke_shares(found: list[ScoredEllipse], grad: EdgeImage, params: Ellipses
                    ) -> list[float]:
     """Per ellipse, the share of its supported outline samples along which a stroke's other
     edge runs: an edge of the opposite polarity, at least ``stroke_min_ratio`` as strong as
-    the outline's own, between 2 px and the stroke reach inside or outside (see
+    the outline's own, between 2 px and the stroke reach outside or inside (see
     :class:`~stackpick_sim.config.vision_params.EllipsesParams`). A disc's rim has none
     along most of it; the two edges of a glyph's or a printed ring's stroke run side by
     side."""
     reach = [min(params.stroke_reach_px, params.stroke_reach_axis * s.ellipse.b)
              for s in found]
-    if not found or max(reach) < 2.0:
+    if not found or params.stroke_reach_px < 2.0:
         return [0.0] * len(found)
     lines = outlines([s.ellipse for s in found])
     pts, normals = lines.points, lines.normals
@@ -150,10 +153,10 @@ def _stroke_shares(found: list[ScoredEllipse], grad: EdgeImage, params: Ellipses
                        contrast_threshold(grad) * SOBEL_GAIN)
     sample_reach = np.repeat(np.asarray(reach), lines.counts)
     partner = np.zeros(rim.shape, np.bool_)
-    for step in range(2, int(max(reach)) + 1):
-        for d in (step, -step):
+    for step in range(2, int(params.stroke_reach_px) + 1):
+        for d, within in ((step, True), (-step, step <= sample_reach)):
             g = _normal_gradient(pts, normals, grad, float(d))
-            partner |= (g * rim < 0) & (np.abs(g) >= floor) & (step <= sample_reach)
+            partner |= (g * rim < 0) & (np.abs(g) >= floor) & within
     both = np.add.reduceat((partner & strong).astype(np.float64), lines.offsets[:-1])
     supported = np.add.reduceat(strong.astype(np.float64), lines.offsets[:-1])
     return (both / np.maximum(supported, 1.0)).tolist()
