@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.control.pick_point import PickPoint, aimed
 from stackpick_sim.control.reach import (
     GRASP_JOINT_MARGIN,
     GRASP_SELF_CLEARANCE,
@@ -150,6 +151,8 @@ class ArmPhases:
     _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
+    _pick_point: PickPoint
+    _aim_side: NDArray[np.float64]
     phase: str
 
     def fail(self, reason: str, detail: str) -> None:
@@ -161,11 +164,23 @@ class ArmPhases:
     def _check_track(self, t: float) -> bool:
         raise NotImplementedError
 
+    def _aim(self, state: TargetState) -> TargetState:
+        """The tracked face ``state`` with its centre moved to the point the cup aims at
+        (:mod:`stackpick_sim.control.pick_point`: a tape roll's ring, not its hole)."""
+        return aimed(state, self._pick_point.offset(self.ep.estimator.radius), self._aim_side)
+
+    def _take_aim_side(self) -> None:
+        """The camera's side of the tool axis now, world (3,): the aim's side is the other."""
+        ep = self.ep
+        tool = ep.arm.command_world_T_tool()
+        axis, away = tool[:3, 2], ep.arm.eih.world_T_cam(ep.scene.cell.data)[:3, 3] - tool[:3, 3]
+        self._aim_side = away - axis * float(away @ axis)
+
     def _plan_reach(self, t: float) -> None:
         """Share of the face tilt the tool takes at the servo standoff (control/reach.py)."""
         ep = self.ep
         cell = ep.scene.cell
-        state = ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data))
+        state = self._aim(ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data)))
         checker = ReachChecker(cell.model)
         share, margin, clearance = checker.tilt_share(
             ep.arm.full_qpos(), state.centre, state.normal, self._standoff,
@@ -173,7 +188,7 @@ class ArmPhases:
         cfg = cell.cfg.episode
         # Where the face will be when the cup meets it (the descent's nominal duration on).
         lead = REACH_LEAD_S + cfg.standoff / max(cfg.descend_speed, 1e-6)
-        grasp = ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data))
+        grasp = self._aim(ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data)))
         self._face_share = max(share, checker.tilt_share(
             ep.arm.full_qpos(), grasp.centre, grasp.normal, 0.0, ep.arm.command_world_T_tool(),
             margin=GRASP_JOINT_MARGIN, clearance=GRASP_SELF_CLEARANCE)[0])
@@ -194,7 +209,9 @@ class ArmPhases:
             self._plan_reach(t)
 
     def _commanded(self, state: TargetState, standoff: float) -> TargetState:
-        """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
+        """The face's aim point (:meth:`_aim`) with the face normal replaced by the tool
+        axis commanded at ``standoff`` m."""
+        state = self._aim(state)
         if self._tilt_share >= 1.0 and self._face_share >= 1.0:
             return state
         share = descent_tilt_share(self._tilt_share, standoff,
