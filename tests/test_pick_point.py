@@ -7,7 +7,13 @@ import pytest
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.scene_config import ObjectTypeCfg, SuctionCfg
-from stackpick_sim.control.pick_point import PickPoint, aim_offset, aimed, seals_at
+from stackpick_sim.control.pick_point import (
+    PickPoint,
+    aim_direction,
+    aim_offset,
+    aimed,
+    seals_at,
+)
 from stackpick_sim.episodes import pick
 from stackpick_sim.episodes.episode import run_episode
 from stackpick_sim.pipeline import TargetState
@@ -53,18 +59,35 @@ def test_the_kind_is_told_by_the_tracked_radius() -> None:
     assert point.offset(None) == 0.0
 
 
-def test_the_aim_moves_across_the_face_away_from_the_cameras_side() -> None:
-    tilt = np.radians(30.0)
-    normal = np.array([np.sin(tilt), 0.0, -np.cos(tilt)])  # inward, the face tilted about y
-    face = TargetState(centre=np.array([0.4, 0.0, 0.1]), velocity=np.array([0.0, 0.1, 0.0]),
+def _face(tilt_deg: float) -> TargetState:
+    """A face tilted ``tilt_deg`` about y, its high side towards +x."""
+    tilt = np.radians(tilt_deg)
+    normal = np.array([np.sin(tilt), 0.0, -np.cos(tilt)])  # inward
+    return TargetState(centre=np.array([0.4, 0.0, 0.1]), velocity=np.array([0.0, 0.1, 0.0]),
                        normal=normal)
-    moved = aimed(face, 0.03, np.array([1.0, 0.0, 0.0]))
+
+
+def test_a_tilted_face_is_aimed_up_its_slope_in_its_plane() -> None:
+    face = _face(30.0)
+    camera_side = np.array([1.0, 0.0, 0.0])  # the slope wins over the camera's side
+    moved = aimed(face, 0.03, camera_side)
     step = moved.centre - face.centre
     assert np.linalg.norm(step) == pytest.approx(0.03)
-    assert abs(step @ normal) < 1e-12  # in the face plane
-    assert step[0] < 0.0 and abs(step[1]) < 1e-12  # away from +x
-    assert np.array_equal(moved.normal, normal) and np.array_equal(moved.velocity, face.velocity)
-    assert aimed(face, 0.03, normal) is face  # no side in the face plane: the centre
+    assert abs(step @ face.normal) < 1e-12  # in the face plane
+    assert step[2] == pytest.approx(0.03 * np.sin(np.radians(30.0)))  # the highest point
+    assert np.array_equal(moved.normal, face.normal)
+    assert np.array_equal(moved.velocity, face.velocity)
+    assert aimed(face, 0.0, camera_side) is face
+
+
+def test_a_level_face_is_aimed_away_from_the_cameras_side() -> None:
+    level = aimed(_face(0.0), 0.03, np.array([0.0, 1.0, 0.2]))
+    assert np.allclose(level.centre - _face(0.0).centre, [0.0, -0.03, 0.0])
+    # The direction turns smoothly from the camera's side to the slope as the tilt grows.
+    turns = [aim_direction(_face(t).normal, np.array([0.0, 1.0, 0.0])) for t in (0.5, 5, 20)]
+    assert [float(d[1]) for d in turns if d is not None] == sorted(
+        float(d[1]) for d in turns if d is not None)
+    assert aim_direction(np.array([0.0, 0.0, -1.0]), np.zeros(3)) is None
 
 
 @pytest.mark.parametrize("seed", [70000, 70001])

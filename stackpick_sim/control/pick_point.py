@@ -4,19 +4,22 @@ On a plain disc and on a can's recessed panel that is the face centre, where the
 the same margin to every side. On a tape roll's ring face the centre lies over the core
 hole, where the lip cannot seal: the cup aims at the middle of the band of distances from
 the centre at which the whole lip lies on the ring (the ring's mid-radius when the ring is
-wider than the lip), which leaves equal margin to the hole and to the outer edge.
+wider than the lip's diameter), which leaves equal margin to the hole and to the outer edge.
 
 The controller knows its own cup (the lip's radius, the seal's flatness tolerance) and the
 scene's object kinds (``object_types``), but not which kind the tracked face is: it takes
 the kinds of the pile whose radius is nearest the tracked face's (the estimator's radius)
 and aims where the lip seals on every one of them.
 
-Which side of the ring: the side away from the wrist camera. The camera rides off the tool
-axis, so with the aim on the far side the face centre lies between the tool axis and the
-camera's line of sight, and the whole face stays nearer the middle of the image during the
-servo and the descent (aimed on the near side, a tape roll's far edge leaves the image).
-The side is taken once, when the approach starts, as a world direction, and projected onto
-the tracked face's plane on each tick: the aim does not follow the tool's own turning.
+Which side of the ring: up the face's slope, its highest point. A roll's centre of mass
+lies below its face, shifted towards the face's high side, so a grip there has the shortest
+lever for gravity as the roll is lifted (gripped on the low side of a steep face, a roll
+can turn in the cup). A face within a few degrees of level has no slope to speak of: there
+the side away from the wrist camera decides (:func:`aim_direction`). The camera rides off
+the tool axis; with the aim on its far side the face centre lies between the tool axis and
+the camera's line of sight, and the face stays nearer the middle of the image. That side
+is taken once, when the approach starts, as a world direction: the aim does not follow the
+tool's own turning.
 """
 
 from __future__ import annotations
@@ -34,6 +37,11 @@ FloatArray = NDArray[np.float64]
 
 #: Step of the distances from the face centre at which the seal is tried, m.
 OFFSET_STEP = 1e-4
+#: World up.
+UP: FloatArray = np.array([0.0, 0.0, 1.0])
+#: Weight of the side away from the camera against the face's slope (``sin(tilt)``) in the
+#: aim's direction: the slope decides from a few degrees of tilt on (sin 5 deg = 0.087).
+FLAT_WEIGHT = 0.087
 #: Kinds whose radius lies within this of the nearest one to the tracked radius are taken as
 #: the tracked face's possible kinds, m (radii of distinct kinds differ by millimetres).
 RADIUS_MATCH = 5e-4
@@ -94,18 +102,28 @@ class PickPoint:
         return self._cache[radius]
 
 
-def aimed(state: TargetState, offset: float, side: FloatArray) -> TargetState:
-    """``state`` with its centre moved ``offset`` m across the face, away from ``side``.
+def aim_direction(normal: FloatArray, side: FloatArray) -> FloatArray | None:
+    """(3,) unit direction across a face (inward ``normal``, world) to its aim point, or None.
 
-    ``side`` (3,) is a world direction (the camera's side of the tool axis); its component
-    in the face plane (normal ``state.normal``) sets the direction, reversed. A face seen
-    along ``side`` (no component in its plane) keeps its centre.
+    Up the face: the component of world up in the face plane (length ``sin(tilt)``), plus
+    FLAT_WEIGHT times the unit component of ``-side`` in it, which decides on faces within a
+    few degrees of level and keeps the direction continuous as the tilt passes zero.
     """
+    n = np.asarray(normal, dtype=float) / float(np.linalg.norm(normal))
+    up = UP - n * float(UP @ n)
+    away = -(np.asarray(side, dtype=float) - n * float(np.asarray(side) @ n))
+    norm = float(np.linalg.norm(away))
+    direction = up + (FLAT_WEIGHT * away / norm if norm > 1e-9 else 0.0)
+    length = float(np.linalg.norm(direction))
+    return direction / length if length > 1e-9 else None
+
+
+def aimed(state: TargetState, offset: float, side: FloatArray) -> TargetState:
+    """``state`` with its centre moved ``offset`` m across the face (:func:`aim_direction`
+    with ``side``, the camera's side of the tool axis, world)."""
     if offset <= 0.0:
         return state
-    n = state.normal / float(np.linalg.norm(state.normal))
-    in_plane = np.asarray(side, dtype=float) - n * float(np.asarray(side) @ n)
-    norm = float(np.linalg.norm(in_plane))
-    if norm < 1e-9:
+    direction = aim_direction(state.normal, side)
+    if direction is None:
         return state
-    return replace(state, centre=state.centre - offset * in_plane / norm)
+    return replace(state, centre=state.centre + offset * direction)
