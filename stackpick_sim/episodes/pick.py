@@ -67,6 +67,12 @@ DESCENT_SETTLED = 0.003
 #: time to take out more (12.5 mm at the 0.19 m standoff). Placeholders.
 DESCENT_HOLD_LATERAL = 0.003
 DESCENT_HOLD_SLOPE = 0.05
+#: The tool's turn trails the commanded axis: while the descent turns it (~45 deg/s on a
+#: face tilted ~40 deg that the arm cannot meet square-on at the servo standoff) by 5-6 deg,
+#: closing over ~0.2 s once the command stops turning. The commanded turn therefore ends
+#: this long (s, at the descent speed) before the face, so that the cup meets the face near
+#: the planned angle and not past the bellows' compliance.
+AXIS_LAG_S = 0.25
 #: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
 GRASP_PRELOAD = 0.002
 #: Body whose origin lies on the robot's vertical J1 axis (the lift retreats towards it).
@@ -214,8 +220,9 @@ class ArmPhases:
         state = self._aim(state)
         if self._tilt_share >= 1.0 and self._face_share >= 1.0:
             return state
-        share = descent_tilt_share(self._tilt_share, standoff,
-                                   self.ep.scene.cell.cfg.episode.standoff, self._face_share)
+        cfg = self.ep.scene.cell.cfg.episode
+        share = descent_tilt_share(self._tilt_share, standoff, cfg.standoff, self._face_share,
+                                   turned_at=cfg.descend_speed * AXIS_LAG_S)
         return replace(state, normal=tilted_axis(state.normal, share))
 
     def _approach(self, t: float, dt: float, obs: list[Observation]) -> Command:
