@@ -69,16 +69,11 @@ def aim_offset(profiles: list[FaceProfile], lip: float, cfg: SuctionCfg) -> floa
     ok = np.array([all(seals_at(p, float(d), lip, cfg) for p in profiles) for d in offsets])
     if ok[0] or not ok.any():
         return 0.0
-    best: tuple[int, int] = (0, 0)
-    start = None
-    for i, good in enumerate([*ok.tolist(), False]):
-        if good and start is None:
-            start = i
-        elif not good and start is not None:
-            best = max(best, (i - start, start))
-            start = None
-    length, first = best
-    return float(offsets[first] + (length - 1) * OFFSET_STEP / 2)
+    # Runs of sealing distances: starts and ends (exclusive) of the runs of True.
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    starts, ends = edges[::2], edges[1::2]
+    widest = int(np.argmax(ends - starts))
+    return float(offsets[starts[widest]] + offsets[ends[widest] - 1]) / 2
 
 
 class PickPoint:
