@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stackpick_sim.control.pick_point import PickPoint
 from stackpick_sim.episodes.audit import DETECTION_PHASES
 from stackpick_sim.episodes.pick import ArmPhases, Command
 from stackpick_sim.episodes.record import ERROR_REASON, FAILURES, PHASES
@@ -21,8 +20,6 @@ from stackpick_sim.episodes.topvote import TopVote, posed_top
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle
 from stackpick_sim.pipeline import Hints
-from stackpick_sim.sim.robot import CUP_BODY
-from stackpick_sim.sim.suction import lip_radius
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -72,8 +69,8 @@ class PhaseLogic(ArmPhases):
         self._tilt_share = 1.0
         self._face_share = 1.0
         self._planned_normal = np.array([0.0, 0.0, -1.0])
-        cell = episode.scene.cell
-        self._pick_point = PickPoint(cell.cfg, lip_radius(cell.model, cell.model.body(CUP_BODY).id))
+        self._pick_point = None
+        """Set when the approach starts (:meth:`_take_aim_side`)."""
         self._aim_side = np.zeros(3)
         self._redetections = 0
         self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))

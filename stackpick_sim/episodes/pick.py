@@ -34,6 +34,8 @@ from stackpick_sim.episodes.outcome import no_seal, touching
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.pipeline import ControlGoal, TargetState
+from stackpick_sim.sim.robot import CUP_BODY
+from stackpick_sim.sim.suction import lip_radius
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -157,7 +159,7 @@ class ArmPhases:
     _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
-    _pick_point: PickPoint
+    _pick_point: PickPoint | None
     _aim_side: NDArray[np.float64]
     phase: str
 
@@ -173,11 +175,17 @@ class ArmPhases:
     def _aim(self, state: TargetState) -> TargetState:
         """The tracked face ``state`` with its centre moved to the point the cup aims at
         (:mod:`stackpick_sim.control.pick_point`: a tape roll's ring, not its hole)."""
+        if self._pick_point is None:
+            return state
         return aimed(state, self._pick_point.offset(self.ep.estimator.radius), self._aim_side)
 
     def _take_aim_side(self) -> None:
-        """The camera's side of the tool axis now, world (3,): the aim's side is the other."""
+        """The aim's rules for this cell's cup, and the camera's side of the tool axis now,
+        world (3,): on a level face the aim goes to the other side."""
         ep = self.ep
+        model = ep.scene.cell.model
+        self._pick_point = PickPoint(ep.scene.cell.cfg,
+                                     lip_radius(model, model.body(CUP_BODY).id))
         tool = ep.arm.command_world_T_tool()
         axis, away = tool[:3, 2], ep.arm.eih.world_T_cam(ep.scene.cell.data)[:3, 3] - tool[:3, 3]
         self._aim_side = away - axis * float(away @ axis)
