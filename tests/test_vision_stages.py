@@ -25,9 +25,11 @@ from stackpick_sim.vision.params import (
     RefineParams,
     ReportParams,
     RoiParams,
+    SegmentParams,
     TopParams,
 )
 from stackpick_sim.vision.roi import find_roi
+from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import Stage, StageError, State
 from stackpick_sim.vision.synthetic import draw_ellipses
 
@@ -147,6 +149,17 @@ def test_fit_settings_reach_the_fits(image: np.ndarray) -> None:
                   ).top is not None
 
 
+def test_segment_settings_reach_the_chains(image: np.ndarray) -> None:
+    cfg = load_scene("paper", ["vision.segments.min_chain_px=1000"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.segments == SegmentParams(min_chain_px=1000)
+    found = detect(image, replace(config, depth_range_m=None))
+    assert not found.ellipses and found.top is None  # no chain is that long
+    plain = link_segments(edge_image(image).edges)
+    coarse = link_segments(edge_image(image).edges, params=SegmentParams(poly_epsilon_px=4.0))
+    assert [c.shape[0] for c in coarse.chains] != [c.shape[0] for c in plain.chains]
+
+
 def test_refine_settings_reach_the_refit(image: np.ndarray) -> None:
     config = DetectorConfig(intrinsics=K)
     narrow = detect(image, replace(config, refine=RefineParams(tolerances_px=(0.5,))))
@@ -165,6 +178,8 @@ def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
     ("vision.report.min_support=1.5", "vision.report.min_support = 1.5 is out of range; "
                                       "allowed: 0 to 1"),
     ("vision.gate.slack=[1.3, 1.2]", "vision.gate.slack = [1.3, 1.2] must be [low, high]"),
+    ("vision.segments.corner_angle_deg=200", "vision.segments.corner_angle_deg = 200.0 is out "
+                                             "of range; allowed: 1 to 180 deg"),
     ("vision.roi.decimation=3", "vision.roi.decimation = 3 is out of range; allowed: a power"),
     ("vision.top.fallbacks=['rimmed', 'bogus']", "vision.top.fallbacks"),
     ("vision.report.rim_angle_deg=true", "has the wrong type"),

@@ -134,6 +134,41 @@ class EdgeParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class SegmentParams(Section):
+    """``segments`` stage: edge pixels linked into ordered chains, cut at junctions, corners
+    and flips of the turning direction (:func:`~stackpick_sim.vision.segments.
+    link_segments`)."""
+
+    SECTION: ClassVar[str] = "segments"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_chain_px": (2, 1000, "px"), "poly_epsilon_px": (0.1, 10.0, "px"),
+        "corner_angle_deg": (1.0, 180.0, "deg"), "spike_min_deg": (0.0, 180.0, "deg"),
+        "spike_ratio": (1.0, 100.0, ""), "min_signed_turn_deg": (0.0, 90.0, "deg")}
+
+    min_chain_px: int = 6
+    """Chains shorter than this (px) are dropped: too short to constrain an ellipse."""
+    poly_epsilon_px: float = 1.0
+    """Tolerance (px) of the polygonal approximation whose vertices are read for turns: 1 px
+    keeps pixel staircases out of the polygon."""
+    corner_angle_deg: float = 80.0
+    """Turn (deg) at one polygon vertex above which it is a corner. With a 1 px tolerance a
+    vertex on an arc of curvature radius R turns by sqrt(8 / R) rad; the sharpest face end
+    expected (a = 15 px, b = 10 px, R = b^2 / a = 6.7 px) gives ~63 deg, so 80 deg keeps
+    every ellipse arc whole while a side wall meeting a face's arc is cut."""
+    spike_min_deg: float = 30.0
+    """A vertex turning by more than this (deg) and ``spike_ratio`` times either neighbour is
+    a corner too: along an ellipse arc consecutive vertices turn alike, so a lone sharp turn
+    is where one outline meets another (a T-junction Canny bridged without a junction
+    pixel)."""
+    spike_ratio: float = 2.0
+    """Ratio of a spike vertex's turn to either neighbour's (see ``spike_min_deg``)."""
+    min_signed_turn_deg: float = 4.0
+    """Polygon vertices turning by less than this (deg) carry no reliable turning sign (a
+    1 px staircase on a straight run), so they neither cut a chain nor set the sign a later
+    vertex is compared with."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class FitParams(Section):
     """``fitting`` stage: an ellipse-specific least-squares fit of every edge chain, a chain
     whose fit fails split in halves and retried (:func:`~stackpick_sim.vision.fitting.
@@ -385,6 +420,7 @@ class StageSections:
 
     roi: RoiParams = field(default_factory=RoiParams)
     edges: EdgeParams = field(default_factory=EdgeParams)
+    segments: SegmentParams = field(default_factory=SegmentParams)
     fits: FitParams = field(default_factory=FitParams)
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)

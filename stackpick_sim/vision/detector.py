@@ -151,8 +151,8 @@ class DetectorConfig(StageSections):
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``edges``, ``fits``, ``refine``, ``gate``, ``top``, ``report``, ``pose``: each
-    stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
+    ``roi``, ``edges``, ``segments``, ``fits``, ``refine``, ``gate``, ``top``, ``report``,
+    ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
     :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
@@ -346,7 +346,7 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
     """The edge chains (:func:`~stackpick_sim.vision.segments.link_segments`), the
     ``limits.max_chains`` longest."""
     cap = config.limits.max_chains
-    segments = link_segments(state.edges("segments").edges, cap).chains
+    segments = link_segments(state.edges("segments").edges, cap, config.segments).chains
     if len(segments) > cap:
         segments = tuple(segments[i] for i in longest(segments, cap))
     return state.updated(segments=segments)
