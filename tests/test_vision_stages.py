@@ -22,6 +22,7 @@ from stackpick_sim.vision.params import (
     EdgeParams,
     FitParams,
     GateParams,
+    MergeParams,
     RefineParams,
     ReportParams,
     RoiParams,
@@ -160,6 +161,17 @@ def test_segment_settings_reach_the_chains(image: np.ndarray) -> None:
     assert [c.shape[0] for c in coarse.chains] != [c.shape[0] for c in plain.chains]
 
 
+def test_merge_settings_reach_the_merge(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    plain = detect(image, config)
+    assert plain.ellipses
+    strict = detect(image, replace(config, merging=MergeParams(min_support=1.0)))
+    assert len(strict.ellipses) < len(plain.ellipses)  # no outline is supported all round
+    cfg = load_scene("paper", ["vision.merging.k=0.5", "vision.merging.tolerance_px=1.0"])
+    assert scene_detector_config(cfg, K, (0.2, 0.3)).merging == MergeParams(k=0.5,
+                                                                             tolerance_px=1.0)
+
+
 def test_refine_settings_reach_the_refit(image: np.ndarray) -> None:
     config = DetectorConfig(intrinsics=K)
     narrow = detect(image, replace(config, refine=RefineParams(tolerances_px=(0.5,))))
@@ -180,6 +192,8 @@ def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
     ("vision.gate.slack=[1.3, 1.2]", "vision.gate.slack = [1.3, 1.2] must be [low, high]"),
     ("vision.segments.corner_angle_deg=200", "vision.segments.corner_angle_deg = 200.0 is out "
                                              "of range; allowed: 1 to 180 deg"),
+    ("vision.merging.absorb_fraction=1.2", "vision.merging.absorb_fraction = 1.2 is out of "
+                                           "range; allowed: 0 to 1"),
     ("vision.roi.decimation=3", "vision.roi.decimation = 3 is out of range; allowed: a power"),
     ("vision.top.fallbacks=['rimmed', 'bogus']", "vision.top.fallbacks"),
     ("vision.report.rim_angle_deg=true", "has the wrong type"),

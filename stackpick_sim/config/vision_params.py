@@ -191,6 +191,43 @@ class FitParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class MergeParams(Section):
+    """``merging`` stage: fits of one ellipse merged by the paper's Eq. 3, leftover segments
+    absorbed, each ellipse validated by its edge support (:func:`~stackpick_sim.vision.
+    merging.merge_segments`). The top rule's arc-pair regrouping and its T-junction test read
+    the defaults."""
+
+    SECTION: ClassVar[str] = "merging"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "k": (0.0, 1.0, ""), "tolerance_px": (0.3, 10.0, "px"),
+        "max_residual_px": (0.05, 5.0, "px"), "absorb_fraction": (0.0, 1.0, ""),
+        "min_support": (0.0, 1.0, "")}
+
+    k: float = 0.2
+    """Eq. 3 threshold [0, 1] on C = N_{A/B} N_{B/A}: two halves of one face extrapolate ~1 px
+    off each other's far side and score only 0.25-0.6, so k is low; wrong merges are kept
+    out by the refit checks instead (``max_residual_px``, ``absorb_fraction``). Arcs of two
+    different faces score ~0."""
+    tolerance_px: float = 1.5
+    """A pixel pertains to an ellipse within this distance, px: the RMS fit residual is
+    ~0.3 px on anti-aliased edges, and 1.5 px admits two pixels of quantisation either
+    way."""
+    max_residual_px: float = 0.4
+    """Largest RMS residual (px) of the refit on a merged pair, tighter than a single
+    segment's (``fits.max_residual_px``): arcs of two different but similar faces can be
+    fitted together to ~0.5 px while true arcs of one face refit to ~0.3 px."""
+    absorb_fraction: float = 0.9
+    """Share [0, 1] of a segment's pixels within ``tolerance_px`` of an ellipse for it to
+    stay on a merged refit or to be absorbed as a leftover: a low residual alone lets a big
+    ellipse pass between the arcs of two different faces."""
+    min_support: float = 0.4
+    """Share [0, 1] of its circumference along which a merged ellipse must have edge pixels
+    to be kept: a face half hidden under another object keeps ~0.5; a cylinder's far rim
+    (its wall's silhouette) also shows about half and is told apart later by the top
+    rule."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class RefineParams(Section):
     """``refine`` stage: each ellipse refitted on the edge pixels along it, in rounds of
     narrowing tolerance (:func:`~stackpick_sim.vision.refine.refine_all`)."""
@@ -422,6 +459,7 @@ class StageSections:
     edges: EdgeParams = field(default_factory=EdgeParams)
     segments: SegmentParams = field(default_factory=SegmentParams)
     fits: FitParams = field(default_factory=FitParams)
+    merging: MergeParams = field(default_factory=MergeParams)
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)

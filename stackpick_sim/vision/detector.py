@@ -151,8 +151,8 @@ class DetectorConfig(StageSections):
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``edges``, ``segments``, ``fits``, ``refine``, ``gate``, ``top``, ``report``,
-    ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
+    ``roi``, ``edges``, ``segments``, ``fits``, ``merging``, ``refine``, ``gate``, ``top``,
+    ``report``, ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
     :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
@@ -365,7 +365,8 @@ def merging_stage(state: State, config: DetectorConfig) -> State:
     the ``limits.max_ellipses`` best-supported."""
     fits = state.fits
     merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
-                            state.edges("merging").edges, [f[3] for f in fits])
+                            state.edges("merging").edges, [f[3] for f in fits],
+                            config.merging)
     return state.updated(merged=_best_supported(merged, config.limits.max_ellipses))
 
 
