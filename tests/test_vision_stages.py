@@ -23,6 +23,7 @@ from stackpick_sim.vision.params import (
     FitParams,
     GateParams,
     MergeParams,
+    PoseParams,
     RefineParams,
     ReportParams,
     RoiParams,
@@ -180,6 +181,19 @@ def test_refine_settings_reach_the_refit(image: np.ndarray) -> None:
     assert _key(never) == _key(detect(image, config.without("refine")))
 
 
+def test_final_fit_settings_reach_the_pose(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    plain = detect(image, config)
+    assert plain.pose is not None
+    for pose in (PoseParams(subpixel_tolerance_px=0.3, profile_rounds=0),
+                 PoseParams(profile_min_share=1.0, subpixel_tolerance_px=0.3)):
+        moved = detect(image, replace(config, pose=pose))
+        assert moved.pose is not None and moved.pose != plain.pose
+    cfg = load_scene("paper", ["vision.pose.profile_rounds=2", "vision.refine.min_normal_cos=0.9"])
+    got = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert got.pose.profile_rounds == 2 and got.refine.min_normal_cos == 0.9
+
+
 def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
     rgb = np.repeat(image[:, :, None], 3, axis=2)
     tight, wide = find_roi(rgb), find_roi(rgb, RoiParams(margin_px=30))
@@ -194,6 +208,8 @@ def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
                                              "of range; allowed: 1 to 180 deg"),
     ("vision.merging.absorb_fraction=1.2", "vision.merging.absorb_fraction = 1.2 is out of "
                                            "range; allowed: 0 to 1"),
+    ("vision.pose.profile_step_px=0", "vision.pose.profile_step_px = 0.0 is out of range; "
+                                      "allowed: 0.1 to 2 px"),
     ("vision.roi.decimation=3", "vision.roi.decimation = 3 is out of range; allowed: a power"),
     ("vision.top.fallbacks=['rimmed', 'bogus']", "vision.top.fallbacks"),
     ("vision.report.rim_angle_deg=true", "has the wrong type"),

@@ -234,7 +234,8 @@ class RefineParams(Section):
 
     SECTION: ClassVar[str] = "refine"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "tolerances_px": (0.3, 20.0, "px"), "min_pixels": (5, 10_000, "px")}
+        "tolerances_px": (0.3, 20.0, "px"), "min_pixels": (5, 10_000, "px"),
+        "min_normal_cos": (0.0, 1.0, "")}
 
     tolerances_px: tuple[float, ...] = (2.5, 1.5, 1.2)
     """Collection tolerances (px) of the successive refits, one round each: the first admits
@@ -242,6 +243,11 @@ class RefineParams(Section):
     min_pixels: int = 20
     """Fewest edge pixels (px) collected along an ellipse for a refit; fewer keeps the fit in
     hand."""
+    min_normal_cos: float = 0.87
+    """Cosine [0, 1] of the largest angle between a collected edge pixel's gradient and the
+    ellipse's normal (0.87: 30 deg): a face's own edge runs along its outline, while the
+    outlines, walls and markings crossing it meet it at larger angles. The top face's final
+    sub-pixel refit holds to it too."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -404,8 +410,37 @@ class PoseParams(Section):
         "profile_window_margin_px": (2, 32, "px"), "min_band_samples": (1, 1000, "samples"),
         "band_tie": (0.0, 1.0, ""), "lone_band_min_share": (0.0, 1.0, ""),
         "wall_tie": (0.0, 1.0, ""), "wall_probe_radii": (0.1, 10.0, "radii"),
-        "wall_rim_points": (8, 1024, "points"), "wall_end_skip_px": (0.0, 50.0, "px")}
+        "wall_rim_points": (8, 1024, "points"), "wall_end_skip_px": (0.0, 50.0, "px"),
+        "subpixel_tolerance_px": (0.3, 10.0, "px"), "profile_reach_px": (0.5, 10.0, "px"),
+        "profile_step_px": (0.1, 2.0, "px"), "profile_rounds": (0, 10, "rounds"),
+        "profile_min_share": (0.0, 1.0, ""), "outlier_medians": (1.0, 100.0, ""),
+        "outlier_min_px": (0.0, 10.0, "px")}
 
+    subpixel_tolerance_px: float = 1.2
+    """Collection tolerance (px) of the top face's sub-pixel refit on the edge pixels along
+    it: the edge refit's last round leaves the face's own edge pixels within ~1 px."""
+    profile_reach_px: float = 2.0
+    """Reach (px) either side of the outline of the gradient-profile refit that follows:
+    covers the sub-pixel refit's error on a face whose faint arcs the edge map dropped."""
+    profile_step_px: float = 0.5
+    """Spacing (px) of the samples along each normal of the profile search: the peak is
+    placed by a parabola through its neighbours, so half a pixel resolves a blurred edge's
+    profile without the cost of a finer grid."""
+    profile_rounds: int = 1
+    """Profile refit rounds, each re-centring the search on the previous fit (0: none): one
+    starts from the sub-pixel refit, already within a fraction of a pixel, and a second does
+    not move rendered faces further."""
+    profile_min_share: float = 0.5
+    """Fewest outline samples with a gradient peak, as a share [0, 1] of the outline, for a
+    profile refit (fewer keeps the fit in hand): a face at least half visible, as the scoring
+    counts faces."""
+    outlier_medians: float = 3.0
+    """Profile peaks whose distance to the first profile fit exceeds this multiple of the
+    median distance (and ``outlier_min_px``) are dropped before the final fit: a neighbour's
+    edge met where two outlines run close."""
+    outlier_min_px: float = 0.3
+    """Least outlier distance (px): on a clean outline the median distance is a few
+    hundredths of a pixel, and peaks within a third of a pixel are the face's own."""
     profile_window_margin_px: int = 3
     """Margin, px, beyond the profile search of the window whose unblurred gradients the top
     face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour."""

@@ -92,7 +92,6 @@ from stackpick_sim.vision.occlusion import (
 )
 from stackpick_sim.vision.pose import Pose, estimate_pose
 from stackpick_sim.vision.refine import (
-    PROFILE_REACH_PX,
     edge_points,
     refine_all,
     refine_on_profile,
@@ -455,8 +454,9 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
 def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
     work, grad = state.work, state.edges("pose")
-    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop)
-    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose.profile_window_margin_px)
+    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
+                                  config.pose, config.refine.min_normal_cos)
+    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).
     face = face_colour(top_ellipse, work) if work.ndim == 3 else None
@@ -1057,12 +1057,12 @@ def _same_outlines(ellipses: list[Ellipse], indices: list[int],
 
 
 def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
-                   window_margin_px: int = PoseParams.profile_window_margin_px) -> Ellipse:
+                   params: PoseParams) -> Ellipse:
     """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
     gradients of the window of ``work`` around it (the window keeps the cost per face),
-    ``window_margin_px`` beyond the profile search."""
+    ``params.profile_window_margin_px`` beyond the profile search."""
     u0, v0, u1, v1 = ellipse.bounds()
-    margin = PROFILE_REACH_PX + window_margin_px
+    margin = params.profile_reach_px + params.profile_window_margin_px
     h, w = work.shape[:2]
     c0, r0 = max(0, math.floor(u0 - margin)), max(0, math.floor(v0 - margin))
     c1, r1 = min(w, math.ceil(u1 + margin) + 1), min(h, math.ceil(v1 + margin) + 1)
@@ -1071,7 +1071,7 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
     box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
     raw = unblurred_gradients(window, box)
-    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params)
     return _moved(fit, c0, r0)
 
 
