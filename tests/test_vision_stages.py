@@ -210,6 +210,8 @@ def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
                                            "range; allowed: 0 to 1"),
     ("vision.pose.profile_step_px=0", "vision.pose.profile_step_px = 0.0 is out of range; "
                                       "allowed: 0.1 to 2 px"),
+    ("vision.top.contrast_rounds=0", "vision.top.contrast_rounds = 0 is out of range; "
+                                     "allowed: 1 to 10 rounds"),
     ("vision.roi.decimation=3", "vision.roi.decimation = 3 is out of range; allowed: a power"),
     ("vision.top.fallbacks=['rimmed', 'bogus']", "vision.top.fallbacks"),
     ("vision.report.rim_angle_deg=true", "has the wrong type"),

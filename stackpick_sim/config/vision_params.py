@@ -307,7 +307,9 @@ class TopParams(Section):
 
     SECTION: ClassVar[str] = "top"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "hidden_min_support": (0.0, 1.0, "")}
+        "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
+        "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
+        "contrast_min_share": (0.0, 1.0, "")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -335,6 +337,24 @@ class TopParams(Section):
     """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
     hidden-face check: a face at least half visible, as the scoring counts faces (far rims
     and arcs of two outlines fitted together show about half theirs)."""
+    contrast_reach_px: int = 3
+    """Search reach (px) either side of the outline of the ``contrast`` fallback's refit on
+    the strongest consistent edge: a face fitted on a partial outline (same-colour neighbours
+    leave only faint edges) is off by up to ~3 px there (measured on rendered paper-scene
+    frames)."""
+    contrast_inner_reach_px: int = 6
+    """Inward search reach (px) of the contrast refit on the innermost consistent edge: a top
+    face lying on a lower face of its own colour and about its size ends at a faint boundary
+    a few px inside the lower face's strong silhouette (4-5 px on rendered paper-scene
+    frames: a rim offset of ~1.5 mm at 0.3 m); the face's smooth inside holds no other
+    edge."""
+    contrast_rounds: int = 2
+    """Contrast refit rounds, each re-centring the search on the previous fit: the first
+    moves a fit that is a few px off onto the faint edge, the second fits on it whole."""
+    contrast_min_share: float = 0.5
+    """Fewest samples with a consistent edge, as a share [0, 1] of the outline, for a
+    contrast refit (fewer: no refit): a face at least half visible, as the scoring counts
+    faces."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -36,6 +36,7 @@ from stackpick_sim.config.vision_params import (
     PoseParams,
     ReportParams,
     StageSections,
+    TopParams,
     sections_of,
 )
 from stackpick_sim.exceptions import ConfigError
@@ -129,6 +130,8 @@ DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "top", "pose")
 #: The report settings' defaults (the helpers' default argument).
 DEFAULT_REPORT = ReportParams()
+#: The top rule's default settings.
+DEFAULT_TOP = TopParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -584,7 +587,7 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # nearly whole face than the top.
         merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, found.crop,
                                                     found.gate, limits.max_refits,
-                                                    config.report.min_support)
+                                                    config.report.min_support, config.top)
     if retried:
         choice = _select([m.ellipse for m in merged], found, cues)
     if retried and choice.index is not None:
@@ -813,7 +816,8 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
                        gate: tuple[float, float] | None = None, max_refits: int = 8,
-                       min_support: float = DEFAULT_REPORT.min_support
+                       min_support: float = DEFAULT_REPORT.min_support,
+                       params: TopParams = DEFAULT_TOP
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
@@ -824,7 +828,8 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     ellipses, whether any changed, and, when none passed, the refit
     :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
     size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
-    refits, refit, its evidence), else None."""
+    refits, refit, its evidence), else None. ``params``: the refit's reach, rounds and least
+    share (the ``contrast_*`` fields)."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= min_support]
     if len(todo) > max_refits:  # the best-supported, in their order
@@ -833,7 +838,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     # Refits outside the size gate are no faces, as fits are not (a refit onto an inner
     # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
-             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
+             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost, params)) is not None
              and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
