@@ -347,7 +347,8 @@ class TopParams(Section):
     face lying on a lower face of its own colour and about its size ends at a faint boundary
     a few px inside the lower face's strong silhouette (4-5 px on rendered paper-scene
     frames: a rim offset of ~1.5 mm at 0.3 m); the face's smooth inside holds no other
-    edge."""
+    edge. The rest check's refit of a face with its own rim inside holds to it too (the
+    band that rim is looked for in keeps the default width)."""
     contrast_rounds: int = 2
     """Contrast refit rounds, each re-centring the search on the previous fit: the first
     moves a fit that is a few px off onto the faint edge, the second fits on it whole."""

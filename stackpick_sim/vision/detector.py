@@ -409,7 +409,8 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         # same-colour sliver beyond it.
         above = select_resting_rimmed([m.ellipse for m in merged], choice,
                                       state.edges("top"), state.points, cues.k_crop,
-                                      cues.radius_of, cues.height_of, cues.rgb, cues.belt)
+                                      cues.radius_of, cues.height_of, cues.rgb, cues.belt,
+                                      config.top)
         if above is not None:
             choice = replace(choice, index=above)
     if (config.top.hidden_check and choice.index is not None
