@@ -206,11 +206,14 @@ class ControlGoal:
     phase: str
     """``approach``, ``servo`` or ``descend``."""
     target: TargetState
-    """The face predicted to now, its normal replaced by the tool axis to take."""
+    """The face predicted to now, its centre moved to the point the cup aims at (off a tape
+    roll's hole: :mod:`stackpick_sim.control.pick_point`) and its normal replaced by the
+    tool axis to take."""
     lead: TargetState | None
-    """Approach only: the face predicted ``1 / episode.approach_gain`` s ahead."""
+    """Approach only: the target, predicted ``1 / episode.approach_gain`` s ahead."""
     standoff: float
-    """Commanded distance tool tip to face centre along the axis, m (falls in the descent)."""
+    """Commanded distance tool tip to the target's centre along the axis, m (falls in the
+    descent)."""
     standoff_rate: float
     """Its rate of change, m/s (minus the descent speed while descending)."""
     dt: float

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
 from stackpick_sim.config.scene_config import CameraCfg, ObjectsCfg, SceneConfig
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.sim import sensor
+from stackpick_sim.sim import exposure, sensor
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.exposure import subframe_offsets
 from stackpick_sim.sim.ground_truth import frame_truth
@@ -128,3 +130,16 @@ def test_jpeg_and_vignetting() -> None:
     assert sensor.jpeg(img, 0) is img
     lossy = sensor.jpeg(img, 50)
     assert lossy.shape == img.shape and not np.array_equal(lossy, img)
+
+
+def test_the_smear_filter_is_the_mean_of_shifted_copies() -> None:
+    rng = np.random.default_rng(3)
+    image = cv2.GaussianBlur(rng.random((40, 50, 3)).astype(np.float32) * 255, (0, 0), 1.5)
+    for shift in ((0.5, 0.1), (2.3, -1.7), (-6.2, 3.3)):
+        d = np.array(shift)
+        n = max(2, math.ceil(float(np.hypot(*d)) * exposure.SHIFT_COPIES_PER_PX) + 1)
+        copies = [cv2.warpAffine(image, np.array([[1.0, 0.0, s * d[0]], [0.0, 1.0, s * d[1]]]),
+                                 (50, 40), flags=cv2.INTER_LINEAR,
+                                 borderMode=cv2.BORDER_REPLICATE)
+                  for s in np.linspace(-0.5, 0.5, n)]
+        assert np.abs(exposure.smear(image, d) - np.mean(copies, axis=0)).max() < 1e-3

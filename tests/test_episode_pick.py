@@ -65,6 +65,11 @@ def test_tilted_axis_interpolates_between_down_and_the_normal() -> None:
     assert descent_tilt_share(0.4, 0.19, 0.19, 0.7) == pytest.approx(0.4)
     assert descent_tilt_share(0.4, 0.095, 0.19, 0.7) == pytest.approx(0.55)
     assert descent_tilt_share(0.4, 0.0, 0.19, 0.7) == pytest.approx(0.7)
+    # A turn that ends above the face (the tool trails its command) is whole from there on.
+    assert descent_tilt_share(0.4, 0.19, 0.19, 0.7, turned_at=0.09) == pytest.approx(0.4)
+    assert descent_tilt_share(0.4, 0.14, 0.19, 0.7, turned_at=0.09) == pytest.approx(0.55)
+    assert descent_tilt_share(0.4, 0.09, 0.19, 0.7, turned_at=0.09) == pytest.approx(0.7)
+    assert descent_tilt_share(0.4, 0.03, 0.19, 0.7, turned_at=0.09) == pytest.approx(0.7)
 
 
 @pytest.fixture(scope="module")

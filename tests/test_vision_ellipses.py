@@ -63,3 +63,33 @@ def test_bounds_are_checked() -> None:
         find_ellipses(img, min_axis_px=10, max_axis_px=5)
     with pytest.raises(ConfigError):
         find_ellipses(img, min_support=1.5)
+
+
+def _strokes() -> np.ndarray:
+    """Printed rings and bold round letters on a plain background: outlines of thin strokes."""
+    img = np.full((240, 320, 3), 225, np.uint8)
+    for (cx, cy), r, width in [((60, 60), 30, 2), ((170, 55), 22, 4), ((260, 70), 40, 6)]:
+        cv2.circle(img, (cx, cy), r, (30, 30, 30), width, cv2.LINE_AA)
+    cv2.putText(img, "O0o@Q", (10, 210), cv2.FONT_HERSHEY_SIMPLEX, 2.5, (20, 20, 120), 3,
+                cv2.LINE_AA)
+    return img
+
+
+def test_stroke_outlines_are_not_reported() -> None:
+    from stackpick_sim.config.vision_params import EllipsesParams
+
+    img = _strokes()
+    assert len(find_ellipses(img, params=EllipsesParams(max_stroke_share=1.0))) >= 5
+    assert find_ellipses(img) == []
+
+
+def test_discs_among_strokes_are_kept() -> None:
+    img = _strokes()
+    truth = [(100.0, 130.0, 28.0, 20.0, 0.0), (225.0, 150.0, 18.0, 18.0, 0.0)]
+    for cx, cy, a, b, ang in truth:
+        cv2.ellipse(img, ((cx, cy), (2 * a, 2 * b), ang), (200, 120, 40), -1, cv2.LINE_AA)
+    found = find_ellipses(img)
+    for cx, cy, a, b, _ in truth:
+        assert any(abs(s.ellipse.cx - cx) < 1 and abs(s.ellipse.cy - cy) < 1
+                   and abs(s.ellipse.a - a) < 1.5 and abs(s.ellipse.b - b) < 1.5
+                   for s in found)

@@ -497,12 +497,36 @@ class EllipsesParams(Section):
     """Scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (ellipses only)."""
 
     SECTION: ClassVar[str] = "ellipses"
-    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_normal_cos": (0.0, 1.0, "")}
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_normal_cos": (0.0, 1.0, ""), "stroke_reach_px": (0.0, 64.0, "px"),
+        "stroke_reach_axis": (0.0, 4.0, ""), "stroke_min_ratio": (0.0, 1.0, ""),
+        "max_stroke_share": (0.0, 1.0, "")}
 
     min_normal_cos: float = 0.87
     """Cosine of the largest angle between an outline sample's gradient and the outline's
     normal for the sample to count (0.87: 30 deg, as the edge refit's test): texture and glyph
     edges crossing an outline meet it at any angle, a rim's gradient runs along its normal."""
+    stroke_reach_px: float = 12.0
+    """Thin strokes (the rings of letters O, o, 0, @, printed circles, embossed outlines):
+    how far (px of the searched image) outside and inside the outline to look for the
+    stroke's other edge, an edge of the opposite polarity running along it (below 2: no
+    stroke test). 12 px covers the strokes of bold print and glyphs (up to ~10 px wide) with
+    the blur's spread; a disc's face holds no such edge near its rim."""
+    stroke_reach_axis: float = 1.5
+    """The inward reach as a multiple of the ellipse's semi-minor axis (the smaller of this
+    and ``stroke_reach_px`` applying inside): below 2 so that the search never reaches a
+    disc's own far rim (2 b across at the minor axis, of opposite polarity along the same
+    normal), while the outer edge of a bold letter's stroke, about as wide as its hole, is."""
+    stroke_min_ratio: float = 0.5
+    """Smallest strength of the opposite edge, as a share of the outline's own edge there,
+    for it to count as the stroke's other edge (0.5: a printed stroke's two edges are equally
+    strong; texture crossing a disc's rim at random angles rarely reaches half its normal
+    gradient)."""
+    max_stroke_share: float = 0.5
+    """Largest share (0-1) of the supported outline samples with a stroke's other edge within
+    reach: above it, the ellipse is a stroke's outline and is not reported. Discs on glyph,
+    logo and label backgrounds stay below 0.5 (their outside meets glyphs along a part of the
+    rim only; benchmarks/bench_ellipses_precision.py), glyph rings lie near 1."""
 
 
 @dataclass(frozen=True, kw_only=True)

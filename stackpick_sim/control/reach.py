@@ -19,8 +19,8 @@ So the tool approaches along a *commanded* axis between straight down and the fa
 normal: :func:`tilted_axis` with share ``alpha`` of the tilt (1: the face normal). At the
 servo standoff ``alpha`` is the largest share whose IK solution keeps every joint
 :data:`JOINT_MARGIN` inside its range (:meth:`ReachChecker.tilt_share`); during the descent it
-grows linearly to 1 at the face (:func:`descent_tilt_share`), so the cup meets the face
-square-on, where the wrist centre has come close enough. On a fast belt the face travels
+grows linearly to 1 a little above the face (:func:`descent_tilt_share`), so the cup meets
+the face square-on, where the wrist centre has come close enough. On a fast belt the face travels
 on during the descent (0.3 m/s: ~16 cm) to where even the face itself may be out of reach
 square-on; the share at the face is then checked too, at the predicted grasp time and place
 (with the smaller :data:`GRASP_JOINT_MARGIN`), and the descent grows to that share only.
@@ -83,15 +83,18 @@ def tilted_axis(normal: FloatArray, share: float) -> FloatArray:
 
 
 def descent_tilt_share(share_at_standoff: float, standoff: float, servo_standoff: float,
-                       share_at_face: float = 1.0) -> float:
+                       share_at_face: float = 1.0, turned_at: float = 0.0) -> float:
     """Share of the tilt at a tool-to-face distance ``standoff`` m during the descent.
 
     Linear in the distance: ``share_at_standoff`` at ``servo_standoff`` m, ``share_at_face``
-    (1 unless the arm cannot take the whole tilt where the face will be grasped) at the face.
+    (1 unless the arm cannot take the whole tilt where the face will be grasped) from
+    ``turned_at`` m above the face on (the turn ends there, so that a tool lagging its
+    command meets the face at the planned angle).
     """
-    if servo_standoff <= 0.0:
+    span = servo_standoff - max(0.0, turned_at)
+    if span <= 0.0:
         return share_at_face
-    frac = min(1.0, max(0.0, standoff / servo_standoff))
+    frac = min(1.0, max(0.0, (standoff - max(0.0, turned_at)) / span))
     return share_at_face - (share_at_face - share_at_standoff) * frac
 
 

@@ -69,6 +69,9 @@ class PhaseLogic(ArmPhases):
         self._tilt_share = 1.0
         self._face_share = 1.0
         self._planned_normal = np.array([0.0, 0.0, -1.0])
+        self._pick_point = None
+        """Set when the approach starts (:meth:`_take_aim_side`)."""
+        self._aim_side = np.zeros(3)
         self._redetections = 0
         self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))
         self._retargets = 0
@@ -296,5 +299,6 @@ class PhaseLogic(ArmPhases):
                   and t - est.last_fused_time > TRACK_FADING_FRAMES * self.ep.sensor.period)
         if est.initialised and (est.fused >= self.ep.scene.cell.cfg.episode.track_frames
                                 or fading):
+            self._take_aim_side()
             self._plan_reach(t)
             self._enter("approach", t)

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.control.pick_point import PickPoint, aimed
 from stackpick_sim.control.reach import (
     GRASP_JOINT_MARGIN,
     GRASP_SELF_CLEARANCE,
@@ -33,6 +34,8 @@ from stackpick_sim.episodes.outcome import no_seal, touching
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.pipeline import ControlGoal, TargetState
+from stackpick_sim.sim.robot import CUP_BODY
+from stackpick_sim.sim.suction import lip_radius
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -66,6 +69,12 @@ DESCENT_SETTLED = 0.003
 #: time to take out more (12.5 mm at the 0.19 m standoff). Placeholders.
 DESCENT_HOLD_LATERAL = 0.003
 DESCENT_HOLD_SLOPE = 0.05
+#: The tool's turn trails the commanded axis: while the descent turns it (~45 deg/s on a
+#: face tilted ~40 deg that the arm cannot meet square-on at the servo standoff) by 5-6 deg,
+#: closing over ~0.2 s once the command stops turning. The commanded turn therefore ends
+#: this long (s, at the descent speed) before the face, so that the cup meets the face near
+#: the planned angle and not past the bellows' compliance.
+AXIS_LAG_S = 0.25
 #: The tool keeps pressing this far (m) past where it touched while the suction takes hold.
 GRASP_PRELOAD = 0.002
 #: Body whose origin lies on the robot's vertical J1 axis (the lift retreats towards it).
@@ -150,6 +159,8 @@ class ArmPhases:
     _lift_base: NDArray[np.float64]
     _grasped: list[str]
     _cycle_end: float | None
+    _pick_point: PickPoint | None
+    _aim_side: NDArray[np.float64]
     phase: str
 
     def fail(self, reason: str, detail: str) -> None:
@@ -161,11 +172,29 @@ class ArmPhases:
     def _check_track(self, t: float) -> bool:
         raise NotImplementedError
 
+    def _aim(self, state: TargetState) -> TargetState:
+        """The tracked face ``state`` with its centre moved to the point the cup aims at
+        (:mod:`stackpick_sim.control.pick_point`: a tape roll's ring, not its hole)."""
+        if self._pick_point is None:
+            return state
+        return aimed(state, self._pick_point.offset(self.ep.estimator.radius), self._aim_side)
+
+    def _take_aim_side(self) -> None:
+        """The aim's rules for this cell's cup, and the camera's side of the tool axis now,
+        world (3,): on a level face the aim goes to the other side."""
+        ep = self.ep
+        model = ep.scene.cell.model
+        self._pick_point = PickPoint(ep.scene.cell.cfg,
+                                     lip_radius(model, model.body(CUP_BODY).id))
+        tool = ep.arm.command_world_T_tool()
+        axis, away = tool[:3, 2], ep.arm.eih.world_T_cam(ep.scene.cell.data)[:3, 3] - tool[:3, 3]
+        self._aim_side = away - axis * float(away @ axis)
+
     def _plan_reach(self, t: float) -> None:
         """Share of the face tilt the tool takes at the servo standoff (control/reach.py)."""
         ep = self.ep
         cell = ep.scene.cell
-        state = ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data))
+        state = self._aim(ep.estimator.state(t + REACH_LEAD_S, ep.arm.eih.world_T_cam(cell.data)))
         checker = ReachChecker(cell.model)
         share, margin, clearance = checker.tilt_share(
             ep.arm.full_qpos(), state.centre, state.normal, self._standoff,
@@ -173,7 +202,7 @@ class ArmPhases:
         cfg = cell.cfg.episode
         # Where the face will be when the cup meets it (the descent's nominal duration on).
         lead = REACH_LEAD_S + cfg.standoff / max(cfg.descend_speed, 1e-6)
-        grasp = ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data))
+        grasp = self._aim(ep.estimator.state(t + lead, ep.arm.eih.world_T_cam(cell.data)))
         self._face_share = max(share, checker.tilt_share(
             ep.arm.full_qpos(), grasp.centre, grasp.normal, 0.0, ep.arm.command_world_T_tool(),
             margin=GRASP_JOINT_MARGIN, clearance=GRASP_SELF_CLEARANCE)[0])
@@ -194,11 +223,14 @@ class ArmPhases:
             self._plan_reach(t)
 
     def _commanded(self, state: TargetState, standoff: float) -> TargetState:
-        """The face with its normal replaced by the tool axis commanded at ``standoff`` m."""
+        """The face's aim point (:meth:`_aim`) with the face normal replaced by the tool
+        axis commanded at ``standoff`` m."""
+        state = self._aim(state)
         if self._tilt_share >= 1.0 and self._face_share >= 1.0:
             return state
-        share = descent_tilt_share(self._tilt_share, standoff,
-                                   self.ep.scene.cell.cfg.episode.standoff, self._face_share)
+        cfg = self.ep.scene.cell.cfg.episode
+        share = descent_tilt_share(self._tilt_share, standoff, cfg.standoff, self._face_share,
+                                   turned_at=cfg.descend_speed * AXIS_LAG_S)
         return replace(state, normal=tilted_axis(state.normal, share))
 
     def _approach(self, t: float, dt: float, obs: list[Observation]) -> Command:

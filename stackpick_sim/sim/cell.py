@@ -255,7 +255,9 @@ def _add_kind_visuals(body: mujoco.MjsBody, i: int, tname: str, t: ObjectTypeCfg
     body.mass = t.mass
     body.ipos = [0.0, 0.0, 0.0]
     body.iquat = [1.0, 0.0, 0.0, 0.0]
-    body.inertia = [t.mass * (3 * t.radius**2 + t.height**2) / 12] * 2 + [t.mass * t.radius**2 / 2]
+    # A solid cylinder's inertia, or a thick-walled tube's (a tape roll round its hole).
+    r2 = t.radius**2 + (t.hole_radius**2 if t.kind == "tape" else 0.0)
+    body.inertia = [t.mass * (3 * r2 + t.height**2) / 12] * 2 + [t.mass * r2 / 2]
     visual = {"contype": 0, "conaffinity": 0, "group": 0, "type": mujoco.mjtGeom.mjGEOM_MESH}
     if t.kind == "tape":
         geom.group = 3  # collision only: the tube with its hole is what the cameras see

@@ -83,14 +83,27 @@ def image_shift(cell: Cell, exposure_s: float) -> NDArray[np.float64]:
     return np.asarray((ends[1][seen] - ends[0][seen]).mean(axis=0), dtype=np.float64)
 
 
-def smear(image: NDArray[np.float32], shift: NDArray[np.float64]) -> NDArray[np.float32]:
-    """Mean of copies of ``image`` translated evenly along ``shift`` (px), centred on it."""
+def smear_kernel(shift: NDArray[np.float64]) -> tuple[NDArray[np.float32], tuple[int, int]]:
+    """The filter of :func:`smear`: (K, anchor (x, y)), a square kernel whose weights are the
+    bilinear taps of every shifted copy, averaged."""
     length = float(np.hypot(*shift))
     n = max(2, math.ceil(length * SHIFT_COPIES_PER_PX) + 1)
-    h, w = image.shape[:2]
-    out = np.zeros_like(image)
+    half = math.ceil(max(abs(float(shift[0])), abs(float(shift[1]))) / 2) + 1
+    kernel = np.zeros((2 * half + 1, 2 * half + 1), dtype=np.float64)
     for s in np.linspace(-0.5, 0.5, n):
-        m = np.array([[1.0, 0.0, s * shift[0]], [0.0, 1.0, s * shift[1]]], dtype=np.float64)
-        out += cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_REPLICATE).reshape(image.shape)
-    return out / np.float32(n)
+        # A copy translated by d reads the image at (x - d): taps round -d, bilinear weights.
+        x, y = -s * shift[0], -s * shift[1]
+        x0, y0 = math.floor(x), math.floor(y)
+        fx, fy = x - x0, y - y0
+        for dy, wy in ((0, 1.0 - fy), (1, fy)):
+            for dx, wx in ((0, 1.0 - fx), (1, fx)):
+                kernel[half + y0 + dy, half + x0 + dx] += wx * wy / n
+    return kernel.astype(np.float32), (half, half)
+
+
+def smear(image: NDArray[np.float32], shift: NDArray[np.float64]) -> NDArray[np.float32]:
+    """Mean of copies of ``image`` translated evenly along ``shift`` (px), centred on it
+    (bilinear, the border replicated): one filter (:func:`smear_kernel`) over the image."""
+    kernel, anchor = smear_kernel(shift)
+    out = cv2.filter2D(image, cv2.CV_32F, kernel, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(out, dtype=np.float32).reshape(image.shape)

@@ -43,15 +43,17 @@ def expose(image: NDArray[np.float32], cam: CameraCfg,
     """Photon and read noise with gain on a mean image (grey levels), unclipped (see module)."""
     per_grey = cam.full_well / 255.0 / cam.gain  # electrons per grey level at this gain
     electrons = np.clip(image, 0.0, None) * np.float32(per_grey)
-    # Poisson counts; above POISSON_EXACT_BELOW electrons the normal law of the same mean and
-    # variance (its skew is then below 0.15; drawing it is several times faster).
-    counted = electrons + np.sqrt(electrons) * rng.standard_normal(image.shape, dtype=np.float32)
+    # Above POISSON_EXACT_BELOW electrons the photon count is drawn from the normal law of
+    # the Poisson law's mean and variance (its skew is then below 0.15); with the read noise,
+    # also normal and independent, that is one normal draw of the summed variance.
+    read_var = np.float32(cam.read_noise**2)
+    noise = rng.standard_normal(image.shape, dtype=np.float32)
+    counted = electrons + np.sqrt(electrons + read_var) * noise
     dim = electrons < POISSON_EXACT_BELOW
     if dim.any():
-        counted[dim] = rng.poisson(electrons[dim]).astype(np.float32)
-    if cam.read_noise > 0:
-        counted += np.float32(cam.read_noise) * rng.standard_normal(image.shape,
-                                                                   dtype=np.float32)
+        # Poisson counts themselves, the read noise added from the same normal draws.
+        counted[dim] = (rng.poisson(electrons[dim]).astype(np.float32)
+                        + np.float32(cam.read_noise) * noise[dim])
     return counted / np.float32(per_grey)
 
 

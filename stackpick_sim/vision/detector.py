@@ -403,16 +403,8 @@ def top_stage(state: State, config: DetectorConfig) -> State:
                                    or choice.evidence[choice.index].occluded):
         # None passed the rule outright: faces with markings the merge never fitted.
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
-    if (config.top.rest_check and choice.index is not None and cues.radius_of is not None
-            and cues.height_of is not None and cues.rgb is not None):
-        # A whole lower face that a top face rests on, that face's fit taking in a
-        # same-colour sliver beyond it.
-        above = select_resting_rimmed([m.ellipse for m in merged], choice,
-                                      state.edges("top"), state.points, cues.k_crop,
-                                      cues.radius_of, cues.height_of, cues.rgb, cues.belt,
-                                      config.top)
-        if above is not None:
-            choice = replace(choice, index=above)
+    if config.top.rest_check and choice.index is not None:
+        choice = _rest_check(state, merged, choice, cues, config.top)
     if (config.top.hidden_check and choice.index is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
@@ -422,6 +414,20 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
     return state.updated(cues=cues, merged=merged, choice=choice)
+
+
+def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                params: TopParams = DEFAULT_TOP) -> TopChoice:
+    """``choice``, unless a whole lower face that the chosen top face rests on takes it (that
+    face's fit taking in a same-colour sliver beyond it: :func:`~stackpick_sim.vision.
+    occlusion.select_resting_rimmed`, with the contrast refit's ``params``); unchanged
+    without the kinds' radii and heights or without colour."""
+    if cues.radius_of is None or cues.height_of is None or cues.rgb is None:
+        return choice
+    above = select_resting_rimmed([m.ellipse for m in merged], choice, state.edges("top"),
+                                  state.points, cues.k_crop, cues.radius_of, cues.height_of,
+                                  cues.rgb, cues.belt, params)
+    return choice if above is None else replace(choice, index=above)
 
 
 def pose_stage(state: State, config: DetectorConfig) -> State:

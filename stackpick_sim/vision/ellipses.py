@@ -6,7 +6,10 @@ edge runs along enough of its outline: the signed gradient across the outline, a
 a few samples (:mod:`~stackpick_sim.vision.contrast`), must reach the image's noise-relative
 contrast threshold along ``min_support`` of it. Arcs of texture, glyphs and reliefs fit
 ellipses whose outlines leave the arcs they were fitted on after a short stretch: their
-support stays low, while a whole or mostly visible rim keeps it high.
+support stays low, while a whole or mostly visible rim keeps it high. The outline of a thin
+stroke (a letter O, a printed ring, an embossed contour) is supported too; it is rejected by
+its other edge, of the opposite polarity, running alongside (``max_stroke_share`` of
+:class:`~stackpick_sim.config.vision_params.EllipsesParams`).
 """
 
 from __future__ import annotations
@@ -20,7 +23,13 @@ from stackpick_sim.config.vision_params import EllipsesParams
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
-from stackpick_sim.vision.edges import MIN_SIDE_PX, as_rgb_or_gray, edge_image
+from stackpick_sim.vision.edges import (
+    MIN_SIDE_PX,
+    SOBEL_GAIN,
+    EdgeImage,
+    as_rgb_or_gray,
+    edge_image,
+)
 from stackpick_sim.vision.fitting import fit_all
 from stackpick_sim.vision.limits import (
     WorkLimits,
@@ -75,14 +84,18 @@ def find_ellipses(image: NDArray, *, min_axis_px: float = 5.0,
     work = img if factor == 1 else downscaled(img, factor)
     if min(work.shape[:2]) < MIN_SIDE_PX:
         return []
-    found = _scored(work, limits, params or EllipsesParams())
+    params = params or EllipsesParams()
+    found, grad = _scored(work, limits, params)
+    top = np.inf if max_axis_px is None else max_axis_px
+    found = [s for s in found if s.ellipse.b * factor >= min_axis_px
+             and s.ellipse.a * factor <= top and s.support >= min_support]
+    found = [s for s, stroke in zip(found, _stroke_shares(found, grad, params), strict=True)
+             if stroke <= params.max_stroke_share]
     if factor > 1:
         found = [ScoredEllipse(ellipse=upscaled(s.ellipse, factor), support=s.support,
                                edge_support=s.edge_support,
                                residual_px=s.residual_px * factor) for s in found]
-    top = np.inf if max_axis_px is None else max_axis_px
-    return [s for s in found if s.ellipse.b >= min_axis_px and s.ellipse.a <= top
-            and s.support >= min_support]
+    return found
 
 
 def _check_bounds(min_axis_px: float, max_axis_px: float | None, min_support: float) -> None:
@@ -107,9 +120,52 @@ def _aligned(points: NDArray[np.float64], normals: NDArray[np.float64],
     return np.asarray(dot * dot >= min_cos ** 2 * (g0 * g0 + g1 * g1))
 
 
+def _normal_gradient(points: NDArray[np.float64], normals: NDArray[np.float64],
+                     grad: EdgeImage, offset: float) -> NDArray[np.float64]:
+    """(N,) signed gradient along the normal (Sobel units) at the pixel nearest each outline
+    sample moved ``offset`` px along its normal; 0 off the image."""
+    h, w = grad.gx.shape
+    q = np.rint(points + offset * normals).astype(np.int64)
+    inside = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
+    u, v = np.clip(q[:, 0], 0, w - 1), np.clip(q[:, 1], 0, h - 1)
+    g = grad.gx[v, u] * normals[:, 0] + grad.gy[v, u] * normals[:, 1]
+    return np.where(inside, g, 0.0)
+
+
+def _stroke_shares(found: list[ScoredEllipse], grad: EdgeImage, params: EllipsesParams
+                   ) -> list[float]:
+    """Per ellipse, the share of its supported outline samples along which a stroke's other
+    edge runs: an edge of the opposite polarity, at least ``stroke_min_ratio`` as strong as
+    the outline's own, between 2 px and the stroke reach outside or inside (see
+    :class:`~stackpick_sim.config.vision_params.EllipsesParams`). A disc's rim has none
+    along most of it; the two edges of a glyph's or a printed ring's stroke run side by
+    side."""
+    reach = [min(params.stroke_reach_px, params.stroke_reach_axis * s.ellipse.b)
+             for s in found]
+    if not found or params.stroke_reach_px < 2.0:
+        return [0.0] * len(found)
+    lines = outlines([s.ellipse for s in found])
+    pts, normals = lines.points, lines.normals
+    strong = contrast_profiles(lines, grad) >= contrast_threshold(grad)
+    near = np.stack([_normal_gradient(pts, normals, grad, d) for d in (-1.0, 0.0, 1.0)])
+    rim = np.take_along_axis(near, np.argmax(np.abs(near), axis=0)[None, :], axis=0)[0]
+    floor = np.maximum(params.stroke_min_ratio * np.abs(rim),
+                       contrast_threshold(grad) * SOBEL_GAIN)
+    sample_reach = np.repeat(np.asarray(reach), lines.counts)
+    partner = np.zeros(rim.shape, np.bool_)
+    for step in range(2, int(params.stroke_reach_px) + 1):
+        for d, within in ((step, True), (-step, step <= sample_reach)):
+            g = _normal_gradient(pts, normals, grad, float(d))
+            partner |= (g * rim < 0) & (np.abs(g) >= floor) & within
+    both = np.add.reduceat((partner & strong).astype(np.float64), lines.offsets[:-1])
+    supported = np.add.reduceat(strong.astype(np.float64), lines.offsets[:-1])
+    return (both / np.maximum(supported, 1.0)).tolist()
+
+
 def _scored(work: NDArray[np.uint8], limits: WorkLimits, params: EllipsesParams
-            ) -> list[ScoredEllipse]:
-    """Every merged and refitted ellipse of ``work`` with its scores, best first."""
+            ) -> tuple[list[ScoredEllipse], EdgeImage]:
+    """Every merged and refitted ellipse of ``work`` with its scores, best first, and the
+    image's edges and gradients."""
     from stackpick_sim.vision.segments import link_segments
 
     shape = (int(work.shape[0]), int(work.shape[1]))
@@ -123,7 +179,7 @@ def _scored(work: NDArray[np.uint8], limits: WorkLimits, params: EllipsesParams
                             [(k, e) for k, (_, _, e, _) in enumerate(fitted)], grad.edges,
                             [r for _, _, _, r in fitted])[:limits.max_ellipses]
     if not merged:
-        return []
+        return [], grad
     points, grads = edge_points(grad)
     refined = refine_all([m.ellipse for m in merged], points, grads, shape)
     lines = outlines(refined)
@@ -134,4 +190,4 @@ def _scored(work: NDArray[np.uint8], limits: WorkLimits, params: EllipsesParams
     out = [ScoredEllipse(ellipse=e, support=float(k / n), edge_support=m.support,
                          residual_px=m.residual_px)
            for e, m, k, n in zip(refined, merged, shares.tolist(), sizes.tolist(), strict=True)]
-    return sorted(out, key=lambda s: -s.support)
+    return sorted(out, key=lambda s: -s.support), grad
