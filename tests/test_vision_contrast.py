@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import Ellipse, mask_iou
 from stackpick_sim.vision.contrast import contrast_support, refit_on_contrast
 from stackpick_sim.vision.edges import EdgeImage, edge_image
@@ -97,3 +98,19 @@ def test_innermost_contrast_refit_finds_a_faint_boundary_inside_a_strong_one(
     assert strongest is not None and innermost is not None
     assert abs(strongest.a - outer.a) < 0.7 and abs(strongest.b - outer.b) < 0.7
     assert abs(innermost.a - inner.a) < 0.7 and abs(innermost.b - inner.b) < 0.7
+
+
+def test_contrast_refit_settings_bound_its_reach() -> None:
+    # The inner boundary 5 px inside the silhouette: beyond an inward reach of 3 px, so the
+    # innermost refit does not reach it in one round (nor, re-centred, on its whole outline).
+    outer, inner, grad = _nested_discs(5.0, 11)
+    short = refit_on_contrast(outer, grad, innermost=True,
+                              params=TopParams(contrast_inner_reach_px=3))
+    assert short is not None and short.a > inner.a + 1.0
+    wide = refit_on_contrast(outer, grad, innermost=True)
+    assert wide is not None and abs(wide.a - inner.a) < 0.7
+    # The lower disc's arc under the upper one shows no consistent edge: too little of its
+    # outline for a refit when nearly all of it must show.
+    grad = edge_image(faint_pair(step=8.0, noise=1.0, seed=0))
+    assert refit_on_contrast(LOWER, grad) is not None
+    assert refit_on_contrast(LOWER, grad, params=TopParams(contrast_min_share=0.9)) is None

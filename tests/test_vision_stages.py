@@ -22,12 +22,16 @@ from stackpick_sim.vision.params import (
     EdgeParams,
     FitParams,
     GateParams,
+    MergeParams,
+    PoseParams,
     RefineParams,
     ReportParams,
     RoiParams,
+    SegmentParams,
     TopParams,
 )
 from stackpick_sim.vision.roi import find_roi
+from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import Stage, StageError, State
 from stackpick_sim.vision.synthetic import draw_ellipses
 
@@ -147,12 +151,47 @@ def test_fit_settings_reach_the_fits(image: np.ndarray) -> None:
                   ).top is not None
 
 
+def test_segment_settings_reach_the_chains(image: np.ndarray) -> None:
+    cfg = load_scene("paper", ["vision.segments.min_chain_px=1000"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.segments == SegmentParams(min_chain_px=1000)
+    found = detect(image, replace(config, depth_range_m=None))
+    assert not found.ellipses and found.top is None  # no chain is that long
+    plain = link_segments(edge_image(image).edges)
+    coarse = link_segments(edge_image(image).edges, params=SegmentParams(poly_epsilon_px=4.0))
+    assert [c.shape[0] for c in coarse.chains] != [c.shape[0] for c in plain.chains]
+
+
+def test_merge_settings_reach_the_merge(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    plain = detect(image, config)
+    assert plain.ellipses
+    strict = detect(image, replace(config, merging=MergeParams(min_support=1.0)))
+    assert len(strict.ellipses) < len(plain.ellipses)  # no outline is supported all round
+    cfg = load_scene("paper", ["vision.merging.k=0.5", "vision.merging.tolerance_px=1.0"])
+    assert scene_detector_config(cfg, K, (0.2, 0.3)).merging == MergeParams(k=0.5,
+                                                                             tolerance_px=1.0)
+
+
 def test_refine_settings_reach_the_refit(image: np.ndarray) -> None:
     config = DetectorConfig(intrinsics=K)
     narrow = detect(image, replace(config, refine=RefineParams(tolerances_px=(0.5,))))
     assert _key(narrow) != _key(detect(image, config))  # fewer pixels along each outline
     never = detect(image, replace(config, refine=RefineParams(min_pixels=10_000)))
     assert _key(never) == _key(detect(image, config.without("refine")))
+
+
+def test_final_fit_settings_reach_the_pose(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    plain = detect(image, config)
+    assert plain.pose is not None
+    for pose in (PoseParams(subpixel_tolerance_px=0.3, profile_rounds=0),
+                 PoseParams(profile_min_share=1.0, subpixel_tolerance_px=0.3)):
+        moved = detect(image, replace(config, pose=pose))
+        assert moved.pose is not None and moved.pose != plain.pose
+    cfg = load_scene("paper", ["vision.pose.profile_rounds=2", "vision.refine.min_normal_cos=0.9"])
+    got = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert got.pose.profile_rounds == 2 and got.refine.min_normal_cos == 0.9
 
 
 def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
@@ -165,6 +204,14 @@ def test_roi_settings_reach_the_box(image: np.ndarray) -> None:
     ("vision.report.min_support=1.5", "vision.report.min_support = 1.5 is out of range; "
                                       "allowed: 0 to 1"),
     ("vision.gate.slack=[1.3, 1.2]", "vision.gate.slack = [1.3, 1.2] must be [low, high]"),
+    ("vision.segments.corner_angle_deg=200", "vision.segments.corner_angle_deg = 200.0 is out "
+                                             "of range; allowed: 1 to 180 deg"),
+    ("vision.merging.absorb_fraction=1.2", "vision.merging.absorb_fraction = 1.2 is out of "
+                                           "range; allowed: 0 to 1"),
+    ("vision.pose.profile_step_px=0", "vision.pose.profile_step_px = 0.0 is out of range; "
+                                      "allowed: 0.1 to 2 px"),
+    ("vision.top.contrast_rounds=0", "vision.top.contrast_rounds = 0 is out of range; "
+                                     "allowed: 1 to 10 rounds"),
     ("vision.roi.decimation=3", "vision.roi.decimation = 3 is out of range; allowed: a power"),
     ("vision.top.fallbacks=['rimmed', 'bogus']", "vision.top.fallbacks"),
     ("vision.report.rim_angle_deg=true", "has the wrong type"),

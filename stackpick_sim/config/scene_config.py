@@ -357,9 +357,9 @@ class VisionCfg(StageSections):
     keep the cost of any image fixed; deterministic, so seeded runs stay reproducible; the
     defaults lie well above a pile frame's counts and change nothing on the project's
     scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
-    ``[vision.fits]``, ``[vision.refine]``, ``[vision.gate]``, ``[vision.top]``,
-    ``[vision.report]``, ``[vision.pose]``, ``[vision.ellipses]``:
-    stackpick_sim/config/vision_params.py)."""
+    ``[vision.segments]``, ``[vision.fits]``, ``[vision.merging]``, ``[vision.refine]``,
+    ``[vision.gate]``, ``[vision.top]``, ``[vision.report]``, ``[vision.pose]``,
+    ``[vision.ellipses]``: stackpick_sim/config/vision_params.py)."""
 
     max_pixels: int = 640 * 480
     """Images with more pixels are detected on a copy downscaled by the smallest integer

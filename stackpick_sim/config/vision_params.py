@@ -134,6 +134,41 @@ class EdgeParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class SegmentParams(Section):
+    """``segments`` stage: edge pixels linked into ordered chains, cut at junctions, corners
+    and flips of the turning direction (:func:`~stackpick_sim.vision.segments.
+    link_segments`)."""
+
+    SECTION: ClassVar[str] = "segments"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_chain_px": (2, 1000, "px"), "poly_epsilon_px": (0.1, 10.0, "px"),
+        "corner_angle_deg": (1.0, 180.0, "deg"), "spike_min_deg": (0.0, 180.0, "deg"),
+        "spike_ratio": (1.0, 100.0, ""), "min_signed_turn_deg": (0.0, 90.0, "deg")}
+
+    min_chain_px: int = 6
+    """Chains shorter than this (px) are dropped: too short to constrain an ellipse."""
+    poly_epsilon_px: float = 1.0
+    """Tolerance (px) of the polygonal approximation whose vertices are read for turns: 1 px
+    keeps pixel staircases out of the polygon."""
+    corner_angle_deg: float = 80.0
+    """Turn (deg) at one polygon vertex above which it is a corner. With a 1 px tolerance a
+    vertex on an arc of curvature radius R turns by sqrt(8 / R) rad; the sharpest face end
+    expected (a = 15 px, b = 10 px, R = b^2 / a = 6.7 px) gives ~63 deg, so 80 deg keeps
+    every ellipse arc whole while a side wall meeting a face's arc is cut."""
+    spike_min_deg: float = 30.0
+    """A vertex turning by more than this (deg) and ``spike_ratio`` times either neighbour is
+    a corner too: along an ellipse arc consecutive vertices turn alike, so a lone sharp turn
+    is where one outline meets another (a T-junction Canny bridged without a junction
+    pixel)."""
+    spike_ratio: float = 2.0
+    """Ratio of a spike vertex's turn to either neighbour's (see ``spike_min_deg``)."""
+    min_signed_turn_deg: float = 4.0
+    """Polygon vertices turning by less than this (deg) carry no reliable turning sign (a
+    1 px staircase on a straight run), so they neither cut a chain nor set the sign a later
+    vertex is compared with."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class FitParams(Section):
     """``fitting`` stage: an ellipse-specific least-squares fit of every edge chain, a chain
     whose fit fails split in halves and retried (:func:`~stackpick_sim.vision.fitting.
@@ -156,13 +191,51 @@ class FitParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class MergeParams(Section):
+    """``merging`` stage: fits of one ellipse merged by the paper's Eq. 3, leftover segments
+    absorbed, each ellipse validated by its edge support (:func:`~stackpick_sim.vision.
+    merging.merge_segments`). The top rule's arc-pair regrouping and its T-junction test read
+    the defaults."""
+
+    SECTION: ClassVar[str] = "merging"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "k": (0.0, 1.0, ""), "tolerance_px": (0.3, 10.0, "px"),
+        "max_residual_px": (0.05, 5.0, "px"), "absorb_fraction": (0.0, 1.0, ""),
+        "min_support": (0.0, 1.0, "")}
+
+    k: float = 0.2
+    """Eq. 3 threshold [0, 1] on C = N_{A/B} N_{B/A}: two halves of one face extrapolate ~1 px
+    off each other's far side and score only 0.25-0.6, so k is low; wrong merges are kept
+    out by the refit checks instead (``max_residual_px``, ``absorb_fraction``). Arcs of two
+    different faces score ~0."""
+    tolerance_px: float = 1.5
+    """A pixel pertains to an ellipse within this distance, px: the RMS fit residual is
+    ~0.3 px on anti-aliased edges, and 1.5 px admits two pixels of quantisation either
+    way."""
+    max_residual_px: float = 0.4
+    """Largest RMS residual (px) of the refit on a merged pair, tighter than a single
+    segment's (``fits.max_residual_px``): arcs of two different but similar faces can be
+    fitted together to ~0.5 px while true arcs of one face refit to ~0.3 px."""
+    absorb_fraction: float = 0.9
+    """Share [0, 1] of a segment's pixels within ``tolerance_px`` of an ellipse for it to
+    stay on a merged refit or to be absorbed as a leftover: a low residual alone lets a big
+    ellipse pass between the arcs of two different faces."""
+    min_support: float = 0.4
+    """Share [0, 1] of its circumference along which a merged ellipse must have edge pixels
+    to be kept: a face half hidden under another object keeps ~0.5; a cylinder's far rim
+    (its wall's silhouette) also shows about half and is told apart later by the top
+    rule."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class RefineParams(Section):
     """``refine`` stage: each ellipse refitted on the edge pixels along it, in rounds of
     narrowing tolerance (:func:`~stackpick_sim.vision.refine.refine_all`)."""
 
     SECTION: ClassVar[str] = "refine"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "tolerances_px": (0.3, 20.0, "px"), "min_pixels": (5, 10_000, "px")}
+        "tolerances_px": (0.3, 20.0, "px"), "min_pixels": (5, 10_000, "px"),
+        "min_normal_cos": (0.0, 1.0, "")}
 
     tolerances_px: tuple[float, ...] = (2.5, 1.5, 1.2)
     """Collection tolerances (px) of the successive refits, one round each: the first admits
@@ -170,6 +243,11 @@ class RefineParams(Section):
     min_pixels: int = 20
     """Fewest edge pixels (px) collected along an ellipse for a refit; fewer keeps the fit in
     hand."""
+    min_normal_cos: float = 0.87
+    """Cosine [0, 1] of the largest angle between a collected edge pixel's gradient and the
+    ellipse's normal (0.87: 30 deg): a face's own edge runs along its outline, while the
+    outlines, walls and markings crossing it meet it at larger angles. The top face's final
+    sub-pixel refit holds to it too."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -229,7 +307,9 @@ class TopParams(Section):
 
     SECTION: ClassVar[str] = "top"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "hidden_min_support": (0.0, 1.0, "")}
+        "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
+        "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
+        "contrast_min_share": (0.0, 1.0, "")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -257,6 +337,25 @@ class TopParams(Section):
     """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
     hidden-face check: a face at least half visible, as the scoring counts faces (far rims
     and arcs of two outlines fitted together show about half theirs)."""
+    contrast_reach_px: int = 3
+    """Search reach (px) either side of the outline of the ``contrast`` fallback's refit on
+    the strongest consistent edge: a face fitted on a partial outline (same-colour neighbours
+    leave only faint edges) is off by up to ~3 px there (measured on rendered paper-scene
+    frames)."""
+    contrast_inner_reach_px: int = 6
+    """Inward search reach (px) of the contrast refit on the innermost consistent edge: a top
+    face lying on a lower face of its own colour and about its size ends at a faint boundary
+    a few px inside the lower face's strong silhouette (4-5 px on rendered paper-scene
+    frames: a rim offset of ~1.5 mm at 0.3 m); the face's smooth inside holds no other
+    edge. The rest check's refit of a face with its own rim inside holds to it too (the
+    band that rim is looked for in keeps the default width)."""
+    contrast_rounds: int = 2
+    """Contrast refit rounds, each re-centring the search on the previous fit: the first
+    moves a fit that is a few px off onto the faint edge, the second fits on it whole."""
+    contrast_min_share: float = 0.5
+    """Fewest samples with a consistent edge, as a share [0, 1] of the outline, for a
+    contrast refit (fewer: no refit): a face at least half visible, as the scoring counts
+    faces."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -332,8 +431,37 @@ class PoseParams(Section):
         "profile_window_margin_px": (2, 32, "px"), "min_band_samples": (1, 1000, "samples"),
         "band_tie": (0.0, 1.0, ""), "lone_band_min_share": (0.0, 1.0, ""),
         "wall_tie": (0.0, 1.0, ""), "wall_probe_radii": (0.1, 10.0, "radii"),
-        "wall_rim_points": (8, 1024, "points"), "wall_end_skip_px": (0.0, 50.0, "px")}
+        "wall_rim_points": (8, 1024, "points"), "wall_end_skip_px": (0.0, 50.0, "px"),
+        "subpixel_tolerance_px": (0.3, 10.0, "px"), "profile_reach_px": (0.5, 10.0, "px"),
+        "profile_step_px": (0.1, 2.0, "px"), "profile_rounds": (0, 10, "rounds"),
+        "profile_min_share": (0.0, 1.0, ""), "outlier_medians": (1.0, 100.0, ""),
+        "outlier_min_px": (0.0, 10.0, "px")}
 
+    subpixel_tolerance_px: float = 1.2
+    """Collection tolerance (px) of the top face's sub-pixel refit on the edge pixels along
+    it: the edge refit's last round leaves the face's own edge pixels within ~1 px."""
+    profile_reach_px: float = 2.0
+    """Reach (px) either side of the outline of the gradient-profile refit that follows:
+    covers the sub-pixel refit's error on a face whose faint arcs the edge map dropped."""
+    profile_step_px: float = 0.5
+    """Spacing (px) of the samples along each normal of the profile search: the peak is
+    placed by a parabola through its neighbours, so half a pixel resolves a blurred edge's
+    profile without the cost of a finer grid."""
+    profile_rounds: int = 1
+    """Profile refit rounds, each re-centring the search on the previous fit (0: none): one
+    starts from the sub-pixel refit, already within a fraction of a pixel, and a second does
+    not move rendered faces further."""
+    profile_min_share: float = 0.5
+    """Fewest outline samples with a gradient peak, as a share [0, 1] of the outline, for a
+    profile refit (fewer keeps the fit in hand): a face at least half visible, as the scoring
+    counts faces."""
+    outlier_medians: float = 3.0
+    """Profile peaks whose distance to the first profile fit exceeds this multiple of the
+    median distance (and ``outlier_min_px``) are dropped before the final fit: a neighbour's
+    edge met where two outlines run close."""
+    outlier_min_px: float = 0.3
+    """Least outlier distance (px): on a clean outline the median distance is a few
+    hundredths of a pixel, and peaks within a third of a pixel are the face's own."""
     profile_window_margin_px: int = 3
     """Margin, px, beyond the profile search of the window whose unblurred gradients the top
     face's final fit reads: Sobel's 3x3 footprint and the bilinear neighbour."""
@@ -409,7 +537,9 @@ class StageSections:
 
     roi: RoiParams = field(default_factory=RoiParams)
     edges: EdgeParams = field(default_factory=EdgeParams)
+    segments: SegmentParams = field(default_factory=SegmentParams)
     fits: FitParams = field(default_factory=FitParams)
+    merging: MergeParams = field(default_factory=MergeParams)
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
@@ -228,25 +229,19 @@ def contrast_support(ellipse: Ellipse, image: EdgeImage,
     return contrast_profile(ellipse, image, samples) >= contrast_threshold(image)
 
 
-#: Search reach (px) either side of the outline for the contrast refit: a face fitted on a
-#: partial outline (same-colour neighbours leave only faint edges) is off by up to ~3 px
-#: there (measured on rendered paper-scene frames).
-REFIT_REACH_PX = 3
-#: Inward search reach (px) of the innermost-edge refit: a top face lying on a lower face of
-#: its own colour and about its size ends at a faint boundary up to a few px inside the lower
-#: face's strong silhouette (4-5 px on rendered paper-scene frames: a rim offset of 5 px is
-#: ~1.5 mm at the paper scene's 0.3 m); the face's smooth inside holds no other edge.
-REFIT_INNER_REACH_PX = 6
-#: Contrast refit rounds (each re-centres the search on the previous fit).
-REFIT_ROUNDS = 2
-#: Fewest supported samples, as a share of the outline, for a contrast refit.
-REFIT_MIN_SHARE = 0.5
+#: The default settings of the contrast refit (the ``contrast_*`` fields of TopParams: the
+#: reasons for each).
+REFIT_DEFAULT = TopParams()
+#: The inward reach (px) of the innermost-edge refit, by default (the top rule's rim band
+#: is as wide).
+REFIT_INNER_REACH_PX = REFIT_DEFAULT.contrast_inner_reach_px
 
 
-def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False
-                      ) -> Ellipse | None:
-    """Refit ``ellipse`` on the strongest consistent edge within REFIT_REACH_PX across each
-    outline sample, or None when too little of the outline shows one.
+def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False,
+                      params: TopParams = REFIT_DEFAULT) -> Ellipse | None:
+    """Refit ``ellipse`` on the strongest consistent edge within ``params.contrast_reach_px``
+    across each outline sample, or None when less than ``params.contrast_min_share`` of the
+    outline shows one (in ``params.contrast_rounds`` rounds).
 
     Unlike the edge-map refit (:func:`~stackpick_sim.vision.refine.refine`) this sees edges
     too faint for Canny's global threshold, such as the boundary between two faces of one
@@ -255,13 +250,15 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     With ``innermost`` each sample takes the innermost local peak of the contrast that
     passes the threshold instead of the strongest: a top face over a lower face of its own
     colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
-    on both outlines is too large. The search then reaches REFIT_INNER_REACH_PX inward.
+    on both outlines is too large. The search then reaches ``params.contrast_inner_reach_px``
+    inward.
     """
     current = ellipse
     h, w = image.gx.shape
-    inward = REFIT_INNER_REACH_PX if innermost else REFIT_REACH_PX
-    offsets = np.arange(-inward, REFIT_REACH_PX + 1, dtype=np.float64)
-    for _ in range(REFIT_ROUNDS):
+    reach = params.contrast_reach_px
+    inward = params.contrast_inner_reach_px if innermost else reach
+    offsets = np.arange(-inward, reach + 1, dtype=np.float64)
+    for _ in range(params.contrast_rounds):
         pts, normals = outline(current)
         q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]  # (n, k, 2)
         u = np.clip(np.rint(q[..., 0]).astype(np.int64), 0, w - 1)
@@ -282,7 +279,7 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
             best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
         strength = mag[np.arange(best.size), best]
         ok = strength >= contrast_threshold(image)
-        if np.count_nonzero(ok) < REFIT_MIN_SHARE * ok.size:
+        if np.count_nonzero(ok) < params.contrast_min_share * ok.size:
             return None
         fit = fit_ellipse(q[np.flatnonzero(ok), best[ok]])
         if fit is None:

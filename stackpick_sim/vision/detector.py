@@ -36,6 +36,7 @@ from stackpick_sim.config.vision_params import (
     PoseParams,
     ReportParams,
     StageSections,
+    TopParams,
     sections_of,
 )
 from stackpick_sim.exceptions import ConfigError
@@ -92,7 +93,6 @@ from stackpick_sim.vision.occlusion import (
 )
 from stackpick_sim.vision.pose import Pose, estimate_pose
 from stackpick_sim.vision.refine import (
-    PROFILE_REACH_PX,
     edge_points,
     refine_all,
     refine_on_profile,
@@ -130,6 +130,8 @@ DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "top", "pose")
 #: The report settings' defaults (the helpers' default argument).
 DEFAULT_REPORT = ReportParams()
+#: The top rule's default settings.
+DEFAULT_TOP = TopParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -151,8 +153,8 @@ class DetectorConfig(StageSections):
     relief inside a face (ratios; the scene's ``vision`` keys of those names, see
     :mod:`~stackpick_sim.vision.markings`).
 
-    ``roi``, ``edges``, ``fits``, ``refine``, ``gate``, ``top``, ``report``, ``pose``: each
-    stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
+    ``roi``, ``edges``, ``segments``, ``fits``, ``merging``, ``refine``, ``gate``, ``top``,
+    ``report``, ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
     :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
@@ -346,7 +348,7 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
     """The edge chains (:func:`~stackpick_sim.vision.segments.link_segments`), the
     ``limits.max_chains`` longest."""
     cap = config.limits.max_chains
-    segments = link_segments(state.edges("segments").edges, cap).chains
+    segments = link_segments(state.edges("segments").edges, cap, config.segments).chains
     if len(segments) > cap:
         segments = tuple(segments[i] for i in longest(segments, cap))
     return state.updated(segments=segments)
@@ -365,7 +367,8 @@ def merging_stage(state: State, config: DetectorConfig) -> State:
     the ``limits.max_ellipses`` best-supported."""
     fits = state.fits
     merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
-                            state.edges("merging").edges, [f[3] for f in fits])
+                            state.edges("merging").edges, [f[3] for f in fits],
+                            config.merging)
     return state.updated(merged=_best_supported(merged, config.limits.max_ellipses))
 
 
@@ -401,7 +404,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         # None passed the rule outright: faces with markings the merge never fitted.
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if config.top.rest_check and choice.index is not None:
-        choice = _rest_check(state, merged, choice, cues)
+        choice = _rest_check(state, merged, choice, cues, config.top)
     if (config.top.hidden_check and choice.index is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
@@ -413,17 +416,17 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     return state.updated(cues=cues, merged=merged, choice=choice)
 
 
-def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues
-                ) -> TopChoice:
+def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                params: TopParams = DEFAULT_TOP) -> TopChoice:
     """``choice``, unless a whole lower face that the chosen top face rests on takes it (that
     face's fit taking in a same-colour sliver beyond it: :func:`~stackpick_sim.vision.
-    occlusion.select_resting_rimmed`); unchanged without the kinds' radii and heights or
-    without colour."""
+    occlusion.select_resting_rimmed`, with the contrast refit's ``params``); unchanged
+    without the kinds' radii and heights or without colour."""
     if cues.radius_of is None or cues.height_of is None or cues.rgb is None:
         return choice
     above = select_resting_rimmed([m.ellipse for m in merged], choice, state.edges("top"),
                                   state.points, cues.k_crop, cues.radius_of, cues.height_of,
-                                  cues.rgb, cues.belt)
+                                  cues.rgb, cues.belt, params)
     return choice if above is None else replace(choice, index=above)
 
 
@@ -461,8 +464,9 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
 def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
     work, grad = state.work, state.edges("pose")
-    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop)
-    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose.profile_window_margin_px)
+    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
+                                  config.pose, config.refine.min_normal_cos)
+    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).
     face = face_colour(top_ellipse, work) if work.ndim == 3 else None
@@ -590,7 +594,7 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # nearly whole face than the top.
         merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, found.crop,
                                                     found.gate, limits.max_refits,
-                                                    config.report.min_support)
+                                                    config.report.min_support, config.top)
     if retried:
         choice = _select([m.ellipse for m in merged], found, cues)
     if retried and choice.index is not None:
@@ -819,7 +823,8 @@ def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, fl
 def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvidence, ...],
                        grad: EdgeImage, shape: tuple[int, int],
                        gate: tuple[float, float] | None = None, max_refits: int = 8,
-                       min_support: float = DEFAULT_REPORT.min_support
+                       min_support: float = DEFAULT_REPORT.min_support,
+                       params: TopParams = DEFAULT_TOP
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
@@ -830,7 +835,8 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     ellipses, whether any changed, and, when none passed, the refit
     :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
     size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
-    refits, refit, its evidence), else None."""
+    refits, refit, its evidence), else None. ``params``: the refit's reach, rounds and least
+    share (the ``contrast_*`` fields)."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= min_support]
     if len(todo) > max_refits:  # the best-supported, in their order
@@ -839,7 +845,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     # Refits outside the size gate are no faces, as fits are not (a refit onto an inner
     # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
-             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost)) is not None
+             if (r := refit_on_contrast(merged[i].ellipse, grad, innermost, params)) is not None
              and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
@@ -1063,12 +1069,12 @@ def _same_outlines(ellipses: list[Ellipse], indices: list[int],
 
 
 def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
-                   window_margin_px: int = PoseParams.profile_window_margin_px) -> Ellipse:
+                   params: PoseParams) -> Ellipse:
     """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
     gradients of the window of ``work`` around it (the window keeps the cost per face),
-    ``window_margin_px`` beyond the profile search."""
+    ``params.profile_window_margin_px`` beyond the profile search."""
     u0, v0, u1, v1 = ellipse.bounds()
-    margin = PROFILE_REACH_PX + window_margin_px
+    margin = params.profile_reach_px + params.profile_window_margin_px
     h, w = work.shape[:2]
     c0, r0 = max(0, math.floor(u0 - margin)), max(0, math.floor(v0 - margin))
     c1, r1 = min(w, math.ceil(u1 + margin) + 1), min(h, math.ceil(v1 + margin) + 1)
@@ -1077,7 +1083,7 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
     box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
     raw = unblurred_gradients(window, box)
-    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0))
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params)
     return _moved(fit, c0, r0)
 
 

@@ -1,7 +1,7 @@
 """Stage 4: merge segment ellipses that describe the same ellipse (paper Eq. 3), then validate.
 
-``N_{A/B}`` is the share of segment A's pixels lying within ``MERGE_TOLERANCE_PX`` of the
-ellipse fitted to B. Two groups merge when ``C = N_{A/B} * N_{B/A} > MERGE_K`` and the refit on
+``N_{A/B}`` is the share of segment A's pixels lying within ``tolerance_px`` of the ellipse
+fitted to B. Two groups merge when ``C = N_{A/B} * N_{B/A} > k`` and the refit on
 their union still fits; the best pair merges first and the counts are recomputed after every
 merge until no pair qualifies (the product is symmetric, so a short arc whose own ellipse is
 poorly constrained cannot absorb a long one by accident).
@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import MergeParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
@@ -42,26 +43,22 @@ from stackpick_sim.vision.fitting import (
     within_pairs,
 )
 
-#: Eq. 3 threshold k on C = N_{A/B} N_{B/A}. Two halves of one face extrapolate ~1 px off
-#: each other's far side and score only 0.25-0.6 (measured), so k is low; wrong merges are
-#: kept out by the refit checks instead (MERGE_MAX_RESIDUAL_PX and every part staying on the
-#: union's ellipse). Arcs of two different faces score ~0.
-MERGE_K = 0.2
-#: A pixel "pertains to" an ellipse within this distance, px: the RMS fit residual is ~0.3
-#: px on anti-aliased edges, and 1.5 px admits two pixels of quantisation either way.
-MERGE_TOLERANCE_PX = 1.5
-#: Largest RMS residual (px) of the refit on a merged pair. Tighter than a single segment's
-#: MAX_RESIDUAL_PX: two arcs of different but similar faces can be fitted together to ~0.5 px
-#: while true arcs of one face refit to ~0.3 px.
-MERGE_MAX_RESIDUAL_PX = 0.4
-#: A leftover segment joins an ellipse when this share of its pixels lies on it.
-ABSORB_FRACTION = 0.9
-#: Circumference samples are checked against the edge map dilated by this radius, px.
+#: The default settings (see MergeParams: the reasons for each).
+DEFAULT = MergeParams()
+#: The defaults by name, which the top rule's arc-pair regrouping and T-junction test read:
+#: the Eq. 3 threshold, the pertaining distance (px), the largest RMS residual of a merged
+#: refit (px), the share of a segment's pixels that must lie on a merged ellipse, and the
+#: least edge support of a kept ellipse.
+MERGE_K = DEFAULT.k
+MERGE_TOLERANCE_PX = DEFAULT.tolerance_px
+MERGE_MAX_RESIDUAL_PX = DEFAULT.max_residual_px
+ABSORB_FRACTION = DEFAULT.absorb_fraction
+MIN_SUPPORT = DEFAULT.min_support
+#: Circumference samples are checked against the edge map dilated by this radius, px: one
+#: pixel of quantisation either way. Not a setting: it defines the support measure itself,
+#: which the merge, the top rule and the report all read, and against which their support
+#: thresholds are set; changed in one place, their supports would no longer compare.
 SUPPORT_RADIUS_PX = 1
-#: A final ellipse must have edge pixels along at least this share of its circumference.
-#: A face half hidden under another object keeps ~0.5; a cylinder's far rim (its wall's
-#: silhouette) also shows about half and is told apart later by the occlusion tests.
-MIN_SUPPORT = 0.4
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -184,15 +181,16 @@ class _Groups:
         """The groups not merged into another."""
         return [g for g, e in enumerate(self.ellipses) if e is not None]
 
-    def join(self, gi: int, gj: int, merged: Ellipse, d: NDArray[np.float64]) -> None:
+    def join(self, gi: int, gj: int, merged: Ellipse, d: NDArray[np.float64],
+             tol_px: float = MERGE_TOLERANCE_PX) -> None:
         """Merge group ``gj`` into ``gi``, whose ellipse becomes ``merged`` (``d``: the
-        distances of every piece pixel to it)."""
+        distances of every piece pixel to it; ``tol_px``: the pertaining distance)."""
         self.ellipses[gi], self.ellipses[gj] = merged, None
         self.rest = None  # the later chains' pairs are for the fits as they were
         self.members[gi] += self.members[gj]
         self.owner[self.owner == gj] = gi
         other = (self.pair_g != gi) & (self.pair_g != gj)
-        close = (d < MERGE_TOLERANCE_PX).nonzero()[0]
+        close = (d < tol_px).nonzero()[0]
         self.pair_g = np.concatenate([self.pair_g[other], np.full(close.shape[0], gi)])
         self.pair_p = np.concatenate([self.pair_p[other], close])
 
@@ -209,8 +207,8 @@ class _Pieces:
 
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
-                   edges: NDArray[np.uint8], residuals: Sequence[float] | None = None
-                   ) -> list[MergedEllipse]:
+                   edges: NDArray[np.uint8], residuals: Sequence[float] | None = None,
+                   params: MergeParams = DEFAULT) -> list[MergedEllipse]:
     """Merge per-segment fits by Eq. 3, absorb leftovers, validate by support.
 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
@@ -218,7 +216,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ``edges`` the (H, W) 0/1 edge map; ``residuals`` the RMS residual (px) of each fit on
     its own segment, parallel to ``fits``, when known (:func:`~stackpick_sim.vision.fitting.
     fit_all` gives them): a group that stays that one fit keeps it rather than have it
-    computed again. Returns ellipses sorted by support, best first.
+    computed again. ``params``: the merge's settings. Returns ellipses sorted by support,
+    best first.
 
     Each group's pixels within tolerance are found once, when its ellipse is (re)fitted; a
     refused pair changes nothing, so the next best pair is read off the same counts.
@@ -231,8 +230,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     # chains' pixels come in the same pass and serve the absorbing step while no merge
     # changes an ellipse.
     leading = seg_of_piece == list(range(len(fits)))
-    pieces, state = _start(chains, fits, leading)
-    while _merge_best(state, pieces, shape):
+    pieces, state = _start(chains, fits, leading, params.tolerance_px)
+    while _merge_best(state, pieces, shape, params):
         pass
     # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
     kept = state.alive()
@@ -247,13 +246,13 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
            for g, m in enumerate(state.members)]
     return _absorb_and_validate(chains, state.members, state.ellipses, edges,
                                 (final_g, state.pair_p, pieces.points.shape[0]) if leading
-                                else None, state.rest, pieces.everything, own)
+                                else None, state.rest, pieces.everything, own, params)
 
 
 def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
-           leading: bool) -> tuple[_Pieces, _Groups]:
+           leading: bool, tol_px: float = MERGE_TOLERANCE_PX) -> tuple[_Pieces, _Groups]:
     """The pieces' pixels and the merge's first state (a group per fit), with the (group,
-    pixel) pairs within tolerance of each fit; when the pieces are the ``leading`` chains,
+    pixel) pairs within ``tol_px`` of each fit; when the pieces are the ``leading`` chains,
     those of the later chains' pixels too (:attr:`_Groups.rest`)."""
     seg_of_piece = [i for i, _ in fits]
     params = ellipse_params([e for _, e in fits])
@@ -264,14 +263,14 @@ def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]
         everything = all_pixels.astype(np.float64)
         done = sum(chains[i].shape[0] for i in seg_of_piece)
         pixels, points = all_pixels[:done], everything[:done]  # int32: the fits' input
-        g_all, p_all = within_pairs(params, everything, MERGE_TOLERANCE_PX)
+        g_all, p_all = within_pairs(params, everything, tol_px)
         piece = p_all < done
         pair_g, pair_p = g_all[piece], p_all[piece]
         rest = (g_all[~piece], p_all[~piece])
     else:
         pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
         points = pixels.astype(np.float64)
-        pair_g, pair_p = within_pairs(params, points, MERGE_TOLERANCE_PX)
+        pair_g, pair_p = within_pairs(params, points, tol_px)
     owner = np.arange(len(fits)).repeat([chains[i].shape[0] for i in seg_of_piece])
     state = _Groups(members=[[i] for i in seg_of_piece], ellipses=[e for _, e in fits],
                     owner=owner, pair_g=pair_g, pair_p=pair_p, rest=rest)
@@ -299,7 +298,8 @@ def _pair_scores(state: _Groups, alive: list[int]) -> NDArray[np.float64]:
     return c
 
 
-def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int]) -> bool:
+def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
+                params: MergeParams = DEFAULT) -> bool:
     """Merge the best-scoring pair of groups whose union refits (refusing, in turn, those
     that do not); whether a pair merged."""
     alive = state.alive()
@@ -308,22 +308,23 @@ def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int]) -> bool
     c = _pair_scores(state, alive)
     while True:
         bi, bj = divmod(int(c.argmax()), len(alive))
-        if c[bi, bj] <= MERGE_K:
+        if c[bi, bj] <= params.k:
             return False
         gi, gj = alive[bi], alive[bj]
-        union = _union_fit(pieces, state.owner, (gi, gj), shape)
+        union = _union_fit(pieces, state.owner, (gi, gj), shape, params)
         if union is None:
             state.refused.add((gi, gj))
             c[bi, bj] = c[bj, bi] = 0.0
             continue
-        state.join(gi, gj, *union)
+        state.join(gi, gj, *union, params.tolerance_px)
         return True
 
 
 def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int],
-               shape: tuple[int, int]) -> tuple[Ellipse, NDArray[np.float64]] | None:
+               shape: tuple[int, int], params: MergeParams = DEFAULT
+               ) -> tuple[Ellipse, NDArray[np.float64]] | None:
     """The refit on the union of two ``groups`` and the distances of every piece pixel to
-    it, when it is plausible, within MERGE_MAX_RESIDUAL_PX and keeps each group on it
+    it, when it is plausible, within ``params.max_residual_px`` and keeps each group on it
     (:func:`_keeps_members`); None otherwise."""
     gi, gj = groups
     in_union = (owner == gi) | (owner == gj)
@@ -331,8 +332,9 @@ def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int
     if merged is None or not plausible(merged, shape):
         return None
     d = ellipse_distances(merged, pieces.points)
-    if (float(np.sqrt(np.mean(d[in_union] ** 2))) > MERGE_MAX_RESIDUAL_PX
-            or not _keeps_members(d < MERGE_TOLERANCE_PX, owner, groups)):
+    if (float(np.sqrt(np.mean(d[in_union] ** 2))) > params.max_residual_px
+            or not _keeps_members(d < params.tolerance_px, owner, groups,
+                                  params.absorb_fraction)):
         return None
     return merged, d
 
@@ -347,15 +349,15 @@ def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list
                for s in extra)
 
 
-def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int]
-                   ) -> bool:
-    """True when ABSORB_FRACTION of each merged group's pixels lie on the refit ellipse
+def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int],
+                   fraction: float = ABSORB_FRACTION) -> bool:
+    """True when ``fraction`` of each merged group's pixels lie on the refit ellipse
     (``on``: (N,) pixel within tolerance of it).
 
     A low RMS residual alone lets a big ellipse pass between the arcs of two different
     faces; requiring each part to stay on the union's ellipse does not.
     """
-    return all(float(on[owner == g].mean()) >= ABSORB_FRACTION for g in groups)
+    return all(float(on[owner == g].mean()) >= fraction for g in groups)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -401,18 +403,19 @@ class _Chains:
 
 def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
                     known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None,
-                    rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None
-                    ) -> list[list[int]]:
-    """Per group, the segments (ascending) with ABSORB_FRACTION of their pixels within
-    tolerance of its ellipse (``known``, ``rest``: see :func:`_absorb_and_validate`)."""
-    params = ellipse_params([e for _, e in groups])
+                    rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+                    params: MergeParams = DEFAULT) -> list[list[int]]:
+    """Per group, the segments (ascending) with ``params.absorb_fraction`` of their pixels
+    within ``params.tolerance_px`` of its ellipse (``known``, ``rest``: see
+    :func:`_absorb_and_validate`; ``known`` and ``rest`` hold to that tolerance)."""
+    rows = ellipse_params([e for _, e in groups])
     # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
     if known is None:
-        g_on, p_on = within_pairs(params, table.points, MERGE_TOLERANCE_PX)
+        g_on, p_on = within_pairs(rows, table.points, params.tolerance_px)
     else:
         g_known, p_known, done = known
         if rest is None:
-            g_rest, p_rest = within_pairs(params, table.points[done:], MERGE_TOLERANCE_PX)
+            g_rest, p_rest = within_pairs(rows, table.points[done:], params.tolerance_px)
             p_rest = p_rest + done
         else:
             g_rest, p_rest = rest
@@ -424,7 +427,7 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
                        minlength=len(groups) * n_chains).reshape(len(groups), n_chains)
     frac = hits / np.array(table.sizes, np.float64)[None, :]
     lying: list[list[int]] = [[] for _ in groups]
-    on_g, on_s = (frac >= ABSORB_FRACTION).nonzero()
+    on_g, on_s = (frac >= params.absorb_fraction).nonzero()
     for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
         lying[g].append(s)
     return lying
@@ -502,7 +505,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                          known: tuple[NDArray[np.int64], NDArray[np.int64], int] | None = None,
                          rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
                          everything: NDArray[np.float64] | None = None,
-                         own: Sequence[float | None] | None = None) -> list[MergedEllipse]:
+                         own: Sequence[float | None] | None = None,
+                         params: MergeParams = DEFAULT) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit (unless they only repeat
     its pixels), keep supported ones.
 
@@ -511,20 +515,21 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     pixels too (pixel indices into all of ``chains``), when also computed; ``everything``:
     all the chains' pixels concatenated (float64), when at hand; ``own``: per group, the RMS
     residual of its ellipse on its own segments when known (None: not known), which stands
-    for the residual on them and on extras that only repeat their pixels."""
+    for the residual on them and on extras that only repeat their pixels; ``params``: the
+    absorbing share, the tolerance and the least support kept."""
     alive = [g for g, e in enumerate(ellipses) if e is not None]
     groups = [(sorted(set(members[g])), e) for g in alive if (e := ellipses[g]) is not None]
     if not groups:
         return []
     known_rms = [None if own is None else own[g] for g in alive]
     table = _Chains.of(chains, everything)
-    lying = _lying_segments(table, groups, known, rest)
+    lying = _lying_segments(table, groups, known, rest, params)
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     refits, refit_rms = _refits(chains, groups, extras, shape)
     finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table)
     shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
-           for k, (segs, e) in enumerate(finals) if shares[k] >= MIN_SUPPORT]
+           for k, (segs, e) in enumerate(finals) if shares[k] >= params.min_support]
     out.sort(key=lambda m: -m.support)
     return out

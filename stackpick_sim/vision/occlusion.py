@@ -54,9 +54,11 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import (
+    REFIT_DEFAULT,
     REFIT_INNER_REACH_PX,
     contrast_profiles,
     contrast_threshold,
@@ -434,7 +436,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
                           edge_points: NDArray[np.float64], intrinsics: CameraIntrinsics,
                           radius_of: Callable[[Ellipse], float | None],
                           height_of: Callable[[float], float | None], image: NDArray[np.uint8],
-                          belt: NDArray[np.float64] | None = None) -> int | None:
+                          belt: NDArray[np.float64] | None = None,
+                          params: TopParams = REFIT_DEFAULT) -> int | None:
     """Index of a :func:`rim_only` ellipse whose object rests on the chosen face's, or None.
 
     The top rule's choice can be a whole lower face with a top face resting on it whose fit
@@ -451,7 +454,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     frame in fifty of the paper scene's; one in nine has a rimmed face): the fit is too large,
     so it reads nearer than its face is, and a face reading farther lies below the chosen
     one; such a lower face resting on it (a lean on its wall, below its face) is left to the
-    top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands."""
+    top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands;
+    ``params``: the contrast refit's settings (the ``contrast_*`` fields)."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
@@ -469,7 +473,7 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
               and own / ellipses[i].a < depth]
     above = []
     for i in nearer:
-        face = refit_on_contrast(ellipses[i], edges, True) or ellipses[i]
+        face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
         if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt)[0]:
             above.append(i)
     return _best_supported(above, ellipses, evidence) if above else None

@@ -21,7 +21,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import RefineParams
+from stackpick_sim.config.vision_params import PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
@@ -33,15 +33,16 @@ from stackpick_sim.vision.wall import column_median
 DEFAULT = RefineParams()
 #: Collection tolerances (px) of the successive refits, by default.
 TOLERANCES_PX: tuple[float, ...] = DEFAULT.tolerances_px
-#: Largest angle between an edge pixel's gradient and the ellipse normal, as its cosine
-#: (30 deg): crossing outlines meet at larger angles.
-MIN_NORMAL_COS = 0.87
+#: Largest angle between an edge pixel's gradient and the ellipse normal, as its cosine,
+#: by default.
+MIN_NORMAL_COS = DEFAULT.min_normal_cos
 #: Fewest collected pixels for a refit (fewer keeps the previous ellipse), by default.
 MIN_PIXELS = DEFAULT.min_pixels
-#: Collection tolerance (px) of the final sub-pixel refit of the top face.
-SUBPIXEL_TOLERANCE_PX = 1.2
+#: The default settings of the top face's final fit (see PoseParams: the reasons for each).
+POSE_DEFAULT = PoseParams()
 #: Largest sub-pixel shift (px) accepted along the gradient: the magnitude peak of a
-#: non-maximum-suppressed pixel lies within half a pixel of it.
+#: non-maximum-suppressed pixel lies within half a pixel of it. Not a setting: it follows
+#: from the edge map's geometry, not from a trade-off.
 MAX_SHIFT_PX = 0.5
 
 
@@ -83,9 +84,13 @@ def _subpixel_columns(image: EdgeImage, u: NDArray[np.float64], v: NDArray[np.fl
 
 
 def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
-                    grads: NDArray[np.float64], shape: tuple[int, int]) -> Ellipse:
+                    grads: NDArray[np.float64], shape: tuple[int, int],
+                    params: PoseParams = POSE_DEFAULT, min_normal_cos: float = MIN_NORMAL_COS
+                    ) -> Ellipse:
     """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
-    unit gradients (M, 2) along it (within SUBPIXEL_TOLERANCE_PX, gradient normal to it)."""
+    unit gradients (M, 2) along it (within ``params.subpixel_tolerance_px``, gradient within
+    the ``min_normal_cos`` cone of its normal)."""
+    tol = params.subpixel_tolerance_px
     def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.ascontiguousarray(c, np.float64)
 
@@ -93,9 +98,8 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
     # along it, their sub-pixel positions (float32: the fit's input type).
     pts = kernels.subpixel_along(col(points[:, 0]), col(points[:, 1]), col(grads[:, 0]),
                                  col(grads[:, 1]), np.array(_form(ellipse)),
-                                 ellipse.a + SUBPIXEL_TOLERANCE_PX + 1,
-                                 4.0 * SUBPIXEL_TOLERANCE_PX * SUBPIXEL_TOLERANCE_PX,
-                                 MIN_NORMAL_COS * MIN_NORMAL_COS, image.gx, image.gy,
+                                 ellipse.a + tol + 1, 4.0 * tol * tol,
+                                 min_normal_cos * min_normal_cos, image.gx, image.gy,
                                  MAX_SHIFT_PX)
     if pts.shape[0] < MIN_PIXELS:
         return ellipse
@@ -226,7 +230,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
         forms = np.array([_form(e) for e in current], np.float64)
         sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
                                                pair_points, 4.0 * tol * tol,
-                                               MIN_NORMAL_COS * MIN_NORMAL_COS)
+                                               params.min_normal_cos * params.min_normal_cos)
         bounds = at.tolist()
         for e in active.nonzero()[0].tolist():
             lo, hi = bounds[e], bounds[e + 1]
@@ -244,58 +248,42 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     return current
 
 
-#: Search reach (px) either side of the outline for the profile refit, in PROFILE_STEP_PX
-#: steps: covers the sub-pixel refit's error on a face whose faint arcs Canny dropped.
-PROFILE_REACH_PX = 2.0
-PROFILE_STEP_PX = 0.5
-#: The search offsets, px.
-PROFILE_STEPS = np.arange(-PROFILE_REACH_PX, PROFILE_REACH_PX + 1e-9, PROFILE_STEP_PX)
-PROFILE_STEPS.setflags(write=False)
-#: The same, writable: the compiled pass's argument type (a read-only array is another).
-_STEPS = PROFILE_STEPS.copy()
-#: Profile refit rounds (each re-centres the search on the previous fit). One: it starts
-#: from the sub-pixel refit, already within a fraction of a pixel (a second round does not
-#: help on rendered paper-scene frames).
-PROFILE_ROUNDS = 1
-#: Samples whose residual to the first profile fit exceeds this multiple of the median
-#: residual (and OUTLIER_MIN_PX) are dropped before the final fit: a neighbour's edge met
-#: where two outlines run close.
-OUTLIER_MEDIANS = 3.0
-OUTLIER_MIN_PX = 0.3
-#: Fewest accepted samples, as a share of the outline, for a profile refit.
-PROFILE_MIN_SHARE = 0.5
-
-
-def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]) -> Ellipse:
+def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int],
+                      params: PoseParams = POSE_DEFAULT) -> Ellipse:
     """Refit ``ellipse`` on the sub-pixel gradient peaks across its whole outline.
 
     Along each outline sample's normal the normal gradient is read (bilinear) every
-    PROFILE_STEP_PX within PROFILE_REACH_PX; the strongest interior peak, placed by a
-    parabola through its neighbours, is kept when it reaches the consistent-contrast
-    threshold (:func:`~stackpick_sim.vision.contrast.contrast_threshold`, per sample). Unlike
+    ``params.profile_step_px`` within ``params.profile_reach_px``; the strongest interior
+    peak, placed by a parabola through its neighbours, is kept when it reaches the
+    consistent-contrast threshold (:func:`~stackpick_sim.vision.contrast.contrast_threshold`,
+    per sample). Unlike
     :func:`refine_subpixel` this does not need Canny's edge pixels, so a face whose boundary
     with a same-coloured neighbour is faint is fitted on its whole outline, not on the strong
-    arcs only. Returns ``ellipse`` when too little of the outline shows a peak.
+    arcs only. Returns ``ellipse`` when too little of the outline shows a peak (see
+    :class:`~stackpick_sim.config.vision_params.PoseParams` for the rounds and the outliers).
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
+    reach, step, least = params.profile_reach_px, params.profile_step_px, params.profile_min_share
+    steps = np.arange(-reach, reach + 1e-9, step)  # the search offsets, px
     current = ellipse
-    for round_ in range(PROFILE_ROUNDS):
+    for round_ in range(params.profile_rounds):
         pu, pv, nu, nv = _outline_columns(current)
         n = pu.shape[0]
         # The (n, k) sample grid across the outline and each sample's peak, in one pass.
-        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, _STEPS,
-                                      PROFILE_STEP_PX, threshold)
-        if peaks.shape[0] < PROFILE_MIN_SHARE * n:
+        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, steps, step,
+                                      threshold)
+        if peaks.shape[0] < least * n:
             return current
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape):
             return current
-        if round_ == PROFILE_ROUNDS - 1:
+        if round_ == params.profile_rounds - 1:
             d = ellipse_distances(fit, peaks)
-            inliers = d <= max(OUTLIER_MIN_PX, OUTLIER_MEDIANS * float(column_median(d)))
+            inliers = d <= max(params.outlier_min_px,
+                               params.outlier_medians * float(column_median(d)))
             kept = np.count_nonzero(inliers)
             # All inliers: the refit would repeat the fit on the same points.
-            if PROFILE_MIN_SHARE * n <= kept < inliers.size:
+            if least * n <= kept < inliers.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape) else current
     return current

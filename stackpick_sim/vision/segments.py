@@ -20,25 +20,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import SegmentParams
 from stackpick_sim.vision import kernels
 
-#: Chains shorter than this (px) are dropped: too short to constrain an ellipse.
-MIN_CHAIN_PX = 6
-#: Tolerance (px) of the polygonal approximation whose vertices are read for turns: 1 px
-#: keeps pixel staircases out of the polygon.
-POLY_EPSILON_PX = 1.0
-#: Turn (deg) at one polygon vertex above which it is a corner. With a 1 px tolerance a
-#: vertex on an arc of curvature radius R turns by sqrt(8 / R) rad; the sharpest face end
-#: expected (a = 15 px, b = 10 px, R = b^2 / a = 6.7 px) gives ~63 deg, so 80 deg keeps
-#: every ellipse arc whole.
-CORNER_ANGLE_DEG = 80.0
-#: A vertex turning by more than SPIKE_MIN_DEG and SPIKE_RATIO times either neighbour is a
-#: corner too: along an ellipse arc consecutive vertices turn alike, so a lone sharp turn is
-#: where one outline meets another (a T-junction Canny bridged without a junction pixel).
-SPIKE_MIN_DEG = 30.0
-SPIKE_RATIO = 2.0
-#: Polygon vertices turning by less than this (deg) carry no reliable turning sign.
-MIN_SIGNED_TURN_DEG = 4.0
+#: The default settings (see SegmentParams: the reasons for each).
+DEFAULT = SegmentParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,24 +87,27 @@ def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
     return int(hits[0])
 
 
-def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32]]:
+def split_chain(chain: NDArray[np.int32], closed: bool, params: SegmentParams = DEFAULT
+                ) -> list[NDArray[np.int32]]:
     """Split an ordered (N, 2) chain at corners and where its turning direction flips.
 
-    Turns are read at the vertices of a polygonal approximation (tolerance POLY_EPSILON_PX)
-    so pixel staircases do not count. A vertex is a cut when it turns by more than
-    CORNER_ANGLE_DEG (a corner) or against the turning sign of the previous signed vertex:
-    an ellipse arc turns one way throughout, while the outline of two overlapping convex
-    faces has a reflex corner where it passes from one to the other, even when Canny left no
-    junction pixel there; S-bends flip too.
+    Turns are read at the vertices of a polygonal approximation (tolerance
+    ``params.poly_epsilon_px``) so pixel staircases do not count. A vertex is a cut when it
+    turns by more than ``params.corner_angle_deg`` (a corner), is a lone sharp turn (see
+    :class:`~stackpick_sim.config.vision_params.SegmentParams`) or turns against the sign of
+    the previous signed vertex: an ellipse arc turns one way throughout, while the outline
+    of two overlapping convex faces has a reflex corner where it passes from one to the
+    other, even when Canny left no junction pixel there; S-bends flip too.
     """
-    poly = cast("NDArray[np.int32]", cv2.approxPolyDP(chain.reshape(-1, 1, 2), POLY_EPSILON_PX,
-                                                     closed).reshape(-1, 2))
+    poly = cast("NDArray[np.int32]", cv2.approxPolyDP(chain.reshape(-1, 1, 2),
+                                                     params.poly_epsilon_px, closed).reshape(-1, 2))
     count = poly.shape[0]
     if count < 3:
         return [chain]
     # The turns at the vertices and the cut pixels, in one compiled pass.
-    found = kernels.corner_cuts(chain, poly, closed, CORNER_ANGLE_DEG, SPIKE_MIN_DEG,
-                                SPIKE_RATIO, MIN_SIGNED_TURN_DEG)
+    found = kernels.corner_cuts(chain, poly, closed, params.corner_angle_deg,
+                                params.spike_min_deg, params.spike_ratio,
+                                params.min_signed_turn_deg)
     if not found.size:
         return [chain]
     cuts = found.tolist()
@@ -131,10 +120,13 @@ def split_chain(chain: NDArray[np.int32], closed: bool) -> list[NDArray[np.int32
     return [chain[i:j] for i, j in itertools.pairwise(bounds) if j > i]
 
 
-def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None) -> EdgeSegments:
-    """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments; with
-    ``max_contours``, only the longest that many connected pieces (in their order) are
-    ordered and split (the cost of this stage is a Python pass per piece)."""
+def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
+                  params: SegmentParams = DEFAULT) -> EdgeSegments:
+    """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments of at least
+    ``params.min_chain_px``; with ``max_contours``, only the longest that many connected
+    pieces (in their order) are ordered and split (the cost of this stage is a Python pass
+    per piece)."""
+    shortest = params.min_chain_px
     # Junctions, cut out: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel
     # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
     box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
@@ -151,7 +143,7 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None) -> 
     parents = hierarchy[0][:, 3].tolist()
     kept = [cast("NDArray[np.int32]", c.reshape(-1, 2))
             for c, parent in zip(contours, parents, strict=True)
-            if parent == -1 and c.shape[0] >= MIN_CHAIN_PX]
+            if parent == -1 and c.shape[0] >= shortest]
     if not kept:
         return EdgeSegments(chains=(), edges=edges)
     if max_contours is not None and len(kept) > max_contours:
@@ -172,9 +164,9 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None) -> 
             k += 1
         start = stop
         chain = _order_by_ends(pts, ends)
-        if chain.shape[0] < MIN_CHAIN_PX:
+        if chain.shape[0] < shortest:
             continue  # its arcs would be shorter still
-        for arc in split_chain(chain, closed=not ends):
-            if arc.shape[0] >= MIN_CHAIN_PX:
+        for arc in split_chain(chain, closed=not ends, params=params):
+            if arc.shape[0] >= shortest:
                 chains.append(arc)
     return EdgeSegments(chains=tuple(chains), edges=edges)
