@@ -120,12 +120,14 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                     or (axis_range is not None
                         and not axis_range[0] <= fit.a <= axis_range[1])):
                 continue
-            d = ellipse_distances(fit, union)
             n = chains[ci].shape[0]
-            if (float(np.sqrt(np.mean(d * d))) > MERGE_MAX_RESIDUAL_PX
-                    or np.count_nonzero(d[:n] < MERGE_TOLERANCE_PX) < ABSORB_FRACTION * n
-                    or np.count_nonzero(d[n:] < MERGE_TOLERANCE_PX)
-                    < ABSORB_FRACTION * (d.shape[0] - n)):
+            # The residual and each arc's share on the fit, in one compiled pass.
+            t = math.radians(fit.angle_deg)
+            rms, near_i, near_j = kernels.pair_lies(
+                np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b,
+                math.cos(t), math.sin(t), MERGE_TOLERANCE_PX)
+            if (rms > MERGE_MAX_RESIDUAL_PX or near_i < ABSORB_FRACTION * n
+                    or near_j < ABSORB_FRACTION * (union.shape[0] - n)):
                 continue
             lying: tuple[int, ...] = ()
             for _ in range(GROW_ROUNDS):
