@@ -98,52 +98,55 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
     a face, or None. Each ellipse once: a pair of arcs that both lie on an ellipse already
     grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
-    boxes = [_bounds(chains[k]) for k in arcs]
+    boxes = np.array([_bounds(chains[k]) for k in arcs], np.float64).reshape(-1, 4)
+    # Both arcs within one face's extent: the pairs whose joint box spans at most 2 ``hi``
+    # on both axes, in (i, j) order.
+    span_u = (np.maximum.outer(boxes[:, 2], boxes[:, 2])
+              - np.minimum.outer(boxes[:, 0], boxes[:, 0]))
+    span_v = (np.maximum.outer(boxes[:, 3], boxes[:, 3])
+              - np.minimum.outer(boxes[:, 1], boxes[:, 1]))
+    pairs = np.argwhere(np.triu((span_u <= 2.0 * hi) & (span_v <= 2.0 * hi), 1)).tolist()
     # A chain given twice (one array, as a piece fitted whole and as its chain) counts once.
     first: dict[int, int] = {}
     distinct = [k for k, c in enumerate(chains) if first.setdefault(id(c), k) == k]
     pixels, owner, lengths = chain_table([chains[k] for k in distinct])
     out: list[Ellipse] = []
     grown_sets: list[set[int]] = []
-    for i, ci in enumerate(arcs):
-        for j in range(i + 1, len(arcs)):
-            cj = arcs[j]
-            bi, bj = boxes[i], boxes[j]
-            # Both arcs within one face's extent, and not both on an ellipse grown already.
-            if (max(bi[2], bj[2]) - min(bi[0], bj[0]) > 2.0 * hi
-                    or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi
-                    or any(ci in g and cj in g for g in grown_sets)):
-                continue
-            union = np.concatenate([chains[ci], chains[cj]])
-            fit = fit_ellipse(union)
-            if (fit is None or not plausible(fit, shape)
-                    or (axis_range is not None
-                        and not axis_range[0] <= fit.a <= axis_range[1])):
-                continue
-            n = chains[ci].shape[0]
-            # The residual and each arc's share on the fit, in one compiled pass.
-            t = math.radians(fit.angle_deg)
-            rms, near_i, near_j = kernels.pair_lies(
-                np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b,
-                math.cos(t), math.sin(t), MERGE_TOLERANCE_PX)
-            if (rms > MERGE_MAX_RESIDUAL_PX or near_i < ABSORB_FRACTION * n
-                    or near_j < ABSORB_FRACTION * (union.shape[0] - n)):
-                continue
-            lying: tuple[int, ...] = ()
-            for _ in range(GROW_ROUNDS):
-                on = tuple(distinct[k] for k in chains_on(fit, pixels, owner, lengths))
-                if on == lying:
-                    break
-                lying = on
-                grown = np.concatenate([union] + [chains[k] for k in lying
-                                                  if k not in (ci, cj)])
-                refit = fit_ellipse(grown)
-                if (refit is None or not plausible(refit, shape)
-                        or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
-                    break
-                fit = refit
-            grown_sets.append({ci, cj, *lying})
-            out.append(fit)
+    for i, j in pairs:
+        ci, cj = arcs[i], arcs[j]
+        # Not both on an ellipse grown already.
+        if any(ci in g and cj in g for g in grown_sets):
+            continue
+        union = np.concatenate([chains[ci], chains[cj]])
+        fit = fit_ellipse(union)
+        if (fit is None or not plausible(fit, shape)
+                or (axis_range is not None
+                    and not axis_range[0] <= fit.a <= axis_range[1])):
+            continue
+        n = chains[ci].shape[0]
+        # The residual and each arc's share on the fit, in one compiled pass.
+        t = math.radians(fit.angle_deg)
+        rms, near_i, near_j = kernels.pair_lies(
+            np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b,
+            math.cos(t), math.sin(t), MERGE_TOLERANCE_PX)
+        if (rms > MERGE_MAX_RESIDUAL_PX or near_i < ABSORB_FRACTION * n
+                or near_j < ABSORB_FRACTION * (union.shape[0] - n)):
+            continue
+        lying: tuple[int, ...] = ()
+        for _ in range(GROW_ROUNDS):
+            on = tuple(distinct[k] for k in chains_on(fit, pixels, owner, lengths))
+            if on == lying:
+                break
+            lying = on
+            grown = np.concatenate([union] + [chains[k] for k in lying
+                                              if k not in (ci, cj)])
+            refit = fit_ellipse(grown)
+            if (refit is None or not plausible(refit, shape)
+                    or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
+                break
+            fit = refit
+        grown_sets.append({ci, cj, *lying})
+        out.append(fit)
     return out
 
 
