@@ -64,7 +64,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -127,6 +127,10 @@ class MarkingTest:
     margin_px: float
     image: NDArray[np.uint8] | None = None
     gradients: EdgeImage | None = None
+    #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
+    #: arc-pair faces join the top rule, it judges the merge's faces again.
+    known: dict[tuple[object, ...], bool] = field(default_factory=dict, compare=False,
+                                                  repr=False)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -205,16 +209,26 @@ def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
     own lying on it: one that passes the rule, or a whole face with markings whose outline
     runs on across it (:func:`_crosses_over`)."""
-    return _reaches_into(other, face, test.margin_px) and (
-        not evidence.occluded or _crosses_over(other, evidence, face, test))
+    if not evidence.occluded:
+        return _reaches_into(other, face, test.margin_px)
+    # Its verdict hangs on the evidence only through whether ``other`` is a whole face.
+    key = ("lies_across", other, face, whole_with_edges_inside(evidence))
+    if key not in test.known:
+        test.known[key] = (_reaches_into(other, face, test.margin_px)
+                           and _crosses_over(other, evidence, face, test))
+    return test.known[key]
 
 
 def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvidence,
                            test: MarkingTest) -> bool:
     """Whether ``face`` is a fit round the whole face ``inner`` (its top-rule ``evidence``)
     and another surface (:func:`two_surfaces`; False without the ``image``)."""
-    return (test.image is not None and whole_with_edges_inside(evidence)
-            and two_surfaces(face, inner, test.image, test.margin_px))
+    if test.image is None or not whole_with_edges_inside(evidence):
+        return False
+    key = ("two_surfaces", face, inner)
+    if key not in test.known:
+        test.known[key] = two_surfaces(face, inner, test.image, test.margin_px)
+    return test.known[key]
 
 
 def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
