@@ -118,36 +118,58 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
         if any(ci in g and cj in g for g in grown_sets):
             continue
         union = np.concatenate([chains[ci], chains[cj]])
-        fit = fit_ellipse(union)
-        if (fit is None or not plausible(fit, shape)
-                or (axis_range is not None
-                    and not axis_range[0] <= fit.a <= axis_range[1])):
+        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range)
+        if fit is None:
             continue
-        n = chains[ci].shape[0]
-        # The residual and each arc's share on the fit, in one compiled pass.
-        t = math.radians(fit.angle_deg)
-        rms, near_i, near_j = kernels.pair_lies(
-            np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b,
-            math.cos(t), math.sin(t), MERGE_TOLERANCE_PX)
-        if (rms > MERGE_MAX_RESIDUAL_PX or near_i < ABSORB_FRACTION * n
-                or near_j < ABSORB_FRACTION * (union.shape[0] - n)):
-            continue
-        lying: tuple[int, ...] = ()
-        for _ in range(GROW_ROUNDS):
-            on = tuple(distinct[k] for k in chains_on(fit, pixels, owner, lengths))
-            if on == lying:
-                break
-            lying = on
-            grown = np.concatenate([union] + [chains[k] for k in lying
-                                              if k not in (ci, cj)])
-            refit = fit_ellipse(grown)
-            if (refit is None or not plausible(refit, shape)
-                    or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
-                break
-            fit = refit
+        fit, lying = _grown(fit, union, (ci, cj), chains, distinct, (pixels, owner, lengths),
+                            shape)
         grown_sets.append({ci, cj, *lying})
         out.append(fit)
     return out
+
+
+def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
+           chains: Sequence[NDArray[np.int32]], distinct: list[int],
+           table: tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.float64]],
+           shape: tuple[int, int]) -> tuple[Ellipse, tuple[int, ...]]:
+    """A pair's ``fit`` (its two arcs' pixels ``union``, their indices ``pair``) grown by the
+    ``chains`` lying on it and refitted, up to GROW_ROUNDS times while the residual stays
+    within MAX_RESIDUAL_PX, and the chains lying on it (indices); ``distinct``: the chains
+    counted once, ``table`` their :func:`chain_table`."""
+    lying: tuple[int, ...] = ()
+    for _ in range(GROW_ROUNDS):
+        on = tuple(distinct[k] for k in chains_on(fit, *table))
+        if on == lying:
+            break
+        lying = on
+        grown = np.concatenate([union] + [chains[k] for k in lying if k not in pair])
+        refit = fit_ellipse(grown)
+        if (refit is None or not plausible(refit, shape)
+                or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
+            break
+        fit = refit
+    return fit, lying
+
+
+def _pair_fit(union: NDArray[np.int32], n: int, shape: tuple[int, int],
+              axis_range: tuple[float, float] | None) -> Ellipse | None:
+    """The ellipse fitted to two arcs given one after the other in ``union`` (the first
+    ``n`` pixels the first arc), when it is plausible in an (H, W) image of ``shape``, its
+    semi-major axis within ``axis_range`` and it passes the merge's checks on a merged pair
+    (RMS residual, each arc's share on it); else None."""
+    fit = fit_ellipse(union)
+    if (fit is None or not plausible(fit, shape)
+            or (axis_range is not None and not axis_range[0] <= fit.a <= axis_range[1])):
+        return None
+    # The residual and each arc's share on the fit, in one compiled pass.
+    t = math.radians(fit.angle_deg)
+    rms, near_first, near_second = kernels.pair_lies(
+        np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b, math.cos(t),
+        math.sin(t), MERGE_TOLERANCE_PX)
+    if (rms > MERGE_MAX_RESIDUAL_PX or near_first < ABSORB_FRACTION * n
+            or near_second < ABSORB_FRACTION * (union.shape[0] - n)):
+        return None
+    return fit
 
 
 def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray[np.int32]]]:
