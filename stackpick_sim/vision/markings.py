@@ -192,7 +192,8 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             continue
         r = None if radius_of is None else radius_of(e)
         farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
-        wholly = _inside(e, face, test.margin_px)
+        wholly = _kept(test, ("inside", e, face),
+                       functools.partial(_inside, e, face, test.margin_px))
         if farther and wholly:
             own.append(i)
         elif passes or wholly:
@@ -212,11 +213,9 @@ def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     if not evidence.occluded:
         return _reaches_into(other, face, test.margin_px)
     # Its verdict hangs on the evidence only through whether ``other`` is a whole face.
-    key = ("lies_across", other, face, whole_with_edges_inside(evidence))
-    if key not in test.known:
-        test.known[key] = (_reaches_into(other, face, test.margin_px)
-                           and _crosses_over(other, evidence, face, test))
-    return test.known[key]
+    return _kept(test, ("lies_across", other, face, whole_with_edges_inside(evidence)),
+                 lambda: (_reaches_into(other, face, test.margin_px)
+                          and _crosses_over(other, evidence, face, test)))
 
 
 def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvidence,
@@ -225,9 +224,16 @@ def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvi
     and another surface (:func:`two_surfaces`; False without the ``image``)."""
     if test.image is None or not whole_with_edges_inside(evidence):
         return False
-    key = ("two_surfaces", face, inner)
+    image = test.image
+    return _kept(test, ("two_surfaces", face, inner),
+                 lambda: two_surfaces(face, inner, image, test.margin_px))
+
+
+def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool]) -> bool:
+    """The verdict kept in ``test.known`` under ``key``, computed (``verdict()``) the first
+    time."""
     if key not in test.known:
-        test.known[key] = two_surfaces(face, inner, test.image, test.margin_px)
+        test.known[key] = verdict()
     return test.known[key]
 
 
