@@ -128,9 +128,10 @@ class MarkingTest:
     image: NDArray[np.uint8] | None = None
     gradients: EdgeImage | None = None
     #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
-    #: arc-pair faces join the top rule, it judges the merge's faces again.
-    known: dict[tuple[object, ...], bool] = field(default_factory=dict, compare=False,
-                                                  repr=False)
+    #: arc-pair faces join the top rule, it judges the merge's faces again. Not an argument:
+    #: a copy by ``dataclasses.replace`` (another image, other gradients) starts empty.
+    known: dict[tuple[object, ...], bool] = field(default_factory=dict, init=False,
+                                                  compare=False, repr=False)
 
 
 @dataclass(frozen=True, kw_only=True)
