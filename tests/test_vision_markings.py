@@ -153,4 +153,3 @@ def test_of_two_crossing_faces_with_markings_the_one_whose_outline_runs_on_is_ab
 def test_realistic_frames_whose_top_face_needs_the_marking_rules(seed: int) -> None:
     frame = next(iter_generated(load_scene("realistic"), [seed]))
     assert score_frame(run_ours(frame), frame).success
-
