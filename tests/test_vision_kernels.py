@@ -533,3 +533,20 @@ def test_point_distances_match_the_array_form(rng: np.random.Generator) -> None:
     x, y = (c * du + s * dv) / a, (-s * du + c * dv) / b
     want = np.abs(x * x + y * y - 1.0) / (2.0 * np.sqrt((x / a) ** 2 + (y / b) ** 2) + 1e-12)
     assert np.array_equal(kernels.point_distances(points, cx, cy, a, b, c, s), want)
+
+
+def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
+    cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
+    c, s = np.cos(t), np.sin(t)
+    for m in (5, 7, 8, 9, 64, 129, 300, 1001):
+        # Pixels scattered about the ellipse: some within the tolerance, some not.
+        phi = rng.uniform(0, 2 * np.pi, m)
+        u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
+        points = np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
+                         ).astype(np.int32)
+        n = m // 3
+        d = kernels.point_distances(points.astype(np.float64), cx, cy, a, b, c, s)
+        want = (float(np.sqrt(np.mean(d * d))), int(np.count_nonzero(d[:n] < 4.0)),
+                int(np.count_nonzero(d[n:] < 4.0)))
+        got = kernels.pair_lies(points, n, cx, cy, a, b, c, s, 4.0)
+        assert got == want and 0 < got[1] + got[2] < m

@@ -115,6 +115,20 @@ def test_a_fit_round_a_face_and_a_lower_face_of_another_colour_is_no_face() -> N
     assert found.markings == frozenset() and 0 not in found.marked
 
 
+def test_verdicts_kept_for_one_image_do_not_carry_to_another() -> None:
+    # The test judges the same pair again when arc-pair faces join the rule: its kept
+    # verdicts answer then, and a copy for another image judges afresh.
+    evidence = [_evidence(1.0, 300, 230), _evidence(1.0, 200, 190)]
+    walled = _image([(SILHOUETTE, tuple(0.55 * c for c in ORANGE), False),
+                     (TILTED, ORANGE, False)])
+    test = _marking_test(walled)
+    first = find_markings([SILHOUETTE, TILTED], evidence, test, None)
+    assert test.known and find_markings([SILHOUETTE, TILTED], evidence, test, None) == first
+    plain = replace(test, image=_image([(SILHOUETTE, ORANGE, False)]))
+    found = find_markings([SILHOUETTE, TILTED], evidence, plain, None)
+    assert found != first and found.markings == {1} and found.marked == {0}
+
+
 def test_of_two_crossing_faces_with_markings_the_one_whose_outline_runs_on_is_above() -> None:
     # Two printed lids of one kind, the upper a little brighter (it faces the ring light
     # squarely): its outline shows across the lower face, the lower one's is hidden under it.

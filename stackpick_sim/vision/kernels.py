@@ -88,6 +88,86 @@ def point_distances(points: NDArray[np.float64], cx: float, cy: float, a: float,
 
 
 @_compiled
+def _block_sum(x: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
+    """numpy's sum of a block of at most 128 elements ``x[lo:lo + n]``: in order below 8,
+    else eight partial sums combined pairwise, then the remainder in order."""
+    if n < 8:
+        total = 0.0
+        for k in range(lo, lo + n):
+            total += x[k]
+        return total
+    r = x[lo:lo + 8].copy()
+    k = 8
+    while k < n - n % 8:
+        for q in range(8):
+            r[q] += x[lo + k + q]
+        k += 8
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while k < n:
+        total += x[lo + k]
+        k += 1
+    return total
+
+
+@_compiled
+def _pairwise_sum(x: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
+    """numpy's pairwise sum of ``x`` (:func:`_block_sum` on blocks of up to 128 elements,
+    longer runs halved at a multiple of 8 and the halves' sums added), so the same value as
+    ``x.sum()``; the recursion unrolled on a stack."""
+    # Frames (lo, n, state): state 0 to split, 1 once the left half's sum is on the stack.
+    los = np.empty(64, np.int64)
+    ns = np.empty(64, np.int64)
+    states = np.zeros(64, np.int64)
+    sums = np.empty(64)
+    top, done = 0, 0
+    los[0], ns[0] = 0, x.shape[0]
+    while top >= 0:
+        n = ns[top]
+        if n <= 128:
+            sums[done] = _block_sum(x, los[top], n)
+            done += 1
+            top -= 1
+            continue
+        half = n // 2
+        half -= half % 8
+        if states[top] == 0:  # the left half first
+            states[top] = 1
+            top += 1
+            los[top], ns[top], states[top] = los[top - 1], half, 0
+        elif states[top] == 1:  # then the right half
+            states[top] = 2
+            top += 1
+            los[top], ns[top], states[top] = los[top - 1] + half, n - half, 0
+        else:  # both done: their sum replaces them
+            sums[done - 2] = sums[done - 2] + sums[done - 1]
+            done -= 1
+            top -= 1
+    return sums[0]
+
+
+@_compiled
+def pair_lies(points: NDArray[np.int32], n: int, cx: float, cy: float, a: float, b: float,
+              c: float, s: float, tol_px: float
+              ) -> tuple[float, int, int]:  # pragma: no cover - compiled
+    """For (N, 2) ``points``, two arcs one after the other (the first ``n``), and the ellipse
+    (cx, cy, a, b) of angle cosine and sine (c, s): the RMS Sampson distance of all points
+    (as ``sqrt(mean(d * d))``), and how many of the first arc's and of the second's lie
+    closer than ``tol_px`` (see :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`)."""
+    m = points.shape[0]
+    sq = np.empty(m)
+    near_first = near_second = 0
+    for k in range(m):
+        d = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+        sq[k] = d * d
+        if d < tol_px:
+            if k < n:
+                near_first += 1
+            else:
+                near_second += 1
+    return math.sqrt(_pairwise_sum(sq) / m), near_first, near_second
+
+
+@_compiled
 def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[np.float64],
                reach: NDArray[np.float64], tol_px: float
                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
@@ -833,6 +913,7 @@ def warm_up() -> None:
     interior_counts(np.ones((1, 6)), counts, col, 4)
     outline_samples(np.ones((1, 6)), counts, col, col)
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+    pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,

@@ -64,7 +64,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -127,6 +127,11 @@ class MarkingTest:
     margin_px: float
     image: NDArray[np.uint8] | None = None
     gradients: EdgeImage | None = None
+    #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
+    #: arc-pair faces join the top rule, it judges the merge's faces again. Not an argument:
+    #: a copy by ``dataclasses.replace`` (another image, other gradients) starts empty.
+    known: dict[tuple[object, ...], bool] = field(default_factory=dict, init=False,
+                                                  compare=False, repr=False)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -188,7 +193,8 @@ def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvid
             continue
         r = None if radius_of is None else radius_of(e)
         farther = (min(test.radii) if r is None else r) / e.a >= test.depth_ratio * face_depth
-        wholly = _inside(e, face, test.margin_px)
+        wholly = _kept(test, ("inside", e, face),
+                       functools.partial(_inside, e, face, test.margin_px))
         if farther and wholly:
             own.append(i)
         elif passes or wholly:
@@ -205,16 +211,31 @@ def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
     own lying on it: one that passes the rule, or a whole face with markings whose outline
     runs on across it (:func:`_crosses_over`)."""
-    return _reaches_into(other, face, test.margin_px) and (
-        not evidence.occluded or _crosses_over(other, evidence, face, test))
+    if not evidence.occluded:
+        return _reaches_into(other, face, test.margin_px)
+    # Its verdict hangs on the evidence only through whether ``other`` is a whole face.
+    return _kept(test, ("lies_across", other, face, whole_with_edges_inside(evidence)),
+                 lambda: (_reaches_into(other, face, test.margin_px)
+                          and _crosses_over(other, evidence, face, test)))
 
 
 def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvidence,
                            test: MarkingTest) -> bool:
     """Whether ``face`` is a fit round the whole face ``inner`` (its top-rule ``evidence``)
     and another surface (:func:`two_surfaces`; False without the ``image``)."""
-    return (test.image is not None and whole_with_edges_inside(evidence)
-            and two_surfaces(face, inner, test.image, test.margin_px))
+    if test.image is None or not whole_with_edges_inside(evidence):
+        return False
+    image = test.image
+    return _kept(test, ("two_surfaces", face, inner),
+                 lambda: two_surfaces(face, inner, image, test.margin_px))
+
+
+def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool]) -> bool:
+    """The verdict kept in ``test.known`` under ``key``, computed (``verdict()``) the first
+    time."""
+    if key not in test.known:
+        test.known[key] = verdict()
+    return test.known[key]
 
 
 def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],

@@ -98,51 +98,78 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
     a face, or None. Each ellipse once: a pair of arcs that both lie on an ellipse already
     grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
-    boxes = [_bounds(chains[k]) for k in arcs]
+    boxes = np.array([_bounds(chains[k]) for k in arcs], np.float64).reshape(-1, 4)
+    # Both arcs within one face's extent: the pairs whose joint box spans at most 2 ``hi``
+    # on both axes, in (i, j) order.
+    span_u = (np.maximum.outer(boxes[:, 2], boxes[:, 2])
+              - np.minimum.outer(boxes[:, 0], boxes[:, 0]))
+    span_v = (np.maximum.outer(boxes[:, 3], boxes[:, 3])
+              - np.minimum.outer(boxes[:, 1], boxes[:, 1]))
+    pairs = np.argwhere(np.triu((span_u <= 2.0 * hi) & (span_v <= 2.0 * hi), 1)).tolist()
     # A chain given twice (one array, as a piece fitted whole and as its chain) counts once.
     first: dict[int, int] = {}
     distinct = [k for k, c in enumerate(chains) if first.setdefault(id(c), k) == k]
     pixels, owner, lengths = chain_table([chains[k] for k in distinct])
     out: list[Ellipse] = []
     grown_sets: list[set[int]] = []
-    for i, ci in enumerate(arcs):
-        for j in range(i + 1, len(arcs)):
-            cj = arcs[j]
-            bi, bj = boxes[i], boxes[j]
-            # Both arcs within one face's extent, and not both on an ellipse grown already.
-            if (max(bi[2], bj[2]) - min(bi[0], bj[0]) > 2.0 * hi
-                    or max(bi[3], bj[3]) - min(bi[1], bj[1]) > 2.0 * hi
-                    or any(ci in g and cj in g for g in grown_sets)):
-                continue
-            union = np.concatenate([chains[ci], chains[cj]])
-            fit = fit_ellipse(union)
-            if (fit is None or not plausible(fit, shape)
-                    or (axis_range is not None
-                        and not axis_range[0] <= fit.a <= axis_range[1])):
-                continue
-            d = ellipse_distances(fit, union)
-            n = chains[ci].shape[0]
-            if (float(np.sqrt(np.mean(d * d))) > MERGE_MAX_RESIDUAL_PX
-                    or np.count_nonzero(d[:n] < MERGE_TOLERANCE_PX) < ABSORB_FRACTION * n
-                    or np.count_nonzero(d[n:] < MERGE_TOLERANCE_PX)
-                    < ABSORB_FRACTION * (d.shape[0] - n)):
-                continue
-            lying: tuple[int, ...] = ()
-            for _ in range(GROW_ROUNDS):
-                on = tuple(distinct[k] for k in chains_on(fit, pixels, owner, lengths))
-                if on == lying:
-                    break
-                lying = on
-                grown = np.concatenate([union] + [chains[k] for k in lying
-                                                  if k not in (ci, cj)])
-                refit = fit_ellipse(grown)
-                if (refit is None or not plausible(refit, shape)
-                        or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
-                    break
-                fit = refit
-            grown_sets.append({ci, cj, *lying})
-            out.append(fit)
+    for i, j in pairs:
+        ci, cj = arcs[i], arcs[j]
+        # Not both on an ellipse grown already.
+        if any(ci in g and cj in g for g in grown_sets):
+            continue
+        union = np.concatenate([chains[ci], chains[cj]])
+        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range)
+        if fit is None:
+            continue
+        fit, lying = _grown(fit, union, (ci, cj), chains, distinct, (pixels, owner, lengths),
+                            shape)
+        grown_sets.append({ci, cj, *lying})
+        out.append(fit)
     return out
+
+
+def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
+           chains: Sequence[NDArray[np.int32]], distinct: list[int],
+           table: tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.float64]],
+           shape: tuple[int, int]) -> tuple[Ellipse, tuple[int, ...]]:
+    """A pair's ``fit`` (its two arcs' pixels ``union``, their indices ``pair``) grown by the
+    ``chains`` lying on it and refitted, up to GROW_ROUNDS times while the residual stays
+    within MAX_RESIDUAL_PX, and the chains lying on it (indices); ``distinct``: the chains
+    counted once, ``table`` their :func:`chain_table`."""
+    lying: tuple[int, ...] = ()
+    for _ in range(GROW_ROUNDS):
+        on = tuple(distinct[k] for k in chains_on(fit, *table))
+        if on == lying:
+            break
+        lying = on
+        grown = np.concatenate([union] + [chains[k] for k in lying if k not in pair])
+        refit = fit_ellipse(grown)
+        if (refit is None or not plausible(refit, shape)
+                or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
+            break
+        fit = refit
+    return fit, lying
+
+
+def _pair_fit(union: NDArray[np.int32], n: int, shape: tuple[int, int],
+              axis_range: tuple[float, float] | None) -> Ellipse | None:
+    """The ellipse fitted to two arcs given one after the other in ``union`` (the first
+    ``n`` pixels the first arc), when it is plausible in an (H, W) image of ``shape``, its
+    semi-major axis within ``axis_range`` and it passes the merge's checks on a merged pair
+    (RMS residual, each arc's share on it); else None."""
+    fit = fit_ellipse(union)
+    if (fit is None or not plausible(fit, shape)
+            or (axis_range is not None and not axis_range[0] <= fit.a <= axis_range[1])):
+        return None
+    # The residual and each arc's share on the fit, in one compiled pass.
+    t = math.radians(fit.angle_deg)
+    rms, near_first, near_second = kernels.pair_lies(
+        np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b, math.cos(t),
+        math.sin(t), MERGE_TOLERANCE_PX)
+    if (rms > MERGE_MAX_RESIDUAL_PX or near_first < ABSORB_FRACTION * n
+            or near_second < ABSORB_FRACTION * (union.shape[0] - n)):
+        return None
+    return fit
 
 
 def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray[np.int32]]]:
