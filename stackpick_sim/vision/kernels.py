@@ -38,6 +38,21 @@ def _compiled(fn: _F) -> _F:
 
 
 @_compiled
+def _box_count(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
+               cy: NDArray[np.float64], reach: NDArray[np.float64]
+               ) -> int:  # pragma: no cover - compiled
+    """How many (centre e, point) pairs have |pu - cx[e]| <= reach[e] and |pv - cy[e]| <=
+    reach[e]."""
+    count = 0
+    for e in range(cx.shape[0]):
+        x, y, r = cx[e], cy[e], reach[e]
+        for m in range(pu.shape[0]):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                count += 1
+    return count
+
+
+@_compiled
 def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
               cy: NDArray[np.float64], reach: NDArray[np.float64]
               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover - compiled
@@ -45,12 +60,7 @@ def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.f
     ``np.nonzero`` order of the (E, N) test matrix (ellipse by ellipse, points ascending),
     without the matrix."""
     n_e, n_p = cx.shape[0], pu.shape[0]
-    count = 0
-    for e in range(n_e):
-        x, y, r = cx[e], cy[e], reach[e]
-        for m in range(n_p):
-            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
-                count += 1
+    count = _box_count(pu, pv, cx, cy, reach)
     pe = np.empty(count, np.int64)
     pm = np.empty(count, np.int64)
     k = 0
@@ -176,12 +186,7 @@ def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[n
     closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
     column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
     n_e, n_p = rows.shape[1], pu.shape[0]
-    count = 0
-    for e in range(n_e):
-        x, y, r = rows[0, e], rows[1, e], reach[e]
-        for m in range(n_p):
-            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
-                count += 1
+    count = _box_count(pu, pv, rows[0], rows[1], reach)
     pe = np.empty(count, np.int64)
     pm = np.empty(count, np.int64)
     k = 0

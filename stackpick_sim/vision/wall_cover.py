@@ -78,16 +78,23 @@ def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     found = {f: kept.get((f, intrinsics)) for f in faces}
     missing = [f for f, bands in found.items() if bands is None]
     if missing:
-        sols = [(s.normal_cam, s.centre_cam) for f in missing
-                for s in unit_circle_poses(f, intrinsics)]
-        pu, pv, keep = solution_bands(sols, [f for f in missing for _ in range(2)], intrinsics,
-                                      COVER_DEPTH_FRACTIONS)
-        for i, f in enumerate(missing):
-            rows = slice(2 * i, 2 * i + 2)
-            found[f] = kept[(f, intrinsics)] = (pu[rows], pv[rows], keep[rows])
+        for f, new in zip(missing, _bands_of(missing, intrinsics), strict=True):
+            found[f] = kept[(f, intrinsics)] = new
     got = [bands for f in faces if (bands := found[f]) is not None]
     return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
             np.concatenate([g[2] for g in got]))
+
+
+def _bands_of(faces: list[Ellipse], intrinsics: CameraIntrinsics
+              ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]]:
+    """Each face's two solutions' (u, v, outside) rows (see :func:`face_bands`), all faces in
+    one array pass."""
+    sols = [(s.normal_cam, s.centre_cam) for f in faces
+            for s in unit_circle_poses(f, intrinsics)]
+    pu, pv, keep = solution_bands(sols, [f for f in faces for _ in range(2)], intrinsics,
+                                  COVER_DEPTH_FRACTIONS)
+    return [(pu[2 * i:2 * i + 2], pv[2 * i:2 * i + 2], keep[2 * i:2 * i + 2])
+            for i in range(len(faces))]
 
 
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
