@@ -536,9 +536,7 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
         return merged, choice
     check_time(state.deadline, "top")
     grad = state.edges("top")
-    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
-                                        config.fits.min_fit_px)
-    arcs = _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
+    arc_chains, arcs = _every_arc(state, config)
     extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
                                    state.crop, state.gate)
     # Only whole faces with markings across them can be chosen so (the rule's evidence of
@@ -615,13 +613,12 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     if cues.radius_of is None or (every_arc and "nearer_arcs" not in config.top.fallbacks):
         return merged, choice
     if every_arc:
-        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted,
-                                            config.fits.min_fit_px)
+        arc_chains, arcs = _every_arc(found, config)
     else:
         weighed = {k for i in _weighed(choice) for k in merged[i].segments}
         arc_chains = found.chains
-        arcs = [k for k in range(len(found.pieces)) if k not in weighed]
-    arcs = _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
+        arcs = _longest_arcs([k for k in range(len(found.pieces)) if k not in weighed],
+                             arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
                             cues.radius_of)
@@ -662,9 +659,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         # it (its boundary with a lower face of its colour shows no contrast), else one
         # with its own rim inside. Last, as the least constrained.
         check_time(found.deadline, "top")
-        arc_chains, arcs = last_resort_arcs(list(found.pieces), found.segments, found.fitted,
-                                            config.fits.min_fit_px)
-        arcs = _longest_arcs(arcs, arc_chains, limits.max_arcs)
+        arc_chains, arcs = _every_arc(found, config)
         merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
                                        edge_pixels, found.crop, found.gate, unobstructed=True,
                                        arc_chains=arc_chains)
@@ -686,6 +681,16 @@ def _within_gate(merged: list[MergedEllipse], gate: tuple[float, float] | None
     if gate is None:
         return merged
     return [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
+
+
+def _every_arc(state: State, config: DetectorConfig
+               ) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
+    """The chains of :func:`last_resort_arcs` (the fitted pieces, then the edge chains cut at
+    their junctions) and the ``limits.max_arcs`` longest of their arcs: what the marked
+    arc-pair faces, the nearer arc-pair face and the last fallback draw pairs from."""
+    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
+                                        config.fits.min_fit_px)
+    return arc_chains, _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
 
 
 def _longest_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]], cap: int
