@@ -50,9 +50,8 @@ RADIUS_MATCH = 5e-4
 def seals_at(profile: FaceProfile, offset: float, lip: float, cfg: SuctionCfg) -> bool:
     """Whether a lip of radius ``lip`` (m) square on the face, its centre ``offset`` m from
     the face centre, seals (:func:`stackpick_sim.sim.suction.seal_leak`)."""
-    up = np.array([0.0, 0.0, 1.0])
     cup = np.array([offset, 0.0, 0.01])
-    return seal_leak(cup, -up, np.zeros(3), up, profile, lip, cfg) is None
+    return seal_leak(cup, -UP, np.zeros(3), UP, profile, lip, cfg) is None
 
 
 def aim_offset(profiles: list[FaceProfile], lip: float, cfg: SuctionCfg) -> float:
