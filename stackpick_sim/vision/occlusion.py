@@ -111,7 +111,7 @@ SUPPORT_TIE = 0.02
 FALLBACK_MIN_SUPPORT = 0.75
 
 #: Default of TopParams.hidden_min_support (see there).
-HIDDEN_MIN_SUPPORT = 0.6
+HIDDEN_MIN_SUPPORT = TopParams().hidden_min_support
 
 #: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
 #: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
