@@ -69,7 +69,7 @@ from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import unit_circle_poses
-from stackpick_sim.vision.resting import rests_on
+from stackpick_sim.vision.resting import cover_check, rests_on
 from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
@@ -623,8 +623,11 @@ def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[i
     in ``bands``); unchanged without intrinsics or rivals."""
     if cues.intrinsics is None or len(pool) < 2:
         return pool, candidates
-    under = under_another([ellipses[i] for i in pool], cues.intrinsics, cues.radius_of,
-                          cache=bands)
+    faces = [ellipses[i] for i in pool]
+    possible = (None if cues.radius_of is None or cues.height_of is None
+                else cover_check(faces, cues.intrinsics, cues.radius_of, cues.height_of))
+    under = under_another(faces, cues.intrinsics, cues.radius_of, cache=bands,
+                          possible=possible)
     return _without_under(pool, candidates, under, False)
 
 

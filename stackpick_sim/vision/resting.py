@@ -46,7 +46,7 @@ from stackpick_sim.vision.wall import (
     face_colour,
     tan_tilt,
 )
-from stackpick_sim.vision.wall_cover import BandCache, face_bands
+from stackpick_sim.vision.wall_cover import BandCache, CoverCheck, face_bands
 
 #: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
 #: 1-2 deg tilt error moves a far rim ~1 mm.
@@ -160,6 +160,35 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     for _upper, lower in _resting_pairs(bodies, picks, todo):
         under[bodies.kinds[lower][0]] = True
     return under
+
+
+def cover_check(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                radius_of: Callable[[Ellipse], float | None],
+                height_of: Callable[[float], float | None]) -> CoverCheck:
+    """The :data:`~stackpick_sim.vision.wall_cover.CoverCheck` of the reconstructed
+    cylinders of ``faces``: pose solution s of face i can lie under face j unless its
+    cylinder runs deeper than CONTACT_PENETRATION_M into face j's, whichever j's solution
+    (an object whose wall another face covers is under it, not through it), while i's other
+    solution's does not (the solids then tell i's solution; when both run through j's, a
+    fit is wrong and the solids tell nothing); possible wherever a kind is unknown."""
+
+    def possible(triples: list[tuple[int, int, int]]) -> list[bool]:
+        # The cylinders only when a cover is found (under_another calls this at most once).
+        bodies = _bodies(faces, intrinsics, radius_of, height_of)
+        row = ({} if bodies is None
+               else {face: p for p, (face, _, _) in enumerate(bodies.kinds)})
+        known = [(i, s, j) for i, s, j in triples if i in row and j in row]
+        if bodies is None or not known:
+            return [True] * len(triples)
+        # Per triple: (this solution, the other) x (j's two solutions).
+        pairs = np.array([(2 * row[i] + (s ^ other), 2 * row[j] + t) for i, s, j in known
+                          for other in (0, 1) for t in (0, 1)], np.int64)
+        sep = contact(bodies.centres, bodies.normals, bodies.radii, bodies.heights, pairs)[0]
+        clear = (sep.reshape(-1, 2, 2).max(axis=2) >= -CONTACT_PENETRATION_M).tolist()
+        verdict = {t: this or not other for t, (this, other) in zip(known, clear, strict=True)}
+        return [verdict.get(t, True) for t in triples]
+
+    return possible
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -109,7 +109,25 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     face j counts only where face j lies in front of it (see COVER_DEPTH_TOLERANCE_M) when
     both radii are known. ``cache``: :func:`face_bands`'.
     """
-    n = len(faces)
+    return _largest_of_two(solution_shares(faces, intrinsics, radii, cache=cache))
+
+
+def _largest_of_two(each: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(n, n) of the (2n, n) :func:`solution_shares`: each face's larger of its two
+    solutions' shares, 0 on the diagonal."""
+    n = each.shape[1]
+    share = each.reshape(n, 2, n).max(axis=1)
+    np.fill_diagonal(share, 0.0)
+    return np.asarray(share, np.float64)
+
+
+def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                    radii: Sequence[float | None] | None = None, *,
+                    cache: BandCache | None = None) -> NDArray[np.float64]:
+    """(2n, n) share (0-1) ``[2 i + s, j]``: of pose solution s of face i (its
+    :func:`~stackpick_sim.vision.pose.unit_circle_poses` order), its predicted wall band
+    lying inside face j (the diagonal pairs are not meaningful); see
+    :func:`covered_shares`, the larger of each face's two."""
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
@@ -128,12 +146,9 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                 for s in unit_circle_poses(f, intrinsics)]
         covered &= _in_front(sols, pu, pv, radii, intrinsics)
     inside = np.count_nonzero(covered, axis=2)
-    # Each solution's shares (0 for too few band points), the larger of each face's two.
-    each = np.where((samples >= MIN_COVER_SAMPLES)[:, None],
-                    inside / np.maximum(samples, 1)[:, None], 0.0)
-    share = each.reshape(n, 2, n).max(axis=1)
-    np.fill_diagonal(share, 0.0)
-    return np.asarray(share, np.float64)
+    # Each solution's shares (0 for too few band points).
+    return np.asarray(np.where((samples >= MIN_COVER_SAMPLES)[:, None],
+                               inside / np.maximum(samples, 1)[:, None], 0.0), np.float64)
 
 
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
@@ -170,20 +185,51 @@ def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -
     return float(covered_shares([face, other], intrinsics)[0, 1])
 
 
+#: Whether pose solution s of face i can lie under face j, for (i, s, j) triples (face
+#: indices into the faces of :func:`under_another`): a cover the solids rule out is none.
+CoverCheck = Callable[[list[tuple[int, int, int]]], list[bool]]
+
+
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                   radius_of: Callable[[Ellipse], float | None] | None = None, *,
-                  cache: BandCache | None = None) -> list[bool]:
+                  cache: BandCache | None = None, possible: CoverCheck | None = None
+                  ) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
     solution), the face with the larger covered share is the one under. With ``radius_of``
     (a face's radius, m, or None if unknown), a cover must also be possible in depth (see
     COVER_DEPTH_TOLERANCE_M); that is checked only when the shares alone find one.
+    With ``possible`` (see :data:`CoverCheck`), a solution whose band runs under a face counts
+    only where the solids allow it: the failure class *wrong solution's wall under a nearer
+    face*, a face beside a nearer one whose wrong pose solution's wall falls on it, which
+    would put its cylinder through the nearer one's (:func:`~stackpick_sim.vision.resting.
+    cover_check`); checked only for the solutions found under another.
     ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
     """
     cache = {} if cache is None else cache
     share = covered_shares(faces, intrinsics, cache=cache)
+    allowed = share
     if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
-        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache)
-    under = np.any((share >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
+        each = solution_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache)
+        share = allowed = _largest_of_two(each)
+        if possible is not None and np.any(share >= MIN_COVERED_SHARE):
+            allowed = _largest_of_two(_possible_only(each, possible))
+    # A cover the solids rule out puts neither face under: the other face's share is still
+    # weighed against it.
+    under = np.any((allowed >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
     return [bool(u) for u in under]
+
+
+def _possible_only(each: NDArray[np.float64], possible: CoverCheck) -> NDArray[np.float64]:
+    """The (2n, n) :func:`solution_shares` ``each`` with 0 where a share of at least
+    MIN_COVERED_SHARE is one ``possible`` rules out."""
+    hits = [(int(r) // 2, int(r) % 2, int(j)) for r, j in np.argwhere(each >= MIN_COVERED_SHARE)
+            if int(r) // 2 != int(j)]
+    if not hits:
+        return each
+    out = each.copy()
+    for (i, s, j), ok in zip(hits, possible(hits), strict=True):
+        if not ok:
+            out[2 * i + s, j] = 0.0
+    return out
