@@ -309,7 +309,7 @@ class TopParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
         "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
-        "contrast_min_share": (0.0, 1.0, "")}
+        "contrast_min_share": (0.0, 1.0, ""), "rest_kind_margin_m": (0.0, 0.1, "m")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -356,6 +356,14 @@ class TopParams(Section):
     """Fewest samples with a consistent edge, as a share [0, 1] of the outline, for a
     contrast refit (fewer: no refit): a face at least half visible, as the scoring counts
     faces."""
+    rest_kind_margin_m: float = 0.01
+    """With object kinds that colour cannot tell apart, the rest test reconstructs each pair
+    of whole faces under every assignment of the kinds' radii (:func:`~stackpick_sim.vision.
+    resting.rests_on_any_kind`): a rest found under one assignment counts only when under
+    every other the two cylinders lie farther apart than this (m) or run through each other.
+    A wrong radius moves a face by centimetres along its rays (the radii's ratio at
+    0.2-0.3 m); scaling both faces alike keeps a touching pair within a few mm (3-5 mm on
+    rendered grey paper-scene frames), which this leaves undecided."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

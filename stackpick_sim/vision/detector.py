@@ -509,14 +509,15 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings)
+                markings=markings, top=config.top, radii=config.radii_m)
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every cue."""
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
-                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
+                      kind_radii=cues.radii, params=cues.top)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,

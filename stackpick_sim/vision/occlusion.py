@@ -69,7 +69,7 @@ from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
 from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
 from stackpick_sim.vision.pose import unit_circle_poses
-from stackpick_sim.vision.resting import cover_check, rests_on
+from stackpick_sim.vision.resting import cover_check, rests_on, rests_on_any_kind
 from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: An unoccluded face must have edge support along this share of its circumference. The
@@ -112,6 +112,8 @@ FALLBACK_MIN_SUPPORT = 0.75
 
 #: Default of TopParams.hidden_min_support (see there).
 HIDDEN_MIN_SUPPORT = TopParams().hidden_min_support
+#: The top rule's default settings.
+DEFAULT_TOP = TopParams()
 
 #: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
 #: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
@@ -520,7 +522,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                height_of: Callable[[float], float | None] | None = None,
                colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                belt: NDArray[np.float64] | None = None,
-               markings: MarkingTest | None = None) -> TopChoice:
+               markings: MarkingTest | None = None,
+               kind_radii: Sequence[float] = (),
+               params: TopParams = DEFAULT_TOP) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -544,7 +548,10 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands. With
     ``markings`` (its settings), an ellipse that is a marking or relief inside a whole face is
     no candidate, and a whole face that holds only such markings is one
-    (:mod:`~stackpick_sim.vision.markings`).
+    (:mod:`~stackpick_sim.vision.markings`). Without ``radius_of`` (kinds that colour cannot
+    tell apart), ``kind_radii`` (the kinds' radii, m) with ``height_of`` and the image let
+    the rest test try every kind for each face (:func:`~stackpick_sim.vision.resting.
+    rests_on_any_kind`, with ``params.rest_kind_margin_m``).
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -560,7 +567,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
-                 colour_of=colour_of, belt=belt)
+                 colour_of=colour_of, belt=belt, kind_radii=tuple(kind_radii), params=params)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
@@ -614,6 +621,8 @@ class _Cues:
     image: NDArray[np.uint8] | None
     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
     belt: NDArray[np.float64] | None
+    kind_radii: tuple[float, ...]
+    params: TopParams
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -635,14 +644,22 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
                cues: _Cues, bands: BandCache) -> tuple[list[int], list[int]]:
     """``pool`` and ``candidates`` without the faces another pool face's cylinder rests on
     (:func:`~stackpick_sim.vision.resting.rests_on`: a leaning object shows no T-junction on
-    the face it leans on; the cover test's wall ``bands`` reused); unchanged without the
-    intrinsics, radii, heights and an RGB image, or without rivals."""
-    if (cues.intrinsics is None or cues.radius_of is None or cues.height_of is None
-            or cues.image is None or cues.image.ndim != 3 or len(pool) < 2):
+    the face it leans on; the cover test's wall ``bands`` reused; without radii from colour,
+    :func:`~stackpick_sim.vision.resting.rests_on_any_kind` over the kinds' radii);
+    unchanged without the intrinsics, radii, heights and an RGB image, or without rivals."""
+    if (cues.intrinsics is None or cues.height_of is None or cues.image is None
+            or cues.image.ndim != 3 or len(pool) < 2):
         return pool, candidates
     faces = [ellipses[i] for i in pool]
-    under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
-                     colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+    if cues.radius_of is not None:
+        under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
+                         colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+    elif len(cues.kind_radii) > 1:
+        under = rests_on_any_kind(faces, cues.intrinsics, cues.kind_radii, cues.height_of,
+                                  cues.image, margin_m=cues.params.rest_kind_margin_m,
+                                  colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+    else:
+        return pool, candidates
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
 
 

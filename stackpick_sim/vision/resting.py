@@ -25,12 +25,14 @@ tilt, as the pose does; a face whose visible bands cannot tell its solution give
 from __future__ import annotations
 
 import functools
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import (
     MIN_BAND_SAMPLES,
@@ -64,6 +66,8 @@ UP_CAM = np.array([0.0, 0.0, -1.0])
 #: normal's upward component is off by < 0.06 and a touching pair's separation reads up to
 #: ~1.5 mm negative (a face of 0.035 m radius seen ~2 deg off its normal).
 AXIS_DIRECTIONS = 4000
+#: Default of TopParams.rest_kind_margin_m (see there).
+KIND_MARGIN_M = TopParams().rest_kind_margin_m
 
 
 @functools.lru_cache(maxsize=1)
@@ -160,6 +164,57 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     for _upper, lower in _resting_pairs(bodies, picks, todo):
         under[bodies.kinds[lower][0]] = True
     return under
+
+
+def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                      radii: Sequence[float], height_of: Callable[[float], float | None],
+                      image: NDArray[np.uint8], *, margin_m: float = KIND_MARGIN_M,
+                      colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+                      cache: BandCache | None = None,
+                      belt: NDArray[np.float64] | None = None) -> list[bool]:
+    """:func:`rests_on` of faces whose kind is unknown (kinds of one colour: the failure
+    class *lean on a whole face, kinds that colour cannot tell apart*). Each pair of faces is
+    reconstructed under every assignment of the kinds' ``radii`` to its two faces: a face is
+    under the other when the other rests on it under some assignment, and under every other
+    assignment the two bodies are apart by more than ``margin_m`` or run through each other
+    (an impossible assignment). A wrong radius moves a face's cylinder along its rays by the
+    radii's ratio, centimetres at the camera's distance, so a wrong assignment's bodies are
+    far apart; but scaling both faces alike moves the pair nearly as a whole, and such an
+    assignment near contact leaves the pair undecided."""
+    under = [False] * len(faces)
+    kinds = [r for r in radii if height_of(r) is not None]
+    for p, q in itertools.combinations(range(len(faces)), 2):
+        pair = (faces[p], faces[q])
+        verdicts = [_pair_verdict(pair, intrinsics, dict(zip(pair, assigned, strict=True)).get,
+                                  height_of, image, margin_m, colour_of, cache, belt)
+                    for assigned in itertools.product(kinds, repeat=2)]
+        rests = {v for v in verdicts if v is not None and v >= 0}
+        if len(rests) == 1 and None not in verdicts:
+            under[(p, q)[rests.pop()]] = True
+    return under
+
+
+def _pair_verdict(pair: tuple[Ellipse, Ellipse], intrinsics: CameraIntrinsics,
+                  radius_of: Callable[[Ellipse], float | None],
+                  height_of: Callable[[float], float | None], image: NDArray[np.uint8],
+                  margin_m: float, colour_of: Callable[[Ellipse], NDArray[np.float64]] | None,
+                  cache: BandCache | None, belt: NDArray[np.float64] | None) -> int | None:
+    """For :func:`rests_on_any_kind`, the two faces' cylinders of one assignment of radii
+    (``radius_of``): the index (0, 1) of the face the other rests on; -1 when they are apart
+    by more than ``margin_m``, run through each other, or their solutions are not told;
+    None when they come nearer without a rest (undecided)."""
+    found = rests_on(pair, intrinsics, radius_of, height_of, image, colour_of=colour_of,
+                     cache=cache, belt=belt)
+    if any(found):
+        return found.index(True)
+    bodies = _bodies(pair, intrinsics, radius_of, height_of)
+    if bodies is None:
+        return -1
+    sep = _separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights,
+                       np.array([(j, 2 + k) for j in (0, 1) for k in (0, 1)], np.int64),
+                       *_direction_set(coarse=True)).max(axis=1)
+    near = (sep <= margin_m) & (sep >= -CONTACT_PENETRATION_M)
+    return None if bool(near.any()) else -1
 
 
 def cover_check(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
