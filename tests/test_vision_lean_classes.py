@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from stackpick_sim.config.loader import load_scene
@@ -45,7 +46,8 @@ def _ious(frame: BenchFrame) -> tuple[float, float]:
     detector's choice."""
     found = TopObjectDetector(detector_config(frame)).detect(frame.image_rgb).top_ellipse
     assert found is not None
-    top = max(mask_iou(found, f.ellipse, frame.shape) for f in frame.tops)
+    top = max(mask_iou(found, f.ellipse, frame.shape) for f in frame.tops
+              if f.ellipse is not None)
     other = max(mask_iou(found, f.ellipse, frame.shape) for f in frame.faces
                 if not f.is_top and f.ellipse is not None)
     return top, other
@@ -55,7 +57,7 @@ def _face(u: float, v: float, depth: float, radius: float, theta_y_deg: float = 
           ) -> Ellipse:
     """The image of a face of ``radius`` m centred on pixel (u, v) at ``depth`` m, tilted
     about the image's vertical by ``theta_y_deg``."""
-    centre = ((u - K.cx) * depth / K.fx, (v - K.cy) * depth / K.fy, depth)
+    centre = np.array([(u - K.cx) * depth / K.fx, (v - K.cy) * depth / K.fy, depth])
     return project_circle(centre, normal_from_tilt(0.0, theta_y_deg), radius, K)
 
 
