@@ -113,7 +113,8 @@ class EdgeParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "blur_sigma_px": (0.3, 5.0, "px"), "noise_multiple": (0.0, 100.0, ""),
         "contrast_fraction": (0.0, 1.0, ""), "min_high_threshold": (0.0, 255.0, "grey levels/px"),
-        "low_ratio": (0.05, 1.0, "")}
+        "low_ratio": (0.05, 1.0, ""), "support_noise_multiple": (0.0, 100.0, ""),
+        "support_min_contrast": (0.0, 255.0, "grey levels/px")}
 
     blur_sigma_px: float = 1.0
     """Gaussian smoothing sigma, px (the kernel covers +-2 sigma): suppresses pixel noise of a
@@ -131,6 +132,15 @@ class EdgeParams(Section):
     low_ratio: float = 0.4
     """Low hysteresis threshold as a ratio of the high one (Canny's recommended 1:2 to
     1:3)."""
+    support_noise_multiple: float = 2.0
+    """An outline sample shows consistent edge contrast (the support the top rule, the
+    reported ellipses' check and the refits read) when its windowed contrast across the
+    outline reaches this multiple (ratio) of the noise level (the median gradient
+    magnitude): the window's averaging lowers the noise ~2.2 times, so 2 keeps noise out
+    while faint boundaries between faces of one colour still count."""
+    support_min_contrast: float = 0.5
+    """...and at least this contrast, grey levels/px: a noiseless image's noise level is
+    zero, and a flat face's rendering dither must not count as an edge."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -309,7 +319,61 @@ class TopParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
         "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
-        "contrast_min_share": (0.0, 1.0, "")}
+        "contrast_min_share": (0.0, 1.0, ""), "min_support": (0.0, 1.0, ""),
+        "min_gap_px": (1, 1000, "px"), "junction_radius_px": (0.5, 20.0, "px"),
+        "crossing_reach_px": (0.0, 50.0, "px"), "interior_margin_px": (0.0, 20.0, "px"),
+        "max_interior_share": (0.0, 1.0, ""), "depth_tie_m": (0.0, 1.0, "m"),
+        "support_tie": (0.0, 1.0, ""), "unobstructed_min_support": (0.0, 1.0, ""),
+        "rim_band_px": (0.0, 30.0, "px")}
+
+    min_support: float = 0.9
+    """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
+    contrast: the top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions
+    and along low-contrast arcs."""
+    min_gap_px: int = 8
+    """Runs of the outline without support shorter than this (px) are edge drop-outs, not
+    occlusion: where a lower outline meets the top face in a T, Canny often breaks the
+    through-going edge for 4-7 px too."""
+    junction_radius_px: float = 3.0
+    """Another contour passing within this distance (px) of where a gap in the outline ends
+    makes the end a T-junction (Canny leaves a pixel or two of gap at a T instead of a
+    junction pixel)."""
+    crossing_reach_px: float = 6.0
+    """An occluding contour runs on into the face it covers: besides passing within
+    ``junction_radius_px`` of the gap end, it must have pixels inside the outline (by more
+    than ``merging.tolerance_px``) within this distance (px) of the end. A tilted cylinder's
+    own wall lines (which touch the faint face-to-wall rim) and the outlines of objects lying
+    under it stay outside its face."""
+    interior_margin_px: float = 2.5
+    """Edge pixels farther than this (px) inside the outline count as edges inside the face
+    (the outline's own pixels, blurred and fitted to ~1 px, stay outside the count)."""
+    max_interior_share: float = 0.05
+    """Edge pixels inside a face allowed, as a share [0, 1] of its perimeter (px per px):
+    isolated noise edges."""
+    depth_tie_m: float = 0.01
+    """A candidate face nearer the camera than every other by this much (m) is the top: an
+    object resting on another's wall lies higher than it though both faces show whole. The
+    face depths of one pile's candidates that are not clearly ordered differ by < 1 cm on
+    rendered paper-scene frames; a fit's depth error is ~1 mm."""
+    support_tie: float = 0.02
+    """Candidates whose supports (shares [0, 1]) differ by less than this are tied; the
+    larger ellipse, nearer the camera for equal radii, wins."""
+    unobstructed_min_support: float = 0.75
+    """Share [0, 1] of its outline a face with no T-junction and no edge inside must show for
+    the ``unobstructed`` fallback (and to join the depth test): an occluder's outline runs
+    into the face it covers, so such a face's gaps are boundaries too faint even for the
+    contrast test, a top face over a lower face of its colour and shade (~0.80 on rendered
+    paper-scene frames); far rims and arcs of two outlines fitted together show 0.5-0.6. Not
+    proof on its own: lower faces whose occluder only clips their rim reach 0.75-0.88 with
+    no edge inside, so this evidence is used only when nothing passes the rule, or with the
+    ``depth_tie_m`` margin."""
+    rim_band_px: float = 6.0
+    """Edge pixels inside a face's outline by at most this (px) can be its own rim (the
+    ``rimmed`` fallback and the rest check): a top face lying on a lower face of its own
+    colour and about its size is fitted on the lower face's strong silhouette where that
+    shows a sliver beyond it, and its own faint boundary then lies up to a few px inside the
+    fit (3-4 px on rendered paper-scene frames, as ``contrast_inner_reach_px``); an
+    occluder's outline runs across the face, deeper than this."""
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -348,7 +412,7 @@ class TopParams(Section):
     a few px inside the lower face's strong silhouette (4-5 px on rendered paper-scene
     frames: a rim offset of ~1.5 mm at 0.3 m); the face's smooth inside holds no other
     edge. The rest check's refit of a face with its own rim inside holds to it too (the
-    band that rim is looked for in keeps the default width)."""
+    band that rim is looked for in is ``rim_band_px``)."""
     contrast_rounds: int = 2
     """Contrast refit rounds, each re-centring the search on the previous fit: the first
     moves a fit that is a few px off onto the faint edge, the second fits on it whole."""

@@ -79,7 +79,6 @@ from stackpick_sim.vision.merging import (
     support_shares,
 )
 from stackpick_sim.vision.occlusion import (
-    INTERIOR_MARGIN_PX,
     OcclusionEvidence,
     TopChoice,
     clearly_nearest,
@@ -509,14 +508,15 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings)
+                markings=markings, top=config.top)
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every cue."""
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
-                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
+                      params=cues.top)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -538,7 +538,7 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     grad = state.edges("top")
     arc_chains, arcs = _every_arc(state, config)
     extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
-                                   state.crop, state.gate)
+                                   state.crop, state.gate, config.top)
     # Only whole faces with markings across them can be chosen so (the rule's evidence of
     # each ellipse is its own: the union's is the same).
     extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
@@ -554,20 +554,21 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     if both.index < n:
         return merged, replace(mine, index=both.index)
     face = extra[both.index - n]
-    if choice.index is not None and _refit_round(face, merged[choice.index].ellipse):
+    if choice.index is not None and _refit_round(face, merged[choice.index].ellipse,
+                                                 config.top.interior_margin_px):
         return merged, choice
     return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad)
 
 
-def _refit_round(face: Ellipse, chosen: Ellipse) -> bool:
+def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float) -> bool:
     """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
     holds the other's centre) round it and beyond, the chosen face reaching into its rim band
     (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
     silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
-    lying within the arc face's rim band is a fit on an arc of that face's outline and its
-    artwork, and gives way."""
+    lying within the arc face's rim band (``margin_px``, the rule's interior margin) is a fit
+    on an arc of that face's outline and its artwork, and gives way."""
     return ((holds_centre(face, chosen) or holds_centre(chosen, face))
-            and not inside_rim_band(chosen, face, INTERIOR_MARGIN_PX))
+            and not inside_rim_band(chosen, face, margin_px))
 
 
 def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -621,7 +622,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
                              arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
-                            cues.radius_of)
+                            cues.radius_of, config.top)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -633,7 +634,8 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
     use, limits, grad = config.top.fallbacks, config.limits, found.edges("top")
     edge_pixels = (found.points, found.grads)
     if choice.index is None and "rimmed" in use:
-        # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
+        # A face whose fit took in a same-colour lower face's sliver (see
+        # TopParams.rim_band_px).
         rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
         if rimmed is not None:
             return merged, replace(choice, index=rimmed, reason="")
@@ -643,7 +645,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         merged, choice = _regroup_arcs(
             merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
                                           limits.max_arcs),
-            found.chains, grad, edge_pixels, found.crop, found.gate)
+            found.chains, grad, edge_pixels, found.crop, found.gate, params=config.top)
     if choice.index is None and spare is not None and "spare_refit" in use:
         # A contrast refit with no T-junction and no edge inside, most of its outline
         # showing (select_unobstructed's evidence: a top face over a lower face of its
@@ -662,7 +664,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         arc_chains, arcs = _every_arc(found, config)
         merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
                                        edge_pixels, found.crop, found.gate, unobstructed=True,
-                                       arc_chains=arc_chains)
+                                       arc_chains=arc_chains, params=config.top)
     return merged, choice
 
 
@@ -781,7 +783,7 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,
-                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad)
+                       margin_px=config.top.interior_margin_px, image=rgb, gradients=grad)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
@@ -854,7 +856,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
              and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
-    checked = select_top([r for _, r in tries], grad).evidence
+    checked = select_top([r for _, r in tries], grad, params=params).evidence
     passed: dict[int, Ellipse] = {}
     for (i, r), ev in zip(tries, checked, strict=True):
         if not ev.occluded and i not in passed:  # the strongest-edge refit first
@@ -890,16 +892,16 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                   shape: tuple[int, int], gate: tuple[float, float] | None,
                   unobstructed: bool = False,
-                  arc_chains: tuple[NDArray[np.int32], ...] | None = None
-                  ) -> tuple[list[MergedEllipse], TopChoice]:
+                  arc_chains: tuple[NDArray[np.int32], ...] | None = None,
+                  params: TopParams = DEFAULT_TOP) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs``
     (:func:`_arc_pair_faces`) through the top rule alone (no rival that already failed it can
     win), and with ``unobstructed``, when none passes, through its last resorts
     (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
     vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
-    ``merged``; otherwise both come back unchanged."""
+    ``merged``; otherwise both come back unchanged. ``params``: the top rule's settings."""
     found, extra = _arc_pair_faces(arcs, chains if arc_chains is None else arc_chains, grad,
-                                   edge_pixels[0], edge_pixels[1], shape, gate)
+                                   edge_pixels[0], edge_pixels[1], shape, gate, params)
     if not found:
         return merged, choice
     if extra.index is None and unobstructed:
@@ -914,20 +916,20 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
 
 def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
                     grad: EdgeImage, points: NDArray[np.float64], grads: NDArray[np.float64],
-                    shape: tuple[int, int], gate: tuple[float, float] | None
-                    ) -> tuple[list[Ellipse], TopChoice]:
+                    shape: tuple[int, int], gate: tuple[float, float] | None,
+                    params: TopParams = DEFAULT_TOP) -> tuple[list[Ellipse], TopChoice]:
     """The ellipses of pairs of the ``arcs`` (indices into ``arc_chains``;
     :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map (its
     pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
     ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
-    rest tests need rivals)."""
+    rest tests need rivals; ``params``: its settings)."""
     found = arc_pair_ellipses(arc_chains, arcs, shape, gate)
     if found:
         found = [e for e in refine_all(found, points, grads, shape)
                  if gate is None or gate[0] <= e.a <= gate[1]]
     if not found:
         return [], TopChoice(index=None, evidence=())
-    return found, select_top(found, grad, edge_points=points)
+    return found, select_top(found, grad, edge_points=points, params=params)
 
 
 def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
@@ -948,8 +950,8 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
                      arc_chains: tuple[NDArray[np.int32], ...], grad: EdgeImage,
                      edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                      shape: tuple[int, int], gate: tuple[float, float] | None,
-                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None]
-                     ) -> tuple[list[MergedEllipse], TopChoice]:
+                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None],
+                     params: TopParams = DEFAULT_TOP) -> tuple[list[MergedEllipse], TopChoice]:
     """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
     the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
     it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
@@ -957,19 +959,19 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     (neither holds the other's centre: a refit of a face already weighed, too large a refit
     reading too near) is clearly nearer the camera than the chosen one and every other such
     (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
-    and chosen."""
+    and chosen. ``params``: the top rule's settings."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
     weighed = [merged[i].ellipse for i in _weighed(choice)]
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
-                                   shape, gate)
+                                   shape, gate, params)
     passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
               and not any(holds_centre(w, found[i]) or holds_centre(found[i], w)
                           for w in weighed)]
     if not passed:
         return merged, choice
     faces = [chosen, *(found[i] for i in passed)]
-    nearest = clearly_nearest(faces, intrinsics, radius_of)
+    nearest = clearly_nearest(faces, intrinsics, radius_of, params)
     if nearest is None or nearest == 0:  # no face clearly nearest, or the chosen one is
         return merged, choice
     i = passed[nearest - 1]
@@ -1086,7 +1088,8 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
         return ellipse
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
-    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
+    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise,
+                    params=grad.params)
     raw = unblurred_gradients(window, box)
     fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params)
     return _moved(fit, c0, r0)
