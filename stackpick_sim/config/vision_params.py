@@ -187,7 +187,8 @@ class FitParams(Section):
     SECTION: ClassVar[str] = "fits"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "min_fit_px": (5, 1000, "px"), "min_bow_px": (0.0, 10.0, "px"),
-        "max_residual_px": (0.05, 5.0, "px")}
+        "max_residual_px": (0.05, 5.0, "px"), "min_axis_px": (1.0, 1000.0, "px"),
+        "max_axis_diagonals": (0.05, 10.0, "diagonals")}
 
     min_fit_px: int = 10
     """Chains shorter than this (px) are not fitted: a few pixels of arc do not fix an
@@ -198,6 +199,13 @@ class FitParams(Section):
     max_residual_px: float = 0.6
     """Largest RMS Sampson residual (px) of an accepted segment fit: anti-aliased synthetic
     and rendered edges fit to ~0.2-0.3 px; 0.6 px rejects arcs that mix two curves."""
+    min_axis_px: float = 5.0
+    """Smallest semi-minor axis (px) of any ellipse the detector fits, merges, refines or
+    pairs (every fit is held to this and ``max_axis_diagonals``): faces image with a
+    semi-minor axis of ~10 px and more; thinner fits are arcs of wall lines and shading."""
+    max_axis_diagonals: float = 1.0
+    """Largest semi-major axis of any fitted ellipse, as a multiple of the searched image's
+    diagonal (diagonals): a larger fit is a near-straight run fitted as a huge ellipse."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
+    FitParams,
     PoseParams,
     ReportParams,
     StageSections,
@@ -131,6 +132,8 @@ REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "
 DEFAULT_REPORT = ReportParams()
 #: The top rule's default settings.
 DEFAULT_TOP = TopParams()
+#: The fits' default settings.
+DEFAULT_FITS = FitParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -367,7 +370,7 @@ def merging_stage(state: State, config: DetectorConfig) -> State:
     fits = state.fits
     merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
                             state.edges("merging").edges, [f[3] for f in fits],
-                            config.merging)
+                            config.merging, config.fits)
     return state.updated(merged=_best_supported(merged, config.limits.max_ellipses))
 
 
@@ -376,7 +379,7 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     refine.refine_all`)."""
     merged = state.merged
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
-                         config.refine)
+                         config.refine, config.fits)
     return state.updated(merged=[
         MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                       support=m.support) for m, e in zip(merged, refined, strict=True)])
@@ -464,8 +467,8 @@ def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
     work, grad = state.work, state.edges("pose")
     top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
-                                  config.pose, config.refine.min_normal_cos)
-    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose)
+                                  config.pose, config.refine.min_normal_cos, config.fits)
+    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose, config.fits)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).
     face = face_colour(top_ellipse, work) if work.ndim == 3 else None
@@ -538,7 +541,7 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     grad = state.edges("top")
     arc_chains, arcs = _every_arc(state, config)
     extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
-                                   state.crop, state.gate, config.top)
+                                   state.crop, state.gate, config)
     # Only whole faces with markings across them can be chosen so (the rule's evidence of
     # each ellipse is its own: the union's is the same).
     extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
@@ -593,7 +596,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # nearly whole face than the top.
         merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, found.crop,
                                                     found.gate, limits.max_refits,
-                                                    config.report.min_support, config.top)
+                                                    config.report.min_support, config.top,
+                                                    config.fits)
     if retried:
         choice = _select([m.ellipse for m in merged], found, cues)
     if retried and choice.index is not None:
@@ -622,7 +626,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
                              arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
-                            cues.radius_of, config.top)
+                            cues.radius_of, config)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -645,7 +649,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         merged, choice = _regroup_arcs(
             merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
                                           limits.max_arcs),
-            found.chains, grad, edge_pixels, found.crop, found.gate, params=config.top)
+            found.chains, grad, edge_pixels, found.crop, found.gate, config)
     if choice.index is None and spare is not None and "spare_refit" in use:
         # A contrast refit with no T-junction and no edge inside, most of its outline
         # showing (select_unobstructed's evidence: a top face over a lower face of its
@@ -664,7 +668,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         arc_chains, arcs = _every_arc(found, config)
         merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
                                        edge_pixels, found.crop, found.gate, unobstructed=True,
-                                       arc_chains=arc_chains, params=config.top)
+                                       arc_chains=arc_chains, config=config)
     return merged, choice
 
 
@@ -831,7 +835,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
                        grad: EdgeImage, shape: tuple[int, int],
                        gate: tuple[float, float] | None = None, max_refits: int = 8,
                        min_support: float = DEFAULT_REPORT.min_support,
-                       params: TopParams = DEFAULT_TOP
+                       params: TopParams = DEFAULT_TOP, fits_params: FitParams = DEFAULT_FITS
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
@@ -843,7 +847,8 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
     size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
     refits, refit, its evidence), else None. ``params``: the refit's reach, rounds and least
-    share (the ``contrast_*`` fields)."""
+    share (the ``contrast_*`` fields) and the rule's settings; ``fits_params``: the refits'
+    axis bounds."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= min_support]
     if len(todo) > max_refits:  # the best-supported, in their order
@@ -853,7 +858,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost, params)) is not None
-             and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
+             and plausible(r, shape, fits_params) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
     checked = select_top([r for _, r in tries], grad, params=params).evidence
@@ -891,17 +896,17 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   arcs: Sequence[int], chains: tuple[NDArray[np.int32], ...],
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                   shape: tuple[int, int], gate: tuple[float, float] | None,
-                  unobstructed: bool = False,
-                  arc_chains: tuple[NDArray[np.int32], ...] | None = None,
-                  params: TopParams = DEFAULT_TOP) -> tuple[list[MergedEllipse], TopChoice]:
+                  config: DetectorConfig, unobstructed: bool = False,
+                  arc_chains: tuple[NDArray[np.int32], ...] | None = None
+                  ) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs``
     (:func:`_arc_pair_faces`) through the top rule alone (no rival that already failed it can
     win), and with ``unobstructed``, when none passes, through its last resorts
     (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
     vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
-    ``merged``; otherwise both come back unchanged. ``params``: the top rule's settings."""
+    ``merged``; otherwise both come back unchanged. ``config``: the detector's settings."""
     found, extra = _arc_pair_faces(arcs, chains if arc_chains is None else arc_chains, grad,
-                                   edge_pixels[0], edge_pixels[1], shape, gate, params)
+                                   edge_pixels[0], edge_pixels[1], shape, gate, config)
     if not found:
         return merged, choice
     if extra.index is None and unobstructed:
@@ -917,19 +922,19 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
 def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
                     grad: EdgeImage, points: NDArray[np.float64], grads: NDArray[np.float64],
                     shape: tuple[int, int], gate: tuple[float, float] | None,
-                    params: TopParams = DEFAULT_TOP) -> tuple[list[Ellipse], TopChoice]:
+                    config: DetectorConfig) -> tuple[list[Ellipse], TopChoice]:
     """The ellipses of pairs of the ``arcs`` (indices into ``arc_chains``;
     :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map (its
     pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
     ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
-    rest tests need rivals; ``params``: its settings)."""
-    found = arc_pair_ellipses(arc_chains, arcs, shape, gate)
+    rest tests need rivals; ``config``: the settings of the fits, refits and rule)."""
+    found = arc_pair_ellipses(arc_chains, arcs, shape, gate, config.fits)
     if found:
-        found = [e for e in refine_all(found, points, grads, shape)
+        found = [e for e in refine_all(found, points, grads, shape, fits_params=config.fits)
                  if gate is None or gate[0] <= e.a <= gate[1]]
     if not found:
         return [], TopChoice(index=None, evidence=())
-    return found, select_top(found, grad, edge_points=points, params=params)
+    return found, select_top(found, grad, edge_points=points, params=config.top)
 
 
 def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
@@ -951,7 +956,7 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
                      edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                      shape: tuple[int, int], gate: tuple[float, float] | None,
                      intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None],
-                     params: TopParams = DEFAULT_TOP) -> tuple[list[MergedEllipse], TopChoice]:
+                     config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
     the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
     it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
@@ -959,19 +964,19 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     (neither holds the other's centre: a refit of a face already weighed, too large a refit
     reading too near) is clearly nearer the camera than the chosen one and every other such
     (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
-    and chosen. ``params``: the top rule's settings."""
+    and chosen. ``config``: the detector's settings."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
     weighed = [merged[i].ellipse for i in _weighed(choice)]
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
-                                   shape, gate, params)
+                                   shape, gate, config)
     passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
               and not any(holds_centre(w, found[i]) or holds_centre(found[i], w)
                           for w in weighed)]
     if not passed:
         return merged, choice
     faces = [chosen, *(found[i] for i in passed)]
-    nearest = clearly_nearest(faces, intrinsics, radius_of, params)
+    nearest = clearly_nearest(faces, intrinsics, radius_of, config.top)
     if nearest is None or nearest == 0:  # no face clearly nearest, or the chosen one is
         return merged, choice
     i = passed[nearest - 1]
@@ -1076,10 +1081,11 @@ def _same_outlines(ellipses: list[Ellipse], indices: list[int],
 
 
 def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
-                   params: PoseParams) -> Ellipse:
+                   params: PoseParams, fits_params: FitParams) -> Ellipse:
     """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
     gradients of the window of ``work`` around it (the window keeps the cost per face),
-    ``params.profile_window_margin_px`` beyond the profile search."""
+    ``params.profile_window_margin_px`` beyond the profile search (fits within
+    ``fits_params``' axis bounds)."""
     u0, v0, u1, v1 = ellipse.bounds()
     margin = params.profile_reach_px + params.profile_window_margin_px
     h, w = work.shape[:2]
@@ -1091,7 +1097,8 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise,
                     params=grad.params)
     raw = unblurred_gradients(window, box)
-    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params)
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params,
+                            fits_params)
     return _moved(fit, c0, r0)
 
 

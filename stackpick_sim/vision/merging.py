@@ -27,10 +27,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import MergeParams
+from stackpick_sim.config.vision_params import FitParams, MergeParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
+from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     distance_rows,
@@ -208,7 +209,8 @@ class _Pieces:
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
                    edges: NDArray[np.uint8], residuals: Sequence[float] | None = None,
-                   params: MergeParams = DEFAULT) -> list[MergedEllipse]:
+                   params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT
+                   ) -> list[MergedEllipse]:
     """Merge per-segment fits by Eq. 3, absorb leftovers, validate by support.
 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
@@ -216,8 +218,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ``edges`` the (H, W) 0/1 edge map; ``residuals`` the RMS residual (px) of each fit on
     its own segment, parallel to ``fits``, when known (:func:`~stackpick_sim.vision.fitting.
     fit_all` gives them): a group that stays that one fit keeps it rather than have it
-    computed again. ``params``: the merge's settings. Returns ellipses sorted by support,
-    best first.
+    computed again. ``params``: the merge's settings; ``fits_params``: the axis bounds every
+    refit is held to. Returns ellipses sorted by support, best first.
 
     Each group's pixels within tolerance are found once, when its ellipse is (re)fitted; a
     refused pair changes nothing, so the next best pair is read off the same counts.
@@ -231,7 +233,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     # changes an ellipse.
     leading = seg_of_piece == list(range(len(fits)))
     pieces, state = _start(chains, fits, leading, params.tolerance_px)
-    while _merge_best(state, pieces, shape, params):
+    while _merge_best(state, pieces, shape, params, fits_params):
         pass
     # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
     kept = state.alive()
@@ -246,7 +248,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
            for g, m in enumerate(state.members)]
     return _absorb_and_validate(chains, state.members, state.ellipses, edges,
                                 (final_g, state.pair_p, pieces.points.shape[0]) if leading
-                                else None, state.rest, pieces.everything, own, params)
+                                else None, state.rest, pieces.everything, own, params,
+                                fits_params)
 
 
 def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
@@ -299,7 +302,7 @@ def _pair_scores(state: _Groups, alive: list[int]) -> NDArray[np.float64]:
 
 
 def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
-                params: MergeParams = DEFAULT) -> bool:
+                params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT) -> bool:
     """Merge the best-scoring pair of groups whose union refits (refusing, in turn, those
     that do not); whether a pair merged."""
     alive = state.alive()
@@ -311,7 +314,7 @@ def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
         if c[bi, bj] <= params.k:
             return False
         gi, gj = alive[bi], alive[bj]
-        union = _union_fit(pieces, state.owner, (gi, gj), shape, params)
+        union = _union_fit(pieces, state.owner, (gi, gj), shape, params, fits_params)
         if union is None:
             state.refused.add((gi, gj))
             c[bi, bj] = c[bj, bi] = 0.0
@@ -321,15 +324,16 @@ def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
 
 
 def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int],
-               shape: tuple[int, int], params: MergeParams = DEFAULT
-               ) -> tuple[Ellipse, NDArray[np.float64]] | None:
+               shape: tuple[int, int], params: MergeParams = DEFAULT,
+               fits_params: FitParams = FIT_DEFAULT) -> tuple[Ellipse, NDArray[np.float64]] | None:
     """The refit on the union of two ``groups`` and the distances of every piece pixel to
-    it, when it is plausible, within ``params.max_residual_px`` and keeps each group on it
-    (:func:`_keeps_members`); None otherwise."""
+    it, when it is plausible (``fits_params``' axis bounds), within
+    ``params.max_residual_px`` and keeps each group on it (:func:`_keeps_members`); None
+    otherwise."""
     gi, gj = groups
     in_union = (owner == gi) | (owner == gj)
     merged = fit_ellipse(pieces.pixels[in_union])
-    if merged is None or not plausible(merged, shape):
+    if merged is None or not plausible(merged, shape, fits_params):
         return None
     d = ellipse_distances(merged, pieces.points)
     if (float(np.sqrt(np.mean(d[in_union] ** 2))) > params.max_residual_px
@@ -434,7 +438,7 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
 
 
 def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int], Ellipse]],
-            extras: list[list[int]], shape: tuple[int, int]
+            extras: list[list[int]], shape: tuple[int, int], fits_params: FitParams
             ) -> tuple[dict[int, Ellipse | None], dict[int, float]]:
     """Each group refitted with its ``extras`` (the segments lying on it besides its own),
     unless they only repeat its pixels; the refits (None: failed or implausible) and the
@@ -449,7 +453,8 @@ def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int],
         # The chains themselves (int32, in this order): the fit's input as it stands.
         union = np.concatenate([chains[s] for s in segs + extras[g]])
         refit = fit_ellipse(union)
-        refits[g] = refit if refit is not None and plausible(refit, shape) else None
+        refits[g] = (refit if refit is not None and plausible(refit, shape, fits_params)
+                     else None)
         if (e := refits[g]) is not None:
             # One ellipse, about one a frame: its residual on the fit's own input (the
             # same pixels) costs a third of a batched pass.
@@ -506,7 +511,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                          rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
                          everything: NDArray[np.float64] | None = None,
                          own: Sequence[float | None] | None = None,
-                         params: MergeParams = DEFAULT) -> list[MergedEllipse]:
+                         params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT
+                         ) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit (unless they only repeat
     its pixels), keep supported ones.
 
@@ -516,7 +522,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     all the chains' pixels concatenated (float64), when at hand; ``own``: per group, the RMS
     residual of its ellipse on its own segments when known (None: not known), which stands
     for the residual on them and on extras that only repeat their pixels; ``params``: the
-    absorbing share, the tolerance and the least support kept."""
+    absorbing share, the tolerance and the least support kept; ``fits_params``: the refits'
+    axis bounds."""
     alive = [g for g, e in enumerate(ellipses) if e is not None]
     groups = [(sorted(set(members[g])), e) for g in alive if (e := ellipses[g]) is not None]
     if not groups:
@@ -526,7 +533,7 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     lying = _lying_segments(table, groups, known, rest, params)
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
-    refits, refit_rms = _refits(chains, groups, extras, shape)
+    refits, refit_rms = _refits(chains, groups, extras, shape, fits_params)
     finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table)
     shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])

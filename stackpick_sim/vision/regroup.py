@@ -39,8 +39,10 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import FitParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
+from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
     MAX_RESIDUAL_PX,
     ellipse_distances,
@@ -91,12 +93,13 @@ def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int
 
 def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                       shape: tuple[int, int],
-                      axis_range: tuple[float, float] | None = None) -> list[Ellipse]:
+                      axis_range: tuple[float, float] | None = None,
+                      fits_params: FitParams = FIT_DEFAULT) -> list[Ellipse]:
     """Ellipses fitted to pairs of the chains ``arcs`` (indices into ``chains``, all edge
     segments, (N_j, 2) int32 (u, v)) and grown by the chains lying on them; see the module
     docstring. ``shape``: the (H, W) image; ``axis_range``: (min, max) semi-major axis (px) of
-    a face, or None. Each ellipse once: a pair of arcs that both lie on an ellipse already
-    grown is not fitted again."""
+    a face, or None; ``fits_params``: the axis bounds every fit is held to. Each ellipse once:
+    a pair of arcs that both lie on an ellipse already grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
     boxes = np.array([_bounds(chains[k]) for k in arcs], np.float64).reshape(-1, 4)
     # Both arcs within one face's extent: the pairs whose joint box spans at most 2 ``hi``
@@ -118,11 +121,11 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
         if any(ci in g and cj in g for g in grown_sets):
             continue
         union = np.concatenate([chains[ci], chains[cj]])
-        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range)
+        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range, fits_params)
         if fit is None:
             continue
         fit, lying = _grown(fit, union, (ci, cj), chains, distinct, (pixels, owner, lengths),
-                            shape)
+                            shape, fits_params)
         grown_sets.append({ci, cj, *lying})
         out.append(fit)
     return out
@@ -131,7 +134,7 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
 def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
            chains: Sequence[NDArray[np.int32]], distinct: list[int],
            table: tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.float64]],
-           shape: tuple[int, int]) -> tuple[Ellipse, tuple[int, ...]]:
+           shape: tuple[int, int], fits_params: FitParams) -> tuple[Ellipse, tuple[int, ...]]:
     """A pair's ``fit`` (its two arcs' pixels ``union``, their indices ``pair``) grown by the
     ``chains`` lying on it and refitted, up to GROW_ROUNDS times while the residual stays
     within MAX_RESIDUAL_PX, and the chains lying on it (indices); ``distinct``: the chains
@@ -144,7 +147,7 @@ def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
         lying = on
         grown = np.concatenate([union] + [chains[k] for k in lying if k not in pair])
         refit = fit_ellipse(grown)
-        if (refit is None or not plausible(refit, shape)
+        if (refit is None or not plausible(refit, shape, fits_params)
                 or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
             break
         fit = refit
@@ -152,13 +155,13 @@ def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
 
 
 def _pair_fit(union: NDArray[np.int32], n: int, shape: tuple[int, int],
-              axis_range: tuple[float, float] | None) -> Ellipse | None:
+              axis_range: tuple[float, float] | None, fits_params: FitParams) -> Ellipse | None:
     """The ellipse fitted to two arcs given one after the other in ``union`` (the first
     ``n`` pixels the first arc), when it is plausible in an (H, W) image of ``shape``, its
     semi-major axis within ``axis_range`` and it passes the merge's checks on a merged pair
     (RMS residual, each arc's share on it); else None."""
     fit = fit_ellipse(union)
-    if (fit is None or not plausible(fit, shape)
+    if (fit is None or not plausible(fit, shape, fits_params)
             or (axis_range is not None and not axis_range[0] <= fit.a <= axis_range[1])):
         return None
     # The residual and each arc's share on the fit, in one compiled pass.
