@@ -1,0 +1,114 @@
+"""The top rule's, the fits' and the edge support's settings: reached from a scene's
+``[vision]`` table and ``--set``, checked on load, and acting where they should."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stackpick_sim.config.loader import load_scene
+from stackpick_sim.episodes.detectors import scene_detector_config
+from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.occlusion import select_top, select_unobstructed
+from stackpick_sim.vision.params import EdgeParams, FitParams, TopParams
+from stackpick_sim.vision.synthetic import draw_ellipses
+
+SHAPE = (240, 320)
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+#: A lower face (semi-minor axis 34 px) partly under a top face (38 px, drawn last).
+FACES = [Ellipse(cx=200, cy=110, a=40, b=34, angle_deg=-10),
+         Ellipse(cx=150, cy=120, a=45, b=38, angle_deg=20)]
+
+
+@pytest.fixture(scope="module")
+def image() -> np.ndarray:
+    return draw_ellipses(SHAPE, FACES, noise_sigma=1.5, rng=np.random.default_rng(4))
+
+
+def test_rule_settings_reach_the_detector_from_a_scene_file(tmp_path: Path) -> None:
+    path = tmp_path / "strict.toml"
+    path.write_text("[vision.top]\nmin_support = 0.95\ndepth_tie_m = 0.02\n"
+                    "[vision.fits]\nmin_axis_px = 8.0\n"
+                    "[vision.edges]\nsupport_noise_multiple = 3.0\n")
+    config = scene_detector_config(load_scene(str(path)), K, (0.2, 0.3))
+    assert config.top == TopParams(min_support=0.95, depth_tie_m=0.02)
+    assert config.fits == FitParams(min_axis_px=8.0)
+    assert config.edges == EdgeParams(support_noise_multiple=3.0)
+
+
+def test_rule_settings_reach_the_detector_from_set() -> None:
+    cfg = load_scene("paper", ["vision.top.min_gap_px=12", "vision.top.rim_band_px=4.0",
+                               "vision.fits.max_axis_diagonals=0.5",
+                               "vision.edges.support_min_contrast=1.0"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.top.min_gap_px == 12 and config.top.rim_band_px == 4.0
+    assert config.fits.max_axis_diagonals == 0.5 and config.edges.support_min_contrast == 1.0
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("vision.top.min_support=1.2", "vision.top.min_support = 1.2 is out of range; allowed: 0 "
+                                   "to 1"),
+    ("vision.top.depth_tie_m=-0.01", "vision.top.depth_tie_m = -0.01 is out of range; allowed: "
+                                     "0 to 1 m"),
+    ("vision.top.min_gap_px=0", "vision.top.min_gap_px = 0 is out of range; allowed: 1 to "
+                                "1000 px"),
+    ("vision.fits.min_axis_px=0", "vision.fits.min_axis_px = 0.0 is out of range; allowed: 1 "
+                                  "to 1000 px"),
+    ("vision.edges.support_noise_multiple=200", "vision.edges.support_noise_multiple = 200.0 "
+                                                "is out of range; allowed: 0 to 100"),
+])
+def test_out_of_range_rule_settings_give_one_line_errors(override: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as err:
+        load_scene("paper", [override])
+    assert "\n" not in str(err.value)
+
+
+def test_the_least_axis_drops_thinner_faces(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    assert sorted(round(e.ellipse.cx) for e in detect(image, config).ellipses) == [150, 200]
+    # Only the top face's semi-minor axis (38 px) reaches 36 px: the lower face (34 px) is
+    # fitted nowhere, by no stage.
+    thick = detect(image, replace(config, fits=FitParams(min_axis_px=36.0)))
+    assert [round(e.ellipse.cx) for e in thick.ellipses] == [150]
+    assert thick.top == 0
+    assert not detect(image, replace(config, fits=FitParams(min_axis_px=50.0))).ellipses
+
+
+def test_the_support_threshold_sets_what_counts_as_an_outline(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    assert detect(image, config).top is not None
+    # Contrast of 100 times the noise level shows nowhere: no outline is supported.
+    blind = detect(image, replace(config, edges=EdgeParams(support_noise_multiple=100.0)))
+    assert blind.top is None
+
+
+def _with_gap(face: Ellipse, share: float) -> np.ndarray:
+    """An edge map of ``face``'s outline (one pixel wide) with ``share`` of it missing."""
+    edges = np.zeros(SHAPE, np.uint8)
+    t = np.linspace(0.0, 2.0 * np.pi, 2000, endpoint=False)[: int(2000 * (1.0 - share))]
+    c, s = np.cos(np.radians(face.angle_deg)), np.sin(np.radians(face.angle_deg))
+    x, y = face.a * np.cos(t), face.b * np.sin(t)
+    u, v = np.rint(face.cx + c * x - s * y).astype(int), np.rint(face.cy + s * x + c * y)
+    edges[v.astype(int), u] = 1
+    return edges
+
+
+def test_the_least_support_decides_whether_a_cut_face_is_top() -> None:
+    face = FACES[1]
+    edges = _with_gap(face, 0.15)  # a 15% gap with nothing at its ends
+    assert select_top([face], edges).index is None  # support ~0.85 < 0.9
+    assert select_top([face], edges, params=TopParams(min_support=0.8)).index == 0
+    assert select_top([face], _with_gap(face, 0.05)).index == 0  # a 5% gap passes
+
+
+def test_the_unobstructed_fallback_follows_its_least_support() -> None:
+    face = FACES[1]
+    edges = _with_gap(face, 0.15)  # nothing crossing it, support ~0.85
+    assert select_unobstructed(select_top([face], edges).evidence) == 0
+    strict = TopParams(unobstructed_min_support=0.9)
+    assert select_unobstructed(select_top([face], edges, params=strict).evidence) is None
