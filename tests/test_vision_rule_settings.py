@@ -1,5 +1,6 @@
-"""The top rule's, the fits' and the edge support's settings: reached from a scene's
-``[vision]`` table and ``--set``, checked on load, and acting where they should."""
+"""The top rule's (with its wall cover test's), the fits' and the edge support's settings:
+reached from a scene's ``[vision]`` table and ``--set``, checked on load, and acting where
+they should."""
 
 from __future__ import annotations
 
@@ -12,11 +13,14 @@ import pytest
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.occlusion import select_top, select_unobstructed
 from stackpick_sim.vision.params import EdgeParams, FitParams, TopParams
+from stackpick_sim.vision.pose import circle_poses
 from stackpick_sim.vision.synthetic import draw_ellipses
+from stackpick_sim.vision.wall import band_points
+from stackpick_sim.vision.wall_cover import covered_share, under_another
 
 SHAPE = (240, 320)
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
@@ -112,3 +116,15 @@ def test_the_unobstructed_fallback_follows_its_least_support() -> None:
     assert select_unobstructed(select_top([face], edges).evidence) == 0
     strict = TopParams(unobstructed_min_support=0.9)
     assert select_unobstructed(select_top([face], edges, params=strict).evidence) is None
+
+
+def test_the_wall_cover_follows_its_least_share() -> None:
+    tilted = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(35.0, 0.0), 0.035, K)
+    sol = circle_poses(tilted, K, 1.0)[0]
+    centre = band_points(sol.normal_cam, sol.centre_cam, tilted, K).mean(axis=0)
+    # A frontal face over the middle of the tilted face's predicted wall band.
+    over = Ellipse(cx=float(centre[0]), cy=float(centre[1]), a=25.0, b=25.0, angle_deg=0.0)
+    share = covered_share(tilted, over, K)
+    assert under_another([tilted, over], K) == [True, False]
+    higher = TopParams(cover_min_share=min(1.0, share + 0.05))
+    assert under_another([tilted, over], K, params=higher) == [False, False]

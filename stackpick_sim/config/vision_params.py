@@ -332,7 +332,10 @@ class TopParams(Section):
         "crossing_reach_px": (0.0, 50.0, "px"), "interior_margin_px": (0.0, 20.0, "px"),
         "max_interior_share": (0.0, 1.0, ""), "depth_tie_m": (0.0, 1.0, "m"),
         "support_tie": (0.0, 1.0, ""), "unobstructed_min_support": (0.0, 1.0, ""),
-        "rim_band_px": (0.0, 30.0, "px")}
+        "rim_band_px": (0.0, 30.0, "px"), "cover_min_share": (0.0, 1.0, ""),
+        "cover_margin_px": (0.0, 20.0, "px"), "cover_depth_tolerance_m": (0.0, 0.1, "m"),
+        "cover_min_samples": (1, 1000, "points"), "rest_contact_gap_m": (0.0, 0.1, "m"),
+        "rest_max_penetration_m": (0.0, 0.1, "m"), "rest_min_up": (0.0, 1.0, "")}
 
     min_support: float = 0.9
     """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
@@ -382,6 +385,34 @@ class TopParams(Section):
     shows a sliver beyond it, and its own faint boundary then lies up to a few px inside the
     fit (3-4 px on rendered paper-scene frames, as ``contrast_inner_reach_px``); an
     occluder's outline runs across the face, deeper than this."""
+    cover_min_share: float = 0.15
+    """A face lies under another when at least this share [0, 1] of one pose solution's
+    predicted wall band lies inside the other face (the T-junction rule for side walls,
+    :mod:`~stackpick_sim.vision.wall_cover`): a false hit needs a second whole face right
+    beside its rim, on the side a wall would show. Chosen on rendered paper-scene frames."""
+    cover_margin_px: float = 1.0
+    """Wall band points must lie this far (px) inside the other face to count as covered:
+    its blurred outline and the fit error are no evidence."""
+    cover_depth_tolerance_m: float = 0.003
+    """A wall band point counts as covered only where the other face's plane lies nearer the
+    camera than the point, or farther by at most this (m): a face's depth error (~1 mm) plus
+    a 1-2 deg tilt error moving its far rim ~1 mm, on each of the two faces. A real cover has
+    the covering object's body between its face and the wall, well in front."""
+    cover_min_samples: int = 8
+    """Points a solution's wall band needs outside its face for its covered share to count
+    (fewer: 0), above the pose's ``min_band_samples``: a share over a few points of a thin
+    band is noise, and can put a top face under a lower one."""
+    rest_contact_gap_m: float = 0.003
+    """Two reconstructed cylinders farther apart than this (m) do not touch (the rest check
+    between whole faces, :mod:`~stackpick_sim.vision.resting`): a face's depth error is ~1 mm
+    and a 1-2 deg tilt error moves a far rim ~1 mm."""
+    rest_max_penetration_m: float = 0.004
+    """Cylinders overlapping deeper than this (m) are no consistent reconstruction (a wrong
+    pose solution, a misfitted face) and give no evidence: the pose errors above, both ways."""
+    rest_min_up: float = 0.3
+    """A contact normal (from the lower body to the upper, unit) with at least this upward
+    component means the upper body rests on the lower: the ground truth's own threshold
+    (an object is top when nothing touches it from above by more than this)."""
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's

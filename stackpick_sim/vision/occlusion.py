@@ -437,7 +437,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     above = []
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
-        if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt)[0]:
+        if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt,
+                    params=params)[0]:
             above.append(i)
     return _best_supported(above, ellipses, evidence) if above else None
 
@@ -527,7 +528,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
-                 colour_of=colour_of, belt=belt)
+                 colour_of=colour_of, belt=belt, params=params)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
@@ -581,6 +582,7 @@ class _Cues:
     image: NDArray[np.uint8] | None
     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
     belt: NDArray[np.float64] | None
+    params: TopParams
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -591,7 +593,7 @@ def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[i
     if cues.intrinsics is None or len(pool) < 2:
         return pool, candidates
     under = under_another([ellipses[i] for i in pool], cues.intrinsics, cues.radius_of,
-                          cache=bands)
+                          cache=bands, params=cues.params)
     return _without_under(pool, candidates, under, False)
 
 
@@ -606,7 +608,7 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         return pool, candidates
     faces = [ellipses[i] for i in pool]
     under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
-                     colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+                     colour_of=cues.colour_of, cache=bands, belt=cues.belt, params=cues.params)
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
 
 
