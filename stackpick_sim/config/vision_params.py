@@ -212,8 +212,7 @@ class FitParams(Section):
 class MergeParams(Section):
     """``merging`` stage: fits of one ellipse merged by the paper's Eq. 3, leftover segments
     absorbed, each ellipse validated by its edge support (:func:`~stackpick_sim.vision.
-    merging.merge_segments`). The top rule's arc-pair regrouping and its T-junction test read
-    the defaults."""
+    merging.merge_segments`). The top rule's arc-pair regrouping holds to them too."""
 
     SECTION: ClassVar[str] = "merging"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
@@ -335,7 +334,9 @@ class TopParams(Section):
         "rim_band_px": (0.0, 30.0, "px"), "cover_min_share": (0.0, 1.0, ""),
         "cover_margin_px": (0.0, 20.0, "px"), "cover_depth_tolerance_m": (0.0, 0.1, "m"),
         "cover_min_samples": (1, 1000, "points"), "rest_contact_gap_m": (0.0, 0.1, "m"),
-        "rest_max_penetration_m": (0.0, 0.1, "m"), "rest_min_up": (0.0, 1.0, "")}
+        "rest_max_penetration_m": (0.0, 0.1, "m"), "rest_min_up": (0.0, 1.0, ""),
+        "arc_split_reach_px": (0.0, 50.0, "px"), "arc_grow_rounds": (0, 20, "rounds"),
+        "off_outline_px": (0.0, 20.0, "px")}
 
     min_support: float = 0.9
     """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
@@ -349,10 +350,15 @@ class TopParams(Section):
     """Another contour passing within this distance (px) of where a gap in the outline ends
     makes the end a T-junction (Canny leaves a pixel or two of gap at a T instead of a
     junction pixel)."""
+    off_outline_px: float = 1.5
+    """An edge pixel farther than this (px) from the outline belongs to another contour
+    (the T-junction test's; an occluder's pixels must lie farther inside the outline than
+    this too): the outline's own edge lies within the merge's pertaining distance
+    (``merging.tolerance_px``, the same default)."""
     crossing_reach_px: float = 6.0
     """An occluding contour runs on into the face it covers: besides passing within
     ``junction_radius_px`` of the gap end, it must have pixels inside the outline (by more
-    than ``merging.tolerance_px``) within this distance (px) of the end. A tilted cylinder's
+    than ``off_outline_px``) within this distance (px) of the end. A tilted cylinder's
     own wall lines (which touch the faint face-to-wall rim) and the outlines of objects lying
     under it stay outside its face."""
     interior_margin_px: float = 2.5
@@ -413,6 +419,16 @@ class TopParams(Section):
     """A contact normal (from the lower body to the upper, unit) with at least this upward
     component means the upper body rests on the lower: the ground truth's own threshold
     (an object is top when nothing touches it from above by more than this)."""
+    arc_split_reach_px: float = 6.0
+    """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
+    within this distance (px): Canny runs a face's outline on into a lower same-colour face's
+    silhouette and leaves the faint boundary between them ending 4-7 px short of it (as
+    ``min_gap_px``)."""
+    arc_grow_rounds: int = 3
+    """Rounds of growing an arc pair's ellipse by the chains lying on it (within the merge's
+    tolerance and absorbing share) and refitting (within ``fits.max_residual_px``): the
+    pair's own fit extrapolates up to a few px off the face's far arcs, and the first refit
+    on the arcs near it pulls it within the merge's tolerance of the rest."""
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
     FitParams,
+    MergeParams,
     PoseParams,
     ReportParams,
     StageSections,
@@ -52,7 +53,6 @@ from stackpick_sim.vision.edges import (
     unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import (
-    MIN_FIT_PX,
     fit_all,
     plausible,
     rms_residual,
@@ -560,7 +560,8 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     if choice.index is not None and _refit_round(face, merged[choice.index].ellipse,
                                                  config.top.interior_margin_px):
         return merged, choice
-    return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad)
+    return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad,
+                      config.merging)
 
 
 def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float) -> bool:
@@ -695,7 +696,7 @@ def _every_arc(state: State, config: DetectorConfig
     their junctions) and the ``limits.max_arcs`` longest of their arcs: what the marked
     arc-pair faces, the nearer arc-pair face and the last fallback draw pairs from."""
     arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
-                                        config.fits.min_fit_px)
+                                        config.fits.min_fit_px, config.top.arc_split_reach_px)
     return arc_chains, _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
 
 
@@ -875,16 +876,18 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
 
 
 def last_resort_arcs(pieces: list[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
-                     fitted: set[int], min_arc_px: int = MIN_FIT_PX
+                     fitted: set[int], min_arc_px: int = DEFAULT_FITS.min_fit_px,
+                     split_reach_px: float = DEFAULT_TOP.arc_split_reach_px
                      ) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
     """The chains the last arc pairs are drawn from, and which of them are arcs (indices):
     the fitted ``pieces``, then the edge ``chains`` ((N_i, 2) pixels) cut at their junctions
-    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`). Arcs are the pieces and the
+    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`, within ``split_reach_px``).
+    Arcs are the pieces and the
     parts at least ``min_arc_px`` long of the chains that were cut or that are not in ``fitted``
     (the chains some piece of which was fitted)."""
     out = list(pieces)
     arcs = list(range(len(pieces)))
-    for k, parts in enumerate(split_at_junctions(chains)):
+    for k, parts in enumerate(split_at_junctions(chains, split_reach_px)):
         for part in parts:
             if part.shape[0] >= min_arc_px and (len(parts) > 1 or k not in fitted):
                 arcs.append(len(out))
@@ -916,7 +919,7 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
     if extra.index is None:
         return merged, choice
     return _with_face(merged, choice, found[extra.index], extra.evidence[extra.index], chains,
-                      grad)
+                      grad, config.merging)
 
 
 def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
@@ -928,7 +931,7 @@ def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ..
     pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
     ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
     rest tests need rivals; ``config``: the settings of the fits, refits and rule)."""
-    found = arc_pair_ellipses(arc_chains, arcs, shape, gate, config.fits)
+    found = arc_pair_ellipses(arc_chains, arcs, shape, gate, config)
     if found:
         found = [e for e in refine_all(found, points, grads, shape, fits_params=config.fits)
                  if gate is None or gate[0] <= e.a <= gate[1]]
@@ -939,11 +942,12 @@ def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ..
 
 def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
                evidence: OcclusionEvidence, chains: tuple[NDArray[np.int32], ...],
-               grad: EdgeImage) -> tuple[list[MergedEllipse], TopChoice]:
-    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it and their
-    residual), and the choice of it, ``evidence`` added to ``choice``'s."""
+               grad: EdgeImage, params: MergeParams) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it by the merge's
+    ``params`` and their residual), and the choice of it, ``evidence`` added to
+    ``choice``'s."""
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
-    on = chains_on(ellipse, *chain_table(chains))
+    on = chains_on(ellipse, *chain_table(chains), params)
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]
@@ -980,7 +984,7 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     if nearest is None or nearest == 0:  # no face clearly nearest, or the chosen one is
         return merged, choice
     i = passed[nearest - 1]
-    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
+    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad, config.merging)
 
 
 def _weighed(choice: TopChoice) -> list[int]:

@@ -29,11 +29,6 @@ from stackpick_sim.vision import kernels
 
 #: The default settings (see FitParams: the reasons for each).
 DEFAULT = FitParams()
-#: The defaults by name: the shortest fitted segment (px), the least bow (px) and the largest
-#: RMS residual (px) of an accepted fit (the merge's and the arc pairs' refits hold to it too).
-MIN_FIT_PX = DEFAULT.min_fit_px
-MIN_BOW_PX = DEFAULT.min_bow_px
-MAX_RESIDUAL_PX = DEFAULT.max_residual_px
 #: Squared axis ratio above which a fit's Eq. 2 condition is evaluated (below it the
 #: condition holds with a margin far beyond float64 rounding: the terms are ~ratio^2 and
 #: carry a relative error of ~1e-16, the result is the ratio itself).

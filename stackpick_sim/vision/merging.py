@@ -33,7 +33,6 @@ from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
-    MAX_RESIDUAL_PX,
     distance_rows,
     ellipse_distances,
     ellipse_params,
@@ -46,15 +45,6 @@ from stackpick_sim.vision.fitting import (
 
 #: The default settings (see MergeParams: the reasons for each).
 DEFAULT = MergeParams()
-#: The defaults by name, which the top rule's arc-pair regrouping and T-junction test read:
-#: the Eq. 3 threshold, the pertaining distance (px), the largest RMS residual of a merged
-#: refit (px), the share of a segment's pixels that must lie on a merged ellipse, and the
-#: least edge support of a kept ellipse.
-MERGE_K = DEFAULT.k
-MERGE_TOLERANCE_PX = DEFAULT.tolerance_px
-MERGE_MAX_RESIDUAL_PX = DEFAULT.max_residual_px
-ABSORB_FRACTION = DEFAULT.absorb_fraction
-MIN_SUPPORT = DEFAULT.min_support
 #: Circumference samples are checked against the edge map dilated by this radius, px: one
 #: pixel of quantisation either way. Not a setting: it defines the support measure itself,
 #: which the merge, the top rule and the report all read, and against which their support
@@ -183,7 +173,7 @@ class _Groups:
         return [g for g, e in enumerate(self.ellipses) if e is not None]
 
     def join(self, gi: int, gj: int, merged: Ellipse, d: NDArray[np.float64],
-             tol_px: float = MERGE_TOLERANCE_PX) -> None:
+             tol_px: float = DEFAULT.tolerance_px) -> None:
         """Merge group ``gj`` into ``gi``, whose ellipse becomes ``merged`` (``d``: the
         distances of every piece pixel to it; ``tol_px``: the pertaining distance)."""
         self.ellipses[gi], self.ellipses[gj] = merged, None
@@ -253,7 +243,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
 
 
 def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
-           leading: bool, tol_px: float = MERGE_TOLERANCE_PX) -> tuple[_Pieces, _Groups]:
+           leading: bool, tol_px: float = DEFAULT.tolerance_px) -> tuple[_Pieces, _Groups]:
     """The pieces' pixels and the merge's first state (a group per fit), with the (group,
     pixel) pairs within ``tol_px`` of each fit; when the pieces are the ``leading`` chains,
     those of the later chains' pixels too (:attr:`_Groups.rest`)."""
@@ -354,7 +344,7 @@ def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int],
-                   fraction: float = ABSORB_FRACTION) -> bool:
+                   fraction: float = DEFAULT.absorb_fraction) -> bool:
     """True when ``fraction`` of each merged group's pixels lie on the refit ellipse
     (``on``: (N,) pixel within tolerance of it).
 
@@ -464,17 +454,18 @@ def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int],
 
 def _finals(groups: list[tuple[list[int], Ellipse]], extras: list[list[int]],
             refits: dict[int, Ellipse | None], refit_rms: dict[int, float],
-            known_rms: list[float | None], table: _Chains
+            known_rms: list[float | None], table: _Chains, max_residual_px: float
             ) -> tuple[list[tuple[list[int], Ellipse]], list[float]]:
     """Per group, its final (segments, ellipse): the refit with its extras when that stays
-    within MAX_RESIDUAL_PX, the fit in hand without them when the refit strays, the fit in
-    hand with them otherwise (not refitted, or the refit failed); and their RMS residuals
-    (``known_rms``: per group, the residual of its fit on its own segments when known)."""
+    within ``max_residual_px`` (a segment fit's), the fit in hand without them when the refit
+    strays, the fit in hand with them otherwise (not refitted, or the refit failed); and their
+    RMS residuals (``known_rms``: per group, the residual of its fit on its own segments when
+    known)."""
     residuals = _unrefitted_residuals(groups, extras, refits, known_rms, table)
     finals: list[tuple[list[int], Ellipse]] = []
     for g, (segs, ellipse) in enumerate(groups):
         refit = refits.get(g)
-        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
+        if refit is not None and refit_rms[g] <= max_residual_px:
             finals.append((segs + extras[g], refit))
             residuals[g] = refit_rms[g]
         elif refit is not None:
@@ -534,7 +525,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
     refits, refit_rms = _refits(chains, groups, extras, shape, fits_params)
-    finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table)
+    finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table,
+                                fits_params.max_residual_px)
     shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= params.min_support]

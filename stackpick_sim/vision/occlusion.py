@@ -67,7 +67,7 @@ from stackpick_sim.vision.contrast import (
 )
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
-from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
+from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
 from stackpick_sim.vision.wall_cover import BandCache, under_another
@@ -287,11 +287,13 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     """The ellipse (``owner``, indices into ``ellipses``) of each gap end
     (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
     ``edge_points``, in row-major order) off the ellipse (Sampson distance above
-    MERGE_TOLERANCE_PX) lies within ``params.junction_radius_px`` of it, and one inside the
-    outline by more than MERGE_TOLERANCE_PX within ``params.crossing_reach_px`` of it. Only
+    ``params.off_outline_px``) lies within ``params.junction_radius_px`` of it, and one inside
+    the outline by more than ``params.off_outline_px`` within ``params.crossing_reach_px`` of
+    it. Only
     the pixels of the rows within reach of an end are tested, all (end, pixel) pairs in one
     pass."""
     radius, crossing = params.junction_radius_px, params.crossing_reach_px
+    off = params.off_outline_px
     reach = max(radius, crossing)
     # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
     # pixels run into the face). The (end, pixel) tests in one compiled pass
@@ -300,12 +302,12 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     for e in ellipses:
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
-                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
+                     max(e.a - off, 1e-6), max(e.b - off, 1e-6)))
     both = kernels.junction_ends(
         np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
         np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
         np.array(rows, np.float64).reshape(-1, 8), float(reach),
-        float(radius ** 2), float(crossing ** 2), MERGE_TOLERANCE_PX)
+        float(radius ** 2), float(crossing ** 2), off)
     return cast("list[int]", owner[both].tolist())
 
 
