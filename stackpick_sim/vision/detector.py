@@ -467,7 +467,8 @@ def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
     work, grad = state.work, state.edges("pose")
     top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
-                                  config.pose, config.refine.min_normal_cos, config.fits)
+                                  config.pose, config.refine.min_normal_cos, config.fits,
+                                  config.refine.min_pixels)
     top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose, config.fits)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).

@@ -87,11 +87,12 @@ def _subpixel_columns(image: EdgeImage, u: NDArray[np.float64], v: NDArray[np.fl
 def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
                     grads: NDArray[np.float64], shape: tuple[int, int],
                     params: PoseParams = POSE_DEFAULT, min_normal_cos: float = MIN_NORMAL_COS,
-                    fits_params: FitParams = FIT_DEFAULT) -> Ellipse:
+                    fits_params: FitParams = FIT_DEFAULT, min_pixels: int = MIN_PIXELS
+                    ) -> Ellipse:
     """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
     unit gradients (M, 2) along it (within ``params.subpixel_tolerance_px``, gradient within
     the ``min_normal_cos`` cone of its normal, the fit within ``fits_params``' axis
-    bounds)."""
+    bounds; fewer than ``min_pixels`` keep ``ellipse``)."""
     tol = params.subpixel_tolerance_px
     def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.ascontiguousarray(c, np.float64)
@@ -103,7 +104,7 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
                                  ellipse.a + tol + 1, 4.0 * tol * tol,
                                  min_normal_cos * min_normal_cos, image.gx, image.gy,
                                  MAX_SHIFT_PX)
-    if pts.shape[0] < MIN_PIXELS:
+    if pts.shape[0] < min_pixels:
         return ellipse
     fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape, fits_params) else ellipse
