@@ -1,6 +1,6 @@
-"""The top rule's (with its wall cover test's), the fits' and the edge support's settings:
-reached from a scene's ``[vision]`` table and ``--set``, checked on load, and acting where
-they should."""
+"""The top rule's (with its wall cover and marking tests'), the fits' and the edge support's
+settings: reached from a scene's ``[vision]`` table and ``--set``, checked on load, and
+acting where they should."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.markings import two_surfaces
 from stackpick_sim.vision.occlusion import select_top, select_unobstructed
-from stackpick_sim.vision.params import EdgeParams, FitParams, TopParams
+from stackpick_sim.vision.params import EdgeParams, FitParams, MarkingParams, TopParams
 from stackpick_sim.vision.pose import circle_poses
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import band_points
@@ -128,3 +129,30 @@ def test_the_wall_cover_follows_its_least_share() -> None:
     assert under_another([tilted, over], K) == [True, False]
     higher = TopParams(cover_min_share=min(1.0, share + 0.05))
     assert under_another([tilted, over], K, params=higher) == [False, False]
+
+
+def test_the_two_surface_test_follows_its_brightness_range() -> None:
+    # A tilted face (orange) inside the fit round it and its wall, the wall at 0.55 of the
+    # face's brightness in the same hue.
+    face = Ellipse(cx=160, cy=110, a=36, b=24, angle_deg=0)
+    silhouette = Ellipse(cx=160, cy=120, a=37, b=34, angle_deg=0)
+    orange = np.array([0.85, 0.6, 0.25])
+    image = np.full((*SHAPE, 3), 30.0)
+    image[silhouette.mask(SHAPE)] = 255.0 * 0.55 * orange
+    image[face.mask(SHAPE)] = 255.0 * orange
+    rgb = np.clip(np.round(image), 0, 255).astype(np.uint8)
+    assert two_surfaces(silhouette, face, rgb, 2.5)
+    wide = MarkingParams(surface_brightness_range=(0.5, 2.0))
+    assert not two_surfaces(silhouette, face, rgb, 2.5, wide)
+
+
+def test_marking_settings_reach_the_detector_and_are_checked() -> None:
+    cfg = load_scene("paper", ["vision.markings.crossing_min_support=0.8",
+                               "vision.markings.surface_brightness_range=[0.6, 1.5]"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.markings == MarkingParams(crossing_min_support=0.8,
+                                            surface_brightness_range=(0.6, 1.5))
+    with pytest.raises(ConfigError, match=r"vision\.markings\.surface_brightness_range = "
+                                          r"\[1\.5, 0\.6\] must be \[low, high\]") as err:
+        load_scene("paper", ["vision.markings.surface_brightness_range=[1.5, 0.6]"])
+    assert "\n" not in str(err.value)

@@ -485,6 +485,45 @@ class TopParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class MarkingParams(Section):
+    """The top rule's tests of whole faces with markings (printed artwork, a can end's rings)
+    that the scene's ``marking_depth_ratio`` and ``marking_min_edge_share`` switch on
+    (:mod:`~stackpick_sim.vision.markings`)."""
+
+    SECTION: ClassVar[str] = "markings"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "surface_chroma_tolerance": (0.0, 2.0, ""),
+        "surface_brightness_range": (0.01, 100.0, ""),
+        "crossing_min_support": (0.0, 1.0, ""), "min_part_samples": (1, 64, "samples")}
+
+    surface_chroma_tolerance: float = 0.12
+    """Two parts of a face's rim band (inside and outside an inner whole face) are two
+    surfaces, the face a fit round another face and its wall or a lower face, when their
+    median colours' chromaticities (r, g, b over their sum) differ by more than this (L1):
+    face and wall of one object differ by ~0.02-0.07 on rendered paper-scene frames, the
+    grey belt sits ~0.3 from a coloured face."""
+    surface_brightness_range: tuple[float, float] = (0.7, 1.0 / 0.7)
+    """...or when the outer part's brightness (channel sum) over the inner part's lies
+    outside this (low, high) range of ratios: a cylinder's wall under the ring light is
+    darker than its face (about tan(tilt) of it plus ambient light), while a face's own rim
+    band, printed or tinplate, keeps within about 0.75-1.1 of itself round it (vignetting,
+    shading, artwork at the rim; measured on rendered realistic-scene frames)."""
+    crossing_min_support: float = 0.75
+    """Where two whole faces with markings cross, the upper one's outline shows edge contrast
+    along at least this share [0, 1] of its run over the lower one, and the lower one's
+    hidden outline along less (a hidden arc still picks up contrast where the upper face's
+    artwork or rings cross it; as ``top.unobstructed_min_support``)."""
+    min_part_samples: int = 4
+    """Fewest rim band or outline samples either part needs for the two-surface and the
+    crossing tests to decide (fewer: no verdict), of 64 rim band and 32-plus outline
+    samples."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _ordered(self, "surface_brightness_range")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ReportParams(Section):
     """The ``pose`` stage's choice of the ellipses a detection reports: supported ones, each
     face once, no far rims."""
@@ -662,6 +701,7 @@ class StageSections:
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
+    markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)
     pose: PoseParams = field(default_factory=PoseParams)
     ellipses: EllipsesParams = field(default_factory=EllipsesParams)

@@ -156,8 +156,8 @@ class DetectorConfig(StageSections):
     :mod:`~stackpick_sim.vision.markings`).
 
     ``roi``, ``edges``, ``segments``, ``fits``, ``merging``, ``refine``, ``gate``, ``top``,
-    ``report``, ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
-    :mod:`~stackpick_sim.config.vision_params`);
+    ``markings``, ``report``, ``pose``: each stage's tuned settings (the scene's
+    ``[vision.SECTION]`` tables, :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
     ``stages``: the stages run, in order (default :data:`STAGES`; see :meth:`without` and
@@ -789,7 +789,8 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,
-                       margin_px=config.top.interior_margin_px, image=rgb, gradients=grad)
+                       margin_px=config.top.interior_margin_px, image=rgb, gradients=grad,
+                       params=config.markings)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
