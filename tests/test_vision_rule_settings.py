@@ -1,6 +1,6 @@
-"""The top rule's (with its wall cover and marking tests'), the fits' and the edge support's
-settings: reached from a scene's ``[vision]`` table and ``--set``, checked on load, and
-acting where they should."""
+"""The top rule's (with its wall cover and marking tests'), the fits', the edge support's and
+the tracked outline search's settings: reached from a scene's ``[vision]`` (``[episode]``)
+table and ``--set``, checked on load, and acting where they should."""
 
 from __future__ import annotations
 
@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 
 from stackpick_sim.config.loader import load_scene
+from stackpick_sim.config.vision_params import OutlineTrackingParams
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.markings import two_surfaces
+from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.occlusion import select_top, select_unobstructed
 from stackpick_sim.vision.params import EdgeParams, FitParams, MarkingParams, TopParams
 from stackpick_sim.vision.pose import circle_poses
@@ -155,4 +157,21 @@ def test_marking_settings_reach_the_detector_and_are_checked() -> None:
     with pytest.raises(ConfigError, match=r"vision\.markings\.surface_brightness_range = "
                                           r"\[1\.5, 0\.6\] must be \[low, high\]") as err:
         load_scene("paper", ["vision.markings.surface_brightness_range=[1.5, 0.6]"])
+    assert "\n" not in str(err.value)
+
+
+def test_outline_tracking_settings_reach_the_search() -> None:
+    cfg = load_scene("paper", ["episode.outline.min_step=200", "episode.outline.search_px=4"])
+    params = cfg.episode.outline
+    assert params == OutlineTrackingParams(min_step=200.0, search_px=4.0)
+    face = FACES[1]
+    image = draw_ellipses(SHAPE, [face], noise_sigma=1.0, rng=np.random.default_rng(5))
+    gray = np.asarray(image, np.float32)
+    predicted = replace(face, cx=face.cx + 2.0)
+    assert track_outline(gray, predicted) is not None
+    # No grey-level step along the normals reaches 200 levels/px: no outline.
+    assert track_outline(gray, predicted, params=params) is None
+    with pytest.raises(ConfigError, match=r"episode\.outline\.min_inlier_share = 1\.5 is out "
+                                          r"of range; allowed: 0 to 1") as err:
+        load_scene("paper", ["episode.outline.min_inlier_share=1.5"])
     assert "\n" not in str(err.value)

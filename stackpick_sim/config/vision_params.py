@@ -30,10 +30,11 @@ FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed
 
 @dataclass(frozen=True, kw_only=True)
 class Section:
-    """A section of settings: ``SECTION`` is its key under ``vision``; ``RANGES`` maps a
-    field to its allowed (min, max, unit), checked for a number and for every number of a
-    list."""
+    """A section of settings: ``SECTION`` is its key under ``PREFIX`` (``vision``: the
+    detector's); ``RANGES`` maps a field to its allowed (min, max, unit), checked for a
+    number and for every number of a list."""
 
+    PREFIX: ClassVar[str] = "vision"
     SECTION: ClassVar[str] = ""
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {}
 
@@ -42,8 +43,8 @@ class Section:
             value = getattr(self, name)
             numbers = value if isinstance(value, tuple) else (value,)
             if not all(_number_within(v, lo, hi) for v in numbers):
-                raise ConfigError(f"vision.{self.SECTION}.{name} = {_shown(value)} is out of "
-                                  f"range; allowed: {_allowed(lo, hi, unit)}"
+                raise ConfigError(f"{self.PREFIX}.{self.SECTION}.{name} = {_shown(value)} is "
+                                  f"out of range; allowed: {_allowed(lo, hi, unit)}"
                                   + (" each" if isinstance(value, tuple) else ""))
 
 
@@ -65,7 +66,7 @@ def _ordered(section: Section, name: str) -> None:
     """ConfigError unless the (low, high) pair ``name`` of ``section`` has low <= high."""
     lo, hi = getattr(section, name)
     if lo > hi:
-        raise ConfigError(f"vision.{section.SECTION}.{name} = {[lo, hi]!r} must be "
+        raise ConfigError(f"{section.PREFIX}.{section.SECTION}.{name} = {[lo, hi]!r} must be "
                           "[low, high] with low <= high")
 
 
@@ -685,6 +686,44 @@ class EllipsesParams(Section):
     reach: above it, the ellipse is a stroke's outline and is not reported. Discs on glyph,
     logo and label backgrounds stay below 0.5 (their outside meets glyphs along a part of the
     rim only; benchmarks/bench_ellipses_precision.py), glyph rings lie near 1."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class OutlineTrackingParams(Section):
+    """Tracking mode: a tracked face's outline searched for around its predicted ellipse
+    where the detector misses it (:func:`~stackpick_sim.vision.moving_edges.track_outline`;
+    the scene's ``[episode.outline]`` table: the tracker's settings, not the detector's)."""
+
+    PREFIX: ClassVar[str] = "episode"
+    SECTION: ClassVar[str] = "outline"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "search_px": (0.5, 100.0, "px"), "min_axis_px": (1.0, 1000.0, "px"),
+        "samples": (8, 1024, "points"), "min_step": (0.0, 255.0, "grey levels/px"),
+        "inlier_px": (0.1, 20.0, "px"), "min_inlier_share": (0.0, 1.0, ""),
+        "size_tolerance": (0.0, 1.0, "")}
+
+    search_px: float = 6.0
+    """How far (px) the outline is searched for along the predicted ellipse's normals: the
+    prediction's error plus the face's motion between the tick of the prediction and the
+    capture (~3 px at 0.3 m/s). Placeholder."""
+    min_axis_px: float = 8.0
+    """Predicted faces smaller than this (semi-major axis, px) are not searched for: too few
+    pixels along their outline."""
+    samples: int = 72
+    """Points along the predicted outline where the edge is searched for (one every 5 deg)."""
+    min_step: float = 4.0
+    """Smallest grey-level step (grey levels/px along the normal, on the grey image smoothed
+    over 3 px) taken for the outline: several times the camera's noise (std ~1 grey level).
+    Placeholder."""
+    inlier_px: float = 1.5
+    """A sample's edge farther than this (px) from the fitted ellipse is an outlier (the
+    edge of a neighbour or of the face's markings)."""
+    min_inlier_share: float = 0.6
+    """Share [0, 1] of the samples that must be inliers of the final fit: most of the outline
+    must show."""
+    size_tolerance: float = 0.2
+    """The fit must keep its semi-axes within this share of the predicted semi-major axis
+    (ratio): a fit on a neighbour's outline or on arcs of two faces changes size."""
 
 
 @dataclass(frozen=True, kw_only=True)
