@@ -19,10 +19,16 @@ from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.markings import two_surfaces
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.occlusion import select_top, select_unobstructed
-from stackpick_sim.vision.params import EdgeParams, FitParams, MarkingParams, TopParams
+from stackpick_sim.vision.params import (
+    EdgeParams,
+    FitParams,
+    MarkingParams,
+    PoseParams,
+    TopParams,
+)
 from stackpick_sim.vision.pose import circle_poses
 from stackpick_sim.vision.synthetic import draw_ellipses
-from stackpick_sim.vision.wall import band_points
+from stackpick_sim.vision.wall import band_points, wall_evidence
 from stackpick_sim.vision.wall_cover import covered_share, under_another
 
 SHAPE = (240, 320)
@@ -175,3 +181,23 @@ def test_outline_tracking_settings_reach_the_search() -> None:
                                           r"of range; allowed: 0 to 1") as err:
         load_scene("paper", ["episode.outline.min_inlier_share=1.5"])
     assert "\n" not in str(err.value)
+
+
+def test_the_wall_band_test_follows_its_brightness_margin() -> None:
+    # A face tilted 20 deg over a "wall" as bright as the face itself: a wall of a face
+    # tilted 20 deg is at most tan(20 deg) + margin = 0.66 as bright, unless the margin
+    # allows more.
+    face = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(20.0, 0.0), 0.035, K)
+    sol = circle_poses(face, K, 1.0)[0]
+    band = band_points(sol.normal_cam, sol.centre_cam, face, K)
+    image = np.full((*SHAPE, 3), 30, np.uint8)
+    orange = np.array([217, 153, 64], np.uint8)
+    for u, v in np.rint(band).astype(int):
+        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = orange
+    image[face.mask(SHAPE)] = orange
+    colour = orange.astype(np.float64)
+    strict = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour)
+    loose = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour,
+                          params=PoseParams(band_brightness_margin=2.0))
+    assert strict.samples == loose.samples > 0
+    assert strict.share < 0.2 < 0.8 < loose.share

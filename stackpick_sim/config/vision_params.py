@@ -594,7 +594,9 @@ class PoseParams(Section):
         "subpixel_tolerance_px": (0.3, 10.0, "px"), "profile_reach_px": (0.5, 10.0, "px"),
         "profile_step_px": (0.1, 2.0, "px"), "profile_rounds": (0, 10, "rounds"),
         "profile_min_share": (0.0, 1.0, ""), "outlier_medians": (1.0, 100.0, ""),
-        "outlier_min_px": (0.0, 10.0, "px")}
+        "outlier_min_px": (0.0, 10.0, "px"), "band_chroma_tolerance": (0.0, 2.0, ""),
+        "band_min_brightness": (0.0, 1.0, ""), "band_brightness_margin": (0.0, 10.0, ""),
+        "band_belt_delta": (0.0, 255.0, "grey levels")}
 
     subpixel_tolerance_px: float = 1.2
     """Collection tolerance (px) of the top face's sub-pixel refit on the edge pixels along
@@ -637,6 +639,25 @@ class PoseParams(Section):
     lone_band_min_share: float = 0.5
     """A lone visible band showing the face's hue on less than this share [0, 1] is the wrong
     solution's."""
+    band_chroma_tolerance: float = 0.12
+    """A wall band sample shows the face's hue when the L1 distance between their
+    chromaticities (r, g, b over their sum) is at most this: face and wall of one object
+    differ by ~0.02-0.07 on rendered paper-scene frames, the grey belt sits ~0.35 from
+    orange, ~0.3 from blue. The rest check reads the wall bands by the same test."""
+    band_min_brightness: float = 0.12
+    """A band sample darker than this share [0, 1] of the face's brightness carries no usable
+    hue (deep shadow); an upright wall under the ring light measures ~0.27 of its face."""
+    band_brightness_margin: float = 0.3
+    """A wall sample is at most tan(tilt) plus this share of the face's brightness (ratio),
+    the tilt being the face normal's angle to the viewing ray: under a ring light at the
+    camera a Lambertian wall faces the light by at most sin(tilt) where the face does by
+    cos(tilt). The margin covers ambient light on near-frontal walls (~0.2) and shading
+    (rendered paper-scene frames: true walls at <= tan(tilt) + 0.2, the same-coloured lower
+    faces the other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4)."""
+    band_belt_delta: float = 14.0
+    """A band sample within this many grey levels of the bare belt's colour in every channel
+    is belt, not wall (what tells them apart when the face has the belt's hue: a grey
+    object): the belt's own spread under the ring light, as ``roi.foreground_delta``."""
     wall_tie: float = 0.15
     """Without a colour image: edge support [0, 1] of the two solutions' predicted wall
     silhouette lines closer than this is a tie."""

@@ -166,7 +166,8 @@ class BaselineDetector:
                      else radius_by_colour(rgb, cfg.radii_m, cfg.kind_colours))
         grad = edge_image(rgb, cfg.edges)
         choice = select_top(found, grad, k, radius_of, image=rgb, height_of=cfg.height_of(),
-                            belt=belt, markings=marking_test(cfg, rgb, grad), params=cfg.top)
+                            belt=belt, markings=marking_test(cfg, rgb, grad), params=cfg.top,
+                            pose_params=cfg.pose)
         cands = []
         for i, e in enumerate(found):
             if i != choice.index:

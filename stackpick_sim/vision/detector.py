@@ -428,7 +428,7 @@ def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
         return choice
     above = select_resting_rimmed([m.ellipse for m in merged], choice, state.edges("top"),
                                   state.points, cues.k_crop, cues.radius_of, cues.height_of,
-                                  cues.rgb, cues.belt, params)
+                                  cues.rgb, cues.belt, params, cues.pose)
     return choice if above is None else replace(choice, index=above)
 
 
@@ -512,7 +512,7 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings, top=config.top)
+                markings=markings, top=config.top, pose=config.pose)
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
@@ -520,7 +520,7 @@ def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
                       colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
-                      params=cues.top)
+                      params=cues.top, pose_params=cues.pose)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,

@@ -56,7 +56,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import TopParams
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import (
@@ -74,6 +74,8 @@ from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: The top rule's default settings (the reasons for each: TopParams).
 DEFAULT_TOP = TopParams()
+#: The pose's default settings (the rest test reads its wall band test).
+DEFAULT_POSE = PoseParams()
 #: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
 #: factor on the paper scene's frames (see GateParams.slack): the slack of a depth
 #: compared through r / a.
@@ -402,7 +404,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
                           radius_of: Callable[[Ellipse], float | None],
                           height_of: Callable[[float], float | None], image: NDArray[np.uint8],
                           belt: NDArray[np.float64] | None = None,
-                          params: TopParams = DEFAULT_TOP) -> int | None:
+                          params: TopParams = DEFAULT_TOP,
+                          pose_params: PoseParams = DEFAULT_POSE) -> int | None:
     """Index of a :func:`rim_only` ellipse whose object rests on the chosen face's, or None.
 
     The top rule's choice can be a whole lower face with a top face resting on it whose fit
@@ -420,7 +423,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     so it reads nearer than its face is, and a face reading farther lies below the chosen
     one; such a lower face resting on it (a lean on its wall, below its face) is left to the
     top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands;
-    ``params``: the contrast refit's settings (the ``contrast_*`` fields)."""
+    ``params``: the contrast refit's and the rest test's settings; ``pose_params``: the wall
+    band test's."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
@@ -440,7 +444,7 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
         if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt,
-                    params=params)[0]:
+                    params=params, pose_params=pose_params)[0]:
             above.append(i)
     return _best_supported(above, ellipses, evidence) if above else None
 
@@ -489,7 +493,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                belt: NDArray[np.float64] | None = None,
                markings: MarkingTest | None = None,
-               params: TopParams = DEFAULT_TOP) -> TopChoice:
+               params: TopParams = DEFAULT_TOP,
+               pose_params: PoseParams = DEFAULT_POSE) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -513,7 +518,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands. With
     ``markings`` (its settings), an ellipse that is a marking or relief inside a whole face is
     no candidate, and a whole face that holds only such markings is one
-    (:mod:`~stackpick_sim.vision.markings`). ``params``: the rule's settings.
+    (:mod:`~stackpick_sim.vision.markings`). ``params``: the rule's settings;
+    ``pose_params``: the rest test's wall band test's (the pose's).
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -530,7 +536,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
-                 colour_of=colour_of, belt=belt, params=params)
+                 colour_of=colour_of, belt=belt, params=params, pose_params=pose_params)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
@@ -585,6 +591,7 @@ class _Cues:
     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
     belt: NDArray[np.float64] | None
     params: TopParams
+    pose_params: PoseParams
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -610,7 +617,8 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         return pool, candidates
     faces = [ellipses[i] for i in pool]
     under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
-                     colour_of=cues.colour_of, cache=bands, belt=cues.belt, params=cues.params)
+                     colour_of=cues.colour_of, cache=bands, belt=cues.belt, params=cues.params,
+                     pose_params=cues.pose_params)
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
 
 

@@ -32,10 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import TopParams
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import (
-    MIN_BAND_SAMPLES,
     CirclePose,
     choose_by_band,
     unit_circle_poses,
@@ -52,6 +51,8 @@ from stackpick_sim.vision.wall_cover import BandCache, face_bands
 
 #: The top rule's default settings (the contact gap, penetration and upward share).
 DEFAULT_TOP = TopParams()
+#: The pose's default settings (its wall band test and the band choice).
+DEFAULT_POSE = PoseParams()
 #: World up in the camera frame: the look pose looks straight down (OpenCV axes, +z forward).
 UP_CAM = np.array([0.0, 0.0, -1.0])
 #: Directions searched for the separating axis (a Fibonacci sphere): ~3 deg apart, so the
@@ -130,7 +131,8 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
              cache: BandCache | None = None,
              belt: NDArray[np.float64] | None = None,
-             params: TopParams = DEFAULT_TOP) -> list[bool]:
+             params: TopParams = DEFAULT_TOP, pose_params: PoseParams = DEFAULT_POSE
+             ) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
@@ -140,7 +142,8 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
     computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`); ``belt``: the bare
     belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`);
-    ``params``: the contact settings (``rest_*``)."""
+    ``params``: the contact settings (``rest_*``); ``pose_params``: the wall band test's and
+    the band choice's (as the pose's)."""
     under = [False] * len(faces)
     bodies = _bodies(faces, intrinsics, radius_of, height_of)
     if bodies is None:
@@ -149,7 +152,7 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     if not near:
         return under
     picks = _solution_picks(faces, bodies, sorted({p for pq in near for p in pq}),
-                            intrinsics, image, colour_of, cache, belt)
+                            intrinsics, image, colour_of, cache, belt, pose_params)
     # The chosen solutions' pairs not already apart along the coarse directions.
     todo = [(p, q) for p, q in near if p in picks and q in picks
             and not apart[(p, q)][picks[p]][picks[q]]]
@@ -225,18 +228,18 @@ def _touching_pairs(bodies: _Bodies, gap_m: float
 def _solution_picks(faces: Sequence[Ellipse], bodies: _Bodies, involved: list[int],
                     intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
                     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None,
-                    cache: BandCache | None, belt: NDArray[np.float64] | None
-                    ) -> dict[int, int]:
+                    cache: BandCache | None, belt: NDArray[np.float64] | None,
+                    params: PoseParams) -> dict[int, int]:
     """The pose solution (0 or 1) of each ``involved`` body (indices into ``bodies.kinds``)
     its wall bands favour (:func:`~stackpick_sim.vision.pose.choose_by_band`); a face seen
     square on (no band shows) takes the smaller tilt; a face whose bands cannot tell has
     none."""
     picks: dict[int, int] = {}
     evidence = wall_evidences_of([faces[bodies.kinds[p][0]] for p in involved],
-                                 intrinsics, image, colour_of, cache, belt)
+                                 intrinsics, image, colour_of, cache, belt, params)
     for p, bands in zip(involved, evidence, strict=True):
-        pick = choose_by_band(bands)
-        if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
+        pick = choose_by_band(bands, params)
+        if pick is None and all(b.samples < params.min_band_samples for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
             # smaller tilt, as the pose takes (a flat face another object leans on).
             pick = int(np.argmax([float(s.normal_cam[2]) for s in bodies.units[p]]))
@@ -271,14 +274,15 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                       image: NDArray[np.uint8],
                       colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                       cache: BandCache | None = None,
-                      belt: NDArray[np.float64] | None = None) -> list[list[WallEvidence]]:
+                      belt: NDArray[np.float64] | None = None,
+                      params: PoseParams = DEFAULT_POSE) -> list[list[WallEvidence]]:
     """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
     pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
     face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
     pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
     face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
     depth). ``colour_of``: a face's colour, when the caller keeps them; ``belt``: the bare
-    belt's colour (C,) or None."""
+    belt's colour (C,) or None; ``params``: the band test's settings."""
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
     colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
@@ -287,5 +291,5 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     tans = [tan_tilt(s.normal_cam, s.centre_cam) for f in faces
             for s in unit_circle_poses(f, intrinsics)]
     evidence = band_evidences(pu[:, :per], pv[:, :per], keep[:, :per], image, colours, tans,
-                              belt)
+                              belt, params)
     return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]
