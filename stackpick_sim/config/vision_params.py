@@ -421,9 +421,9 @@ class TopParams(Section):
     component means the upper body rests on the lower: the ground truth's own threshold
     (an object is top when nothing touches it from above by more than this)."""
     rest_kind_margin_m: float = 0.01
-    """With object kinds that colour cannot tell apart, the rest test reconstructs each pair
-    of whole faces under every assignment of the kinds' radii (:func:`~stackpick_sim.vision.
-    resting.rests_on_any_kind`): a rest found under one assignment counts only when under
+    """With object kinds that colour cannot tell apart, the rest test
+    (:mod:`~stackpick_sim.vision.resting`) reconstructs each pair of whole faces under every
+    assignment of the kinds' radii: a rest found under one assignment counts only when under
     every other the two cylinders lie farther apart than this (m) or run through each other.
     A wrong radius moves a face by centimetres along its rays (the radii's ratio at
     0.2-0.3 m); scaling both faces alike keeps a touching pair within a few mm (3-5 mm on
