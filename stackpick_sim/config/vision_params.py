@@ -309,7 +309,8 @@ class TopParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
         "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
-        "contrast_min_share": (0.0, 1.0, "")}
+        "contrast_min_share": (0.0, 1.0, ""), "ring_hole_scale": (0.0, 1.0, ""),
+        "ring_hole_share": (0.0, 1.0, "")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -356,6 +357,19 @@ class TopParams(Section):
     """Fewest samples with a consistent edge, as a share [0, 1] of the outline, for a
     contrast refit (fewer: no refit): a face at least half visible, as the scoring counts
     faces."""
+    ring_hole_scale: float = 0.45
+    """Share [0, 1] of a face's semi-axes within which its interior edges are a hole's (a
+    roll's ring face round its core, :mod:`~stackpick_sim.vision.rings`): a tape roll's
+    core is about a quarter of its radius (25.4 mm in 100 mm), the hole's outline and the
+    core's wall seen through it lie within 0.4 of the face's semi-axes on rendered
+    realistic-scene frames (edge blur included); printed artwork and a can end's rings
+    spread to the rim. Capped per face at the smallest kind's radius over the face's: an
+    object lying on the face reads nearer, so no smaller."""
+    ring_hole_share: float = 0.95
+    """Share [0, 1] of a whole face's interior edge pixels that must lie within
+    ``ring_hole_scale`` for it to be judged a ring face round its hole: nearly all (a few
+    stray edges of noise or the worn belt's texture aside); on rendered realistic-scene
+    frames a tape roll's face has all of them there, printed lids and can ends under half."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -781,7 +781,9 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,
-                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad)
+                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad,
+                       hole_scale=config.top.ring_hole_scale,
+                       hole_share=config.top.ring_hole_share)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE

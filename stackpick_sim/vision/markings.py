@@ -70,9 +70,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.rings import hole_only
 from stackpick_sim.vision.wall import CHROMA_TOLERANCE, column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
@@ -118,7 +120,11 @@ class MarkingTest:
     inside the face a marking's whole outline lies (the margin of the interior-edge count);
     ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
     (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
-    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test)."""
+    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test);
+    ``hole_scale`` and ``hole_share``: a whole face with at least ``hole_share`` of its
+    interior edges inside its concentric ellipse at ``hole_scale`` of its semi-axes is a
+    ring face round its hole (:mod:`~stackpick_sim.vision.rings`), judged as a face with
+    markings."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
@@ -127,6 +133,8 @@ class MarkingTest:
     margin_px: float
     image: NDArray[np.uint8] | None = None
     gradients: EdgeImage | None = None
+    hole_scale: float = TopParams.ring_hole_scale
+    hole_share: float = TopParams.ring_hole_share
     #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
     #: arc-pair faces join the top rule, it judges the merge's faces again. Not an argument:
     #: a copy by ``dataclasses.replace`` (another image, other gradients) starts empty.
@@ -151,22 +159,40 @@ def whole_with_edges_inside(ev: OcclusionEvidence) -> bool:
 
 
 def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
-                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
-                  ) -> Markings:
+                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None,
+                  edge_points: NDArray[np.float64] | None = None) -> Markings:
     """The markings and marked faces among ``ellipses`` (see the module docstring), given
     their top-rule ``evidence``, the ``test``'s settings and, when known, each ellipse's radius
-    by its colour (``radius_of``)."""
+    by its colour (``radius_of``). With the edge map's pixels ``edge_points`` ((M, 2) u, v),
+    ring faces round their hole are judged too (:func:`ring_round_hole`)."""
     markings: set[int] = set()
     marked: set[int] = set()
     for f, ev in enumerate(evidence):
-        if (whole_with_edges_inside(ev)
-                and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px):
+        if whole_with_edges_inside(ev) and (
+                ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px
+                or ring_round_hole(ellipses[f], test, edge_points)):
             own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
             markings.update(own)
             if not blocked:
                 marked.add(f)
                 markings.update(loose)
     return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
+
+
+def ring_round_hole(face: Ellipse, test: MarkingTest,
+                    edge_points: NDArray[np.float64] | None) -> bool:
+    """Whether ``face``'s interior edges (among ``edge_points``; False without them) are a
+    hole's: at least ``test.hole_share`` of them inside its concentric ellipse at
+    ``test.hole_scale`` of its semi-axes, or at the smallest kind's radius over the face's
+    (read from its rim band's colour, else the largest radius) if that is less: an object
+    lying on the face reads nearer, so no smaller (:func:`~stackpick_sim.vision.rings.
+    hole_only`)."""
+    if edge_points is None:
+        return False
+    rim = None if test.rim_radius_of is None else test.rim_radius_of(face)
+    scale = min(test.hole_scale, min(test.radii) / (max(test.radii) if rim is None else rim))
+    return _kept(test, ("ring", face), lambda: hole_only(face, edge_points, test.margin_px,
+                                                        scale, test.hole_share))
 
 
 def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],

@@ -504,7 +504,7 @@ def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence]
     across it."""
     if test is None:
         return frozenset(), frozenset()
-    found = find_markings(ellipses, evidence, test, radius_of)
+    found = find_markings(ellipses, evidence, test, radius_of, edge_points)
     order = sorted(found.marked)
     if not order:
         return found.markings, found.marked
