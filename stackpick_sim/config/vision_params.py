@@ -310,7 +310,7 @@ class TopParams(Section):
         "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
         "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
         "contrast_min_share": (0.0, 1.0, ""), "ring_hole_scale": (0.0, 1.0, ""),
-        "ring_hole_share": (0.0, 1.0, "")}
+        "ring_hole_share": (0.0, 1.0, ""), "marking_max_off_rim_share": (0.0, 1.0, "")}
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -365,6 +365,15 @@ class TopParams(Section):
     realistic-scene frames (edge blur included); printed artwork and a can end's rings
     spread to the rim. Capped per face at the smallest kind's radius over the face's: an
     object lying on the face reads nearer, so no smaller."""
+    marking_max_off_rim_share: float = 0.2
+    """Share [0, 1] of a whole face with markings' rim band (its ellipse at 0.94 of its
+    semi-axes) that may be off the band's median colour (another hue, or a brightness
+    outside 0.7-1.43 of it) for it to stay a candidate for the top. A face's rim band is its
+    own surface all round: a printed lid's stripe and lettering cross at most 16 % of it, a
+    can end's tinplate rim none, a tape roll's none (on rendered realistic-scene frames).
+    More is another surface: a lower face whose fit the top object's outline completes has
+    the top object across its band, and a fit round a face and its wall runs over the wall
+    or the belt (20-50 % on those frames)."""
     ring_hole_share: float = 0.95
     """Share [0, 1] of a whole face's interior edge pixels that must lie within
     ``ring_hole_scale`` for it to be judged a ring face round its hole: nearly all (a few

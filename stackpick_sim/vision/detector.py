@@ -783,7 +783,8 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
                        min_edge_share=config.marking_min_edge_share,
                        margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad,
                        hole_scale=config.top.ring_hole_scale,
-                       hole_share=config.top.ring_hole_share)
+                       hole_share=config.top.ring_hole_share,
+                       max_off_rim_share=config.top.marking_max_off_rim_share)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE

@@ -124,7 +124,8 @@ class MarkingTest:
     ``hole_scale`` and ``hole_share``: a whole face with at least ``hole_share`` of its
     interior edges inside its concentric ellipse at ``hole_scale`` of its semi-axes is a
     ring face round its hole (:mod:`~stackpick_sim.vision.rings`), judged as a face with
-    markings."""
+    markings; ``max_off_rim_share``: a whole face with markings whose rim band is off its
+    median colour along more than this share is no candidate (:func:`off_rim_share`)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
@@ -135,6 +136,7 @@ class MarkingTest:
     gradients: EdgeImage | None = None
     hole_scale: float = TopParams.ring_hole_scale
     hole_share: float = TopParams.ring_hole_share
+    max_off_rim_share: float = TopParams.marking_max_off_rim_share
     #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
     #: arc-pair faces join the top rule, it judges the merge's faces again. Not an argument:
     #: a copy by ``dataclasses.replace`` (another image, other gradients) starts empty.
@@ -173,7 +175,7 @@ def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
                 or ring_round_hole(ellipses[f], test, edge_points)):
             own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
             markings.update(own)
-            if not blocked:
+            if not blocked and not _rim_of_two_surfaces(ellipses[f], test):
                 marked.add(f)
                 markings.update(loose)
     return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
@@ -254,6 +256,36 @@ def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvi
     image = test.image
     return _kept(test, ("two_surfaces", face, inner),
                  lambda: two_surfaces(face, inner, image, test.margin_px))
+
+
+def _rim_of_two_surfaces(face: Ellipse, test: MarkingTest) -> bool:
+    """Whether more than ``test.max_off_rim_share`` of ``face``'s rim band (:func:`rim_band`)
+    is off its median colour (:func:`off_rim_share`; False without the ``image``): the face's
+    fit runs round another surface, or another object lies across its rim."""
+    if test.image is None:
+        return False
+    image = test.image
+    return _kept(test, ("off_rim", face),
+                 lambda: off_rim_share(face, image) > test.max_off_rim_share)
+
+
+def off_rim_share(face: Ellipse, image: NDArray[np.uint8]) -> float:
+    """Share [0, 1] of ``face``'s rim band samples (:func:`rim_band`) in the (H, W, 3) RGB
+    ``image`` whose colour is off the band's median colour: chromaticity farther than
+    SURFACE_CHROMA_TOLERANCE (L1) from it, or brightness (channel sum) outside
+    SURFACE_BRIGHTNESS_RANGE of it."""
+    h, w = image.shape[:2]
+    pix = np.rint(rim_band(face)).astype(np.int64)
+    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
+    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
+    sums = np.maximum(colours.sum(axis=1), 1e-9)
+    median = column_median(colours)
+    median_sum = max(float(median.sum()), 1e-9)
+    chroma = np.abs(colours / sums[:, None] - median / median_sum).sum(axis=1)
+    lo, hi = SURFACE_BRIGHTNESS_RANGE
+    ratio = sums / median_sum
+    off = (chroma > SURFACE_CHROMA_TOLERANCE) | (ratio < lo) | (ratio > hi)
+    return float(np.count_nonzero(off)) / len(off)
 
 
 def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool]) -> bool:
