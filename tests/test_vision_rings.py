@@ -3,6 +3,8 @@ surface (vision.markings.off_rim_share) in the top rule."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -98,6 +100,11 @@ def test_a_ring_face_lying_on_a_lid_is_the_top() -> None:
     found = detect(image, CONFIG)
     assert found.top_ellipse is not None, found.reason
     assert mask_iou(found.top_ellipse, RING, SHAPE) > 0.9
+    # With no interior edge read as a hole's, the ring fails on its hole and the lid apart
+    # is taken.
+    no_hole = replace(CONFIG, top=TopParams(ring_hole_share=1.0, ring_hole_scale=0.0))
+    found = detect(image, no_hole)
+    assert found.top_ellipse is not None and mask_iou(found.top_ellipse, apart, SHAPE) > 0.9
 
 
 def test_off_rim_share_reads_another_surface_across_the_rim_band() -> None:

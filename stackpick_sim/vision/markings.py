@@ -55,8 +55,22 @@ lid's artwork edges; both show whole with markings, and only the two outlines' r
 each other tell which lies on which (the paper's rule of the occluding contour running
 through).
 
-The tests read only ellipses, their evidence, the faces' colours and, for crossing faces, the
-edge contrast along their outlines (a few hundred pixels each): no image pass (cheap).
+A roll's ring face (a tape roll round its core) fails on its hole's outline, too few interior
+edges for ``min_edge_share``; a whole face whose interior edges nearly all lie in a small
+concentric ellipse is judged the same way (:mod:`~stackpick_sim.vision.rings`), the hole's
+fit being its marking.
+
+A face judged so is a candidate only if its rim band is its own surface: off the band's
+median colour (another hue, or a brightness outside SURFACE_BRIGHTNESS_RANGE of it) along at
+most ``max_off_rim_share`` of it (:func:`off_rim_share`). Failure classes: *a lower face
+whose outline the top object's outline completes* (a lower lid's fit runs on along the upper
+lid's outline where its own is hidden, shows whole, and the upper lid, fitted only in part,
+lies across its rim band) and *a fit round a face and its wall* with no whole inner face to
+read it by (it runs over the wall's darker band or the belt).
+
+The tests read only ellipses, their evidence, the faces' colours, for crossing faces the
+edge contrast along their outlines (a few hundred pixels each) and, for ring faces, the edge
+pixels inside them: no image pass (cheap).
 """
 
 from __future__ import annotations
