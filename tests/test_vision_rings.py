@@ -134,3 +134,16 @@ def test_realistic_frames_whose_top_is_a_tape_roll(seed: int) -> None:
     assert score_frame(run_ours(frame), frame).success
     without = VisionCfg(top=TopParams(ring_hole_share=1.0, ring_hole_scale=0.0))
     assert not score_frame(run_ours(frame, without), frame).success
+
+
+@pytest.mark.parametrize("seed", [70037, 70099])
+def test_realistic_frames_whose_wrong_candidate_has_another_surface_across_its_rim(
+        seed: int) -> None:
+    # 70099: a lower printed lid whose fit the small top lid's outline completes, the top lid
+    # across its rim band; 70037: a fit round a small lid's face and its wall. Each is a
+    # whole face with markings; with any share of its rim band off its colour allowed, it
+    # is taken for the top.
+    frame = next(iter_generated(load_scene("realistic"), [seed]))
+    assert score_frame(run_ours(frame), frame).success
+    lenient = VisionCfg(top=TopParams(marking_max_off_rim_share=1.0))
+    assert not score_frame(run_ours(frame, lenient), frame).success
