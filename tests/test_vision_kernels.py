@@ -550,3 +550,51 @@ def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
                 int(np.count_nonzero(d[n:] < 4.0)))
         got = kernels.pair_lies(points, n, cx, cy, a, b, c, s, 4.0)
         assert got == want and 0 < got[1] + got[2] < m
+
+
+def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
+                          gx: NDArray[np.int16], gy: NDArray[np.int16],
+                          offsets: NDArray[np.float64], threshold: float, innermost: bool
+                          ) -> NDArray[np.float64]:
+    """The contrast refit's round as array expressions (np.convolve's windowed mean)."""
+    h, w = gx.shape
+    q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]
+    u = np.clip(np.rint(q[..., 0]).astype(np.int64), 0, w - 1)
+    v = np.clip(np.rint(q[..., 1]).astype(np.int64), 0, h - 1)
+    g = gx[v, u] * normals[:, None, 0] + gy[v, u] * normals[:, None, 1]
+    k = 5
+    padded = np.concatenate([g[-(k // 2):], g, g[: k // 2]], axis=0)
+    smooth = np.stack([np.convolve(padded[:, j], np.ones(k) / k, mode="valid")
+                       for j in range(offsets.size)], axis=1)
+    mag = np.abs(smooth) / 8.0
+    best = np.argmax(mag, axis=1)
+    if innermost:
+        padded_mag = np.pad(mag, ((0, 0), (1, 1)))
+        peak = (mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:]) & (mag >= threshold)
+        best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
+    ok = mag[np.arange(best.size), best] >= threshold
+    return q[np.flatnonzero(ok), best[ok]]
+
+
+@pytest.mark.parametrize("innermost", [False, True])
+def test_contrast_peaks_match_the_array_form(rng: np.random.Generator,
+                                             innermost: bool) -> None:
+    from stackpick_sim.geometry import Ellipse
+    from stackpick_sim.vision.contrast import outline
+
+    # Smooth gradients with steps (ties and local peaks), outlines partly off the image.
+    base = cv2.GaussianBlur(rng.integers(0, 256, (60, 80)).astype(np.uint8), (5, 5), 1.5)
+    base[20:45, 25:60] //= 2
+    gx, gy = cv2.spatialGradient(base)
+    for cx, cy, a, b, angle in [(40.0, 32.0, 17.0, 11.0, 20.0), (70.0, 50.0, 20.0, 14.0, 100.0),
+                                (40.5, 30.2, 9.3, 8.8, 0.0)]:
+        pts, normals = outline(Ellipse(cx=cx, cy=cy, a=a, b=b, angle_deg=angle))
+        offsets = np.arange(-6 if innermost else -3, 4, dtype=np.float64)
+        for threshold in (0.5, 3.0, 8.0):
+            want = _contrast_peaks_numpy(pts, normals, gx, gy, offsets, threshold, innermost)
+            got = kernels.contrast_peaks(
+                np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+                np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+                gx, gy, offsets, 5, 8.0, threshold, innermost)
+            assert np.array_equal(got, want)
+            assert 0 < got.shape[0] or threshold == 8.0

@@ -900,6 +900,56 @@ def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
     return cut
 
 
+@_compiled
+def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray[np.float64],
+                   nv: NDArray[np.float64], gx: NDArray[np.int16], gy: NDArray[np.int16],
+                   offsets: NDArray[np.float64], window: int, gain: float, threshold: float,
+                   innermost: bool) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The contrast refit's points: at each outline sample (pu, pv) with unit normal (nu, nv),
+    the signed normal gradient read at the pixel nearest each of the ``offsets`` along the
+    normal (clamped into the image), its mean over the ``window`` (odd) samples centred on the
+    sample (wrapping round the outline; summed in order, as ``np.convolve``), as an absolute
+    value over ``gain``; the offset of the strongest (the first of equals), or with
+    ``innermost`` of the first local peak reaching ``threshold`` when there is one. Returns
+    the (K, 2) positions of the samples whose chosen offset reaches ``threshold``, in sample
+    order; see :func:`~stackpick_sim.vision.contrast.refit_on_contrast`."""
+    h, w = gx.shape
+    n, k = pu.shape[0], offsets.shape[0]
+    g = np.empty((n, k))
+    for i in range(n):
+        for j in range(k):
+            u = min(max(np.int64(np.rint(pu[i] + offsets[j] * nu[i])), 0), w - 1)
+            v = min(max(np.int64(np.rint(pv[i] + offsets[j] * nv[i])), 0), h - 1)
+            g[i, j] = gx[v, u] * nu[i] + gy[v, u] * nv[i]
+    weight = 1.0 / window
+    half = window // 2
+    mag = np.empty(k)
+    out = np.empty((n, 2))
+    count = 0
+    for i in range(n):
+        for j in range(k):
+            total = 0.0
+            for t in range(window):
+                total += g[(i + t - half) % n, j] * weight
+            mag[j] = abs(total) / gain
+        best = 0
+        for j in range(1, k):
+            if mag[j] > mag[best]:
+                best = j
+        if innermost:
+            for j in range(k):
+                left = mag[j - 1] if j > 0 else 0.0
+                right = mag[j + 1] if j + 1 < k else 0.0
+                if mag[j] >= left and mag[j] >= right and mag[j] >= threshold:
+                    best = j
+                    break
+        if mag[best] >= threshold:
+            out[count, 0] = pu[i] + offsets[best] * nu[i]
+            out[count, 1] = pv[i] + offsets[best] * nv[i]
+            count += 1
+    return out[:count]
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -931,6 +981,7 @@ def warm_up() -> None:
     bows(np.zeros((1, 2)), counts)
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
+    contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)
