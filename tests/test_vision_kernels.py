@@ -598,3 +598,16 @@ def test_contrast_peaks_match_the_array_form(rng: np.random.Generator,
                 gx, gy, offsets, 5, 8.0, threshold, innermost)
             assert np.array_equal(got, want)
             assert 0 < got.shape[0] or threshold == 8.0
+
+
+def test_band_points_match_the_array_form(rng: np.random.Generator) -> None:
+    vectors = rng.normal(size=(4, 3, 3))
+    t = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    depths = np.array([0.2, 0.4, 0.6])
+    normal, centre, u, v = vectors.transpose(0, 2, 1)
+    rim = centre[:, :, None] + ct * u[:, :, None]
+    rim += st * v[:, :, None]
+    want = (rim[:, :, None, :] + depths.reshape(1, 1, -1, 1) * normal[:, :, None, None]
+            ).reshape(3, 3, -1)
+    assert np.array_equal(kernels.band_points(vectors, ct, st, depths), want)

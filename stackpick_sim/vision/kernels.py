@@ -834,6 +834,27 @@ def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: f
 
 
 @_compiled
+def band_points(vectors: NDArray[np.float64], ct: NDArray[np.float64],
+                st: NDArray[np.float64], depths: NDArray[np.float64]
+                ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """(3, S, D x P) camera-frame points of the wall bands of S solutions, ``vectors`` (4, S,
+    3) their normals, centres and rim bases u, v: at depth d (of D) and rim point p (of P,
+    at (``ct[p]``, ``st[p]``)), centre + ct u + st v + depth normal, depth by depth; see
+    :func:`~stackpick_sim.vision.wall.solution_band_points` (the same arithmetic)."""
+    n_s, n_p, n_d = vectors.shape[1], ct.shape[0], depths.shape[0]
+    out = np.empty((3, n_s, n_d * n_p))
+    for c in range(3):
+        for s in range(n_s):
+            normal, centre = vectors[0, s, c], vectors[1, s, c]
+            u, v = vectors[2, s, c], vectors[3, s, c]
+            for p in range(n_p):
+                rim = (centre + ct[p] * u) + st[p] * v
+                for d in range(n_d):
+                    out[c, s, d * n_p + p] = rim + depths[d] * normal
+    return out
+
+
+@_compiled
 def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
                     fy: float, kcx: float, kcy: float, margin_px: float
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -982,6 +1003,9 @@ def warm_up() -> None:
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
+    fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
+    fixed.setflags(write=False)
+    band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)

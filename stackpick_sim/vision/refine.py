@@ -225,9 +225,10 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     pair_points = points[pm].astype(np.float32)
     active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
+    # Each fit's quadratic form, a row rewritten when its ellipse is refitted.
+    forms = np.array([_form(e) for e in current], np.float64)
     for tol in params.tolerances_px:
         # The pairs along each active fit, and their pixels, in one compiled pass.
-        forms = np.array([_form(e) for e in current], np.float64)
         sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
                                                pair_points, 4.0 * tol * tol,
                                                params.min_normal_cos * params.min_normal_cos)
@@ -243,6 +244,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                 active[e] = False
                 continue
             current[e] = fit
+            forms[e] = _form(fit)
         if not active.any():
             break
     return current
