@@ -611,3 +611,83 @@ def test_band_points_match_the_array_form(rng: np.random.Generator) -> None:
     want = (rim[:, :, None, :] + depths.reshape(1, 1, -1, 1) * normal[:, :, None, None]
             ).reshape(3, 3, -1)
     assert np.array_equal(kernels.band_points(vectors, ct, st, depths), want)
+
+
+def _circle_solutions_python(q: list[float], evals: list[float], evecs: list[list[float]],
+                             ellipse: tuple[float, float, float, float, float],
+                             camera: tuple[float, float, float, float]
+                             ) -> list[list[float]]:
+    """The two unit-radius circle poses on Python floats ((normal, centre) each, flat)."""
+    fx, fy, cx, cy = camera
+    q00, q01, q02, q11, q12, q22 = q
+    l_lo, l_mid, l_hi = evals
+    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs
+    if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:
+        q00, q01, q02, q11, q12, q22 = -q00, -q01, -q02, -q11, -q12, -q22
+        l3, l2, l1 = -l_hi, -l_mid, -l_lo
+        e3, e1 = [v02, v12, v22], [v00, v10, v20]
+    else:
+        l3, l2, l1 = l_lo, l_mid, l_hi
+        e3, e1 = [v00, v10, v20], [v02, v12, v22]
+    g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
+    h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
+
+    def form(x: tuple[float, float, float]) -> float:
+        return (q00 * x[0] * x[0] + q11 * x[1] * x[1] + q22 * x[2] * x[2]
+                + 2.0 * (q01 * x[0] * x[1] + q02 * x[0] * x[2] + q12 * x[1] * x[2]))
+
+    ex, ey, a, b, angle = ellipse
+    t = math.radians(angle)
+    ct, st = math.cos(t), math.sin(t)
+    a2, b2 = a ** 2, b ** 2
+    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
+    out = []
+    for sign in (1.0, -1.0):
+        n = [sign * g * e1[i] + h * e3[i] for i in range(3)]
+        n = n if n[2] > 0 else [-n[0], -n[1], -n[2]]
+        m0, m1 = n[0] / fx, n[1] / fy
+        m2 = -cx / fx * n[0] - cy / fy * n[1] + n[2]
+        cm = ex * m0 + ey * m1
+        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
+        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
+        p2 = -cm - m2
+        ray = ((p0 / p2 - cx) / fx, (p1 / p2 - cy) / fy, 1.0)
+        along = n[0] * ray[0] + n[1] * ray[1] + n[2]
+        x0 = (ray[0] / along, ray[1] / along, 1.0 / along)
+        norm = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        k0, k1, k2 = n[0] / norm, n[1] / norm, n[2] / norm
+        u0, u1, u2 = (0.0, k2, -k1) if abs(k0) < 0.9 else (-k2, 0.0, k0)
+        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        s2 = -form(x0) / form((u0 / un, u1 / un, u2 / un))
+        scale = 1.0 / math.sqrt(max(s2, 1e-300))
+        out.append([*n, x0[0] * scale, x0[1] * scale, x0[2] * scale])
+    return out
+
+
+def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -> None:
+    from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+    from stackpick_sim.vision.pose import _conic_terms
+
+    k = CameraIntrinsics(fx=277.1, fy=277.1, cx=160.0, cy=120.0, width=320, height=240)
+    camera = (k.fx, k.fy, k.cx, k.cy)
+    for _ in range(300):
+        a = float(rng.uniform(8.0, 80.0))
+        e = Ellipse(cx=float(rng.uniform(0, 320)), cy=float(rng.uniform(0, 240)), a=a,
+                    b=a * float(rng.uniform(0.3, 1.0)), angle_deg=float(rng.uniform(0, 180)))
+        (m00, m01, d0), (m11, d1, f) = _conic_terms(e)
+        r0, r1 = m00 * k.cx + m01 * k.cy + d0, m01 * k.cx + m11 * k.cy + d1
+        q = [k.fx * k.fx * m00, k.fx * k.fy * m01, k.fx * r0, k.fy * k.fy * m11, k.fy * r1,
+             k.cx * r0 + k.cy * r1 + (d0 * k.cx + d1 * k.cy + f)]
+        w, v = np.linalg.eigh(np.array([[q[0], q[1], q[2]], [q[1], q[3], q[4]],
+                                        [q[2], q[4], q[5]]]))
+        t = math.radians(e.angle_deg)
+        got, ok = kernels.circle_solutions(
+            np.array(q), w, v, np.array([e.cx, e.cy, math.cos(t), math.sin(t), e.a ** 2,
+                                         e.b ** 2]), np.array(camera))
+        want = _circle_solutions_python(q, w.tolist(), v.tolist(),
+                                        (e.cx, e.cy, e.a, e.b, e.angle_deg), camera)
+        assert ok
+        assert got.reshape(2, 6).tolist() == want
+    # A degenerate form (equal eigenvalues) divides by zero: no poses.
+    assert not kernels.circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6),
+                                        np.ones(4))[1]

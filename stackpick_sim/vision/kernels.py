@@ -855,6 +855,89 @@ def band_points(vectors: NDArray[np.float64], ct: NDArray[np.float64],
 
 
 @_compiled
+def _quadric(q: NDArray[np.float64], x0: float, x1: float, x2: float
+             ) -> float:  # pragma: no cover - compiled
+    """x^T Q x of the symmetric 3x3 form given by its entries ``q`` (Q00, Q01, Q02, Q11,
+    Q12, Q22), summed as :func:`~stackpick_sim.vision.pose.unit_circle_poses` does."""
+    return (q[0] * x0 * x0 + q[3] * x1 * x1 + q[5] * x2 * x2
+            + 2.0 * (q[1] * x0 * x1 + q[2] * x0 * x2 + q[4] * x1 * x2))
+
+
+@_compiled
+def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
+                     evecs: NDArray[np.float64], terms: NDArray[np.float64],
+                     camera: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.float64], bool]:  # pragma: no cover - compiled
+    """The two unit-radius circle poses of an ellipse from its cone ``q`` (the six entries
+    of K^T C K, as :func:`_quadric` reads them) and that form's ascending ``evals`` (3,) and
+    ``evecs`` (3, 3, eigenvectors in columns): (2, 2, 3) rows (normal, centre) per solution,
+    in the order and with the arithmetic of :func:`~stackpick_sim.vision.pose.
+    unit_circle_poses`. ``terms``: the ellipse's centre, the cosine and sine of its angle
+    and its squared axes (cx, cy, c, s, a^2, b^2); ``camera``: fx, fy, cx, cy. False (and
+    no poses) where that arithmetic divides by zero."""
+    out = np.zeros((2, 2, 3))
+    fx, fy, kcx, kcy = camera[0], camera[1], camera[2], camera[3]
+    form = q.copy()
+    if (evals[0] > 0) + (evals[1] > 0) + (evals[2] > 0) == 1:  # one positive: negate
+        for i in range(6):
+            form[i] = -q[i]
+        l3, l2, l1 = -evals[2], -evals[1], -evals[0]
+        j3, j1 = 2, 0
+    else:
+        l3, l2, l1 = evals[0], evals[1], evals[2]
+        j3, j1 = 0, 2
+    if l1 - l3 == 0.0:
+        return out, False
+    g = (l1 - l2) / (l1 - l3)
+    g = math.sqrt(g if g > 0.0 else 0.0)
+    h = (l2 - l3) / (l1 - l3)
+    h = math.sqrt(h if h > 0.0 else 0.0)
+    ex, ey, ct, st, a2, b2 = terms[0], terms[1], terms[2], terms[3], terms[4], terms[5]
+    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
+    for k in range(2):
+        sign = 1.0 if k == 0 else -1.0
+        n0 = sign * g * evecs[0, j1] + h * evecs[0, j3]
+        n1 = sign * g * evecs[1, j1] + h * evecs[1, j3]
+        n2 = sign * g * evecs[2, j1] + h * evecs[2, j3]
+        if not n2 > 0:
+            n0, n1, n2 = -n0, -n1, -n2
+        m0, m1 = n0 / fx, n1 / fy
+        m2 = -kcx / fx * n0 - kcy / fy * n1 + n2
+        cm = ex * m0 + ey * m1
+        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
+        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
+        p2 = -cm - m2
+        if p2 == 0.0:
+            return out, False
+        r0, r1 = (p0 / p2 - kcx) / fx, (p1 / p2 - kcy) / fy
+        along = n0 * r0 + n1 * r1 + n2
+        if along == 0.0:
+            return out, False
+        x0, x1, x2 = r0 / along, r1 / along, 1.0 / along
+        # The first vector of the plane's basis (wall.plane_basis's u).
+        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if norm == 0.0:
+            return out, False
+        b0, b1, b2_ = n0 / norm, n1 / norm, n2 / norm
+        if abs(b0) < 0.9:
+            u0, u1, u2 = 0.0, b2_, -b1
+        else:
+            u0, u1, u2 = -b2_, 0.0, b0
+        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        if un == 0.0:
+            return out, False
+        u0, u1, u2 = u0 / un, u1 / un, u2 / un
+        across = _quadric(form, u0, u1, u2)
+        if across == 0.0:
+            return out, False
+        s2 = -_quadric(form, x0, x1, x2) / across
+        scale = 1.0 / math.sqrt(1e-300 if 1e-300 > s2 else s2)
+        out[k, 0, 0], out[k, 0, 1], out[k, 0, 2] = n0, n1, n2
+        out[k, 1, 0], out[k, 1, 1], out[k, 1, 2] = x0 * scale, x1 * scale, x2 * scale
+    return out, True
+
+
+@_compiled
 def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
                     fy: float, kcx: float, kcy: float, margin_px: float
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -1006,6 +1089,7 @@ def warm_up() -> None:
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
     fixed.setflags(write=False)
     band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
+    circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6), np.ones(4))
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)
