@@ -10,8 +10,8 @@ timing every frame ``--repeats`` times. Stage times are the detector's own
 machine shared with other jobs, preemption then adds nothing, while the ratios stay those of
 the work done. Per frame the fastest repeat counts; the table gives medians over the frames
 and rounds and the ratio baseline / working tree; a second table gives the p50, p95, p99 and
-maximum over frames (and rounds) of the whole pipeline's time per frame. The outputs (ellipses, top, pose) of the two
-are compared as well: a speed-up should not change them.
+maximum over frames (and rounds) of the whole pipeline's time per frame. The outputs
+(ellipses, top, pose) of the two are compared as well: a speed-up should not change them.
 
 DATA is a ``stackpick dataset --scene SCENE --seeds 0:400`` directory (``--scene``: the
 same scene, whose object kinds the detector is given). Time on seeds outside

@@ -691,3 +691,33 @@ def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -
     # A degenerate form (equal eigenvalues) divides by zero: no poses.
     assert not kernels.circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6),
                                         np.ones(4))[1]
+
+
+def test_stairs_removed_match_the_whole_image_passes(rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.edges import STAIR_LUTS, neighbour_codes
+
+    for k in range(6):
+        image = cv2.GaussianBlur(rng.integers(0, 256, (50, 70)).astype(np.uint8), (5, 5),
+                                 1.0 + k * 0.3)
+        canny = cv2.Canny(image, 20, 60)
+        canny[0, :] = canny[-1, :] = canny[:, 0] = canny[:, -1] = 255  # the borders too
+        b = (canny > 0).astype(np.uint8)
+        for lut in STAIR_LUTS:
+            b = b - np.minimum(b, lut[neighbour_codes(b)])
+        got = kernels.stairs_removed(canny, *STAIR_LUTS)
+        assert np.array_equal(got, b)
+        assert np.count_nonzero(got) < np.count_nonzero(canny)  # some stairs were removed
+
+
+def test_edge_pixels_match_the_array_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    gx[5, :] = gy[5, :] = 0  # zero gradients: the 1e-9 floor
+    edges = (rng.random((60, 80)) < 0.1).astype(np.uint8)
+    edges[5, ::3] = 1
+    at = np.flatnonzero(edges)
+    u, v = (at % 80).astype(np.float64), (at // 80).astype(np.float64)
+    fx, fy = gx.ravel()[at].astype(np.float64), gy.ravel()[at].astype(np.float64)
+    norm = np.maximum(np.hypot(fx, fy), 1e-9)
+    pts, g = kernels.edge_pixels(edges, gx, gy)
+    assert np.array_equal(pts, np.stack([u, v]))
+    assert np.array_equal(g, np.stack([fx / norm, fy / norm]))

@@ -938,6 +938,104 @@ def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
 
 
 @_compiled
+def _stair_pass(b: NDArray[np.uint8], at: NDArray[np.int64], n: int, lut: NDArray[np.uint8],
+                gone: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
+    """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat,
+    ascending) of the 0/1 map ``b``: every pixel's 8-neighbour code read before any is
+    cleared, then those whose ``lut`` entry is 1 cleared; returns how many edge pixels are
+    left, compacted at the front of ``at`` (``gone``: scratch of at least ``n``)."""
+    h, w = b.shape
+    flat = b.ravel()
+    removed = 0
+    for k in range(n):
+        i = at[k]
+        r, c = i // w, i % w
+        code = 0
+        if r > 0:
+            if c > 0 and flat[i - w - 1]:
+                code |= 1
+            if flat[i - w]:
+                code |= 2
+            if c + 1 < w and flat[i - w + 1]:
+                code |= 4
+        if c + 1 < w and flat[i + 1]:
+            code |= 8
+        if r + 1 < h:
+            if c + 1 < w and flat[i + w + 1]:
+                code |= 16
+            if flat[i + w]:
+                code |= 32
+            if c > 0 and flat[i + w - 1]:
+                code |= 64
+        if c > 0 and flat[i - 1]:
+            code |= 128
+        if lut[code]:
+            gone[removed] = k
+            removed += 1
+    for j in range(removed):
+        flat[at[gone[j]]] = 0
+    kept = 0
+    for k in range(n):
+        if flat[at[k]]:
+            at[kept] = at[k]
+            kept += 1
+    return kept
+
+
+@_compiled
+def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                   second: NDArray[np.uint8]) -> NDArray[np.uint8]:  # pragma: no cover
+    """The 0/1 map of the nonzero pixels of ``edges`` (H, W) less the stair corners of two
+    table-driven passes (``first``, then ``second``: 256-entry tables of the removable
+    8-neighbour codes, bit i the ring neighbour i clockwise from north-west, off the image
+    0), each pass reading every code before it clears any; see
+    :func:`~stackpick_sim.vision.edges.remove_stairs` (the same pixels)."""
+    h, w = edges.shape
+    b = np.zeros((h, w), np.uint8)
+    src, flat = edges.ravel(), b.ravel()
+    n = 0
+    for i in range(h * w):
+        if src[i]:
+            flat[i] = 1
+            n += 1
+    at = np.empty(n, np.int64)
+    k = 0
+    for i in range(h * w):
+        if flat[i]:
+            at[k] = i
+            k += 1
+    gone = np.empty(n, np.int64)
+    n = _stair_pass(b, at, n, first, gone)
+    _stair_pass(b, at, n, second, gone)
+    return b
+
+
+@_compiled
+def edge_pixels(edges: NDArray[np.uint8], gx: NDArray[np.int16], gy: NDArray[np.int16]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """The nonzero pixels of ``edges`` (H, W) in row-major order as (2, M) rows u, v and
+    their unit gradients (gx, gy) / max(hypot, 1e-9) as (2, M) rows; see
+    :func:`~stackpick_sim.vision.refine.edge_points` (the same values)."""
+    h, w = edges.shape
+    src = edges.ravel()
+    fx, fy = gx.ravel(), gy.ravel()
+    n = 0
+    for i in range(h * w):
+        if src[i]:
+            n += 1
+    pts, g = np.empty((2, n)), np.empty((2, n))
+    k = 0
+    for i in range(h * w):
+        if src[i]:
+            pts[0, k], pts[1, k] = i % w, i // w
+            x, y = np.float64(fx[i]), np.float64(fy[i])
+            norm = max(np.hypot(x, y), 1e-9)
+            g[0, k], g[1, k] = x / norm, y / norm
+            k += 1
+    return pts, g
+
+
+@_compiled
 def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
                     fy: float, kcx: float, kcy: float, margin_px: float
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -1090,6 +1188,9 @@ def warm_up() -> None:
     fixed.setflags(write=False)
     band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
     circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6), np.ones(4))
+    table = np.zeros(256, np.uint8)
+    stairs_removed(np.zeros((4, 4), np.uint8), table, table)
+    edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)

@@ -110,20 +110,10 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(M, 2) edge pixels (u, v) in row-major order and their (M, 2) unit gradient
     directions (each with contiguous columns)."""
-    edges = np.asarray(image.edges)
-    w = edges.shape[1]
-    # flatnonzero of a bool map: np.nonzero's row-major order at a fifth of findNonZero's
-    # cost.
-    at = np.flatnonzero(edges.view(np.bool_))  # 0/1 bytes are valid bools
-    pts = np.empty((2, at.shape[0]))
-    np.floor_divide(at, w, out=pts[1], casting="unsafe")
-    np.remainder(at, w, out=pts[0], casting="unsafe")
-    gx = image.gx.ravel()[at].astype(np.float64)
-    gy = image.gy.ravel()[at].astype(np.float64)
-    norm = np.maximum(np.hypot(gx, gy), 1e-9)
-    g = np.empty((2, at.shape[0]))
-    np.divide(gx, norm, out=g[0])
-    np.divide(gy, norm, out=g[1])
+    # One compiled pass over the edge map (kernels.edge_pixels: np.flatnonzero's order and
+    # the same unit gradients as the array form).
+    pts, g = kernels.edge_pixels(np.ascontiguousarray(image.edges, np.uint8), image.gx,
+                                 image.gy)
     return pts.T, g.T
 
 
@@ -225,9 +215,13 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     pair_points = points[pm].astype(np.float32)
     active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
-    # Each fit's quadratic form, a row rewritten when its ellipse is refitted.
+    # Each fit's quadratic form, a row rewritten before the round after its refit.
     forms = np.array([_form(e) for e in current], np.float64)
+    refitted: list[int] = []
     for tol in params.tolerances_px:
+        for e in refitted:
+            forms[e] = _form(current[e])
+        refitted = []
         # The pairs along each active fit, and their pixels, in one compiled pass.
         sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
                                                pair_points, 4.0 * tol * tol,
@@ -244,7 +238,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                 active[e] = False
                 continue
             current[e] = fit
-            forms[e] = _form(fit)
+            refitted.append(e)
         if not active.any():
             break
     return current
