@@ -450,14 +450,18 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
-    pixels = rng.integers(0, 100, (n, 2)).astype(np.float32)
+    pixels = rng.integers(0, 100, (n, 2)).astype(np.float64)
     active = np.array([True, False, True, True])
     passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
-    sel, bounds, pts = kernels.along_select(forms, starts, active, u, v, gu, gv, pixels, 16.0,
+    # The pairs given through a pair -> pixel index (here a permutation of the pixels).
+    at = rng.permutation(n).astype(np.int64)
+    back = np.argsort(at)
+    sel, bounds, pts = kernels.along_select(forms, starts, active, at, u[back], v[back],
+                                            gu[back], gv[back], pixels[back], 16.0,
                                             0.87 * 0.87)
     assert np.array_equal(sel, passed.nonzero()[0])
-    assert np.array_equal(pts, pixels[sel])
+    assert np.array_equal(pts, pixels[sel].astype(np.float32))
     owner = np.arange(4).repeat(counts)[sel]
     assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
     assert bounds[2] == bounds[1] and sel.size > 0

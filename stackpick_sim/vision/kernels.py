@@ -382,32 +382,35 @@ def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, 
 
 @_compiled
 def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
-                 active: NDArray[np.bool_], u: NDArray[np.float64], v: NDArray[np.float64],
-                 gu: NDArray[np.float64], gv: NDArray[np.float64], pixels: NDArray[np.float32],
-                 dist_sq: float, cos_sq: float
+                 active: NDArray[np.bool_], at: NDArray[np.int64], u: NDArray[np.float64],
+                 v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                 points: NDArray[np.float64], dist_sq: float, cos_sq: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
-    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test: their indices
-    (ascending), where each ellipse's run of them starts and ends ((E + 1,) bounds), and
-    their rows of the (K, 2) ``pixels`` (the fits' input); see
+    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
+    ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
+    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels'
+    rows of the (N, 2) ``points`` as float32 (the fits' input); see
     :func:`~stackpick_sim.vision.refine.refine_all`."""
     n_e = forms.shape[0]
-    sel = np.empty(u.shape[0], np.int64)
+    sel = np.empty(at.shape[0], np.int64)
     bounds = np.zeros(n_e + 1, np.int64)
     count = 0
     for e in range(n_e):
         if active[e]:
             cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
             for k in range(starts[e], starts[e + 1]):
-                if _along_one(cx, cy, fa, fh, fb, u[k], v[k], gu[k], gv[k], dist_sq, cos_sq):
+                m = at[k]
+                if _along_one(cx, cy, fa, fh, fb, u[m], v[m], gu[m], gv[m], dist_sq, cos_sq):
                     sel[count] = k
                     count += 1
         bounds[e + 1] = count
     out = np.empty((count, 2), np.float32)
     for j in range(count):
-        out[j, 0] = pixels[sel[j], 0]
-        out[j, 1] = pixels[sel[j], 1]
+        m = at[sel[j]]
+        out[j, 0] = np.float32(points[m, 0])
+        out[j, 1] = np.float32(points[m, 1])
     return sel[:count], bounds, out
 
 
@@ -1175,8 +1178,8 @@ def warm_up() -> None:
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)
-    along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_), col,
-                 col, col, col, np.zeros((1, 2), np.float32), 1.0, 1.0)
+    along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
+                 np.zeros(1, np.int64), col, col, col, col, np.zeros((1, 2)), 1.0, 1.0)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)

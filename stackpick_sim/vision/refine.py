@@ -203,16 +203,14 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     n = len(current)
     a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
     reach = a + params.tolerances_px[0] + 1
-    pu, pv = points[:, 0], points[:, 1]
-    pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
-                               reach)
+    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv).
+    u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+    gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
+    pe, pm = kernels.box_pairs(u, v, cx, cy, reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
     starts = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
-    # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    u, v, gu, gv = pu[pm], pv[pm], grads[:, 0][pm], grads[:, 1][pm]
-    # The fits' input, built once: pixel coordinates are exact in float32.
-    pair_points = points[pm].astype(np.float32)
+    pixels_in = np.ascontiguousarray(points, np.float64)
     active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
     # Each fit's quadratic form, a row rewritten before the round after its refit.
@@ -223,8 +221,9 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
             forms[e] = _form(current[e])
         refitted = []
         # The pairs along each active fit, and their pixels, in one compiled pass.
-        sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
-                                               pair_points, 4.0 * tol * tol,
+        # (Pixel coordinates are exact in float32, the fits' input.)
+        sel, at, pixels = kernels.along_select(forms, starts, active, pm, u, v, gu, gv,
+                                               pixels_in, 4.0 * tol * tol,
                                                params.min_normal_cos * params.min_normal_cos)
         bounds = at.tolist()
         for e in active.nonzero()[0].tolist():
