@@ -867,6 +867,25 @@ def _quadric(q: NDArray[np.float64], x0: float, x1: float, x2: float
 
 
 @_compiled
+def _basis_first(n0: float, n1: float, n2: float
+                 ) -> tuple[float, float, float, bool]:  # pragma: no cover - compiled
+    """The first vector of :func:`~stackpick_sim.vision.wall.plane_basis` of the normal
+    (n0, n1, n2), in its arithmetic, and False where that divides by zero."""
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if norm == 0.0:
+        return 0.0, 0.0, 0.0, False
+    b0, b1, b2 = n0 / norm, n1 / norm, n2 / norm
+    if abs(b0) < 0.9:
+        u0, u1, u2 = 0.0, b2, -b1
+    else:
+        u0, u1, u2 = -b2, 0.0, b0
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    if un == 0.0:
+        return 0.0, 0.0, 0.0, False
+    return u0 / un, u1 / un, u2 / un, True
+
+
+@_compiled
 def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
                      evecs: NDArray[np.float64], terms: NDArray[np.float64],
                      camera: NDArray[np.float64]
@@ -917,27 +936,33 @@ def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
         if along == 0.0:
             return out, False
         x0, x1, x2 = r0 / along, r1 / along, 1.0 / along
-        # The first vector of the plane's basis (wall.plane_basis's u).
-        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-        if norm == 0.0:
-            return out, False
-        b0, b1, b2_ = n0 / norm, n1 / norm, n2 / norm
-        if abs(b0) < 0.9:
-            u0, u1, u2 = 0.0, b2_, -b1
-        else:
-            u0, u1, u2 = -b2_, 0.0, b0
-        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-        if un == 0.0:
-            return out, False
-        u0, u1, u2 = u0 / un, u1 / un, u2 / un
+        u0, u1, u2, ok = _basis_first(n0, n1, n2)
         across = _quadric(form, u0, u1, u2)
-        if across == 0.0:
+        if not ok or across == 0.0:
             return out, False
         s2 = -_quadric(form, x0, x1, x2) / across
         scale = 1.0 / math.sqrt(1e-300 if 1e-300 > s2 else s2)
         out[k, 0, 0], out[k, 0, 1], out[k, 0, 2] = n0, n1, n2
         out[k, 1, 0], out[k, 1, 1], out[k, 1, 2] = x0 * scale, x1 * scale, x2 * scale
     return out, True
+
+
+#: The 8-neighbour ring clockwise from north-west (edges.RING): row and column offsets.
+_RING_ROWS = (-1, -1, -1, 0, 1, 1, 1, 0)
+_RING_COLS = (-1, 0, 1, 1, 1, 0, -1, -1)
+
+
+@_compiled
+def _ring_code(flat: NDArray[np.uint8], i: int, h: int, w: int) -> int:  # pragma: no cover
+    """The 8-neighbour code of pixel ``i`` of the flat (H x W) 0/1 map ``flat``: bit j set
+    where ring neighbour j (clockwise from north-west) is set, off the image 0."""
+    r, c = i // w, i % w
+    code = 0
+    for j in range(8):
+        rr, cc = r + _RING_ROWS[j], c + _RING_COLS[j]
+        if 0 <= rr < h and 0 <= cc < w and flat[rr * w + cc]:
+            code |= 1 << j
+    return code
 
 
 @_compiled
@@ -951,27 +976,7 @@ def _stair_pass(b: NDArray[np.uint8], at: NDArray[np.int64], n: int, lut: NDArra
     flat = b.ravel()
     removed = 0
     for k in range(n):
-        i = at[k]
-        r, c = i // w, i % w
-        code = 0
-        if r > 0:
-            if c > 0 and flat[i - w - 1]:
-                code |= 1
-            if flat[i - w]:
-                code |= 2
-            if c + 1 < w and flat[i - w + 1]:
-                code |= 4
-        if c + 1 < w and flat[i + 1]:
-            code |= 8
-        if r + 1 < h:
-            if c + 1 < w and flat[i + w + 1]:
-                code |= 16
-            if flat[i + w]:
-                code |= 32
-            if c > 0 and flat[i + w - 1]:
-                code |= 64
-        if c > 0 and flat[i - 1]:
-            code |= 128
+        code = _ring_code(flat, at[k], h, w)
         if lut[code]:
             gone[removed] = k
             removed += 1
@@ -1106,6 +1111,26 @@ def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
 
 
 @_compiled
+def _contrast_pick(mag: NDArray[np.float64], threshold: float, innermost: bool
+                   ) -> int:  # pragma: no cover - compiled
+    """:func:`contrast_peaks`' pick among one sample's offsets ``mag``: the strongest (the
+    first of equals), or with ``innermost`` the first local peak (not below either
+    neighbour, 0 beyond the ends) reaching ``threshold`` when there is one."""
+    k = mag.shape[0]
+    best = 0
+    for j in range(1, k):
+        if mag[j] > mag[best]:
+            best = j
+    if innermost:
+        for j in range(k):
+            left = mag[j - 1] if j > 0 else 0.0
+            right = mag[j + 1] if j + 1 < k else 0.0
+            if mag[j] >= left and mag[j] >= right and mag[j] >= threshold:
+                return j
+    return best
+
+
+@_compiled
 def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray[np.float64],
                    nv: NDArray[np.float64], gx: NDArray[np.int16], gy: NDArray[np.int16],
                    offsets: NDArray[np.float64], window: int, gain: float, threshold: float,
@@ -1137,17 +1162,7 @@ def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray
             for t in range(window):
                 total += g[(i + t - half) % n, j] * weight
             mag[j] = abs(total) / gain
-        best = 0
-        for j in range(1, k):
-            if mag[j] > mag[best]:
-                best = j
-        if innermost:
-            for j in range(k):
-                left = mag[j - 1] if j > 0 else 0.0
-                right = mag[j + 1] if j + 1 < k else 0.0
-                if mag[j] >= left and mag[j] >= right and mag[j] >= threshold:
-                    best = j
-                    break
+        best = _contrast_pick(mag, threshold, innermost)
         if mag[best] >= threshold:
             out[count, 0] = pu[i] + offsets[best] * nu[i]
             out[count, 1] = pv[i] + offsets[best] * nv[i]
