@@ -725,3 +725,15 @@ def test_edge_pixels_match_the_array_form(rng: np.random.Generator) -> None:
     pts, g = kernels.edge_pixels(edges, gx, gy)
     assert np.array_equal(pts, np.stack([u, v]))
     assert np.array_equal(g, np.stack([fx / norm, fy / norm]))
+
+
+def test_row_keys_match_the_array_form(rng: np.random.Generator) -> None:
+    at = np.flatnonzero(rng.random((40, 70)) < 0.2)
+    for order in (np.arange(at.size), rng.permutation(at.size)):  # np.nonzero's order, shuffled
+        u, v = (at % 70).astype(np.float64)[order], (at // 70).astype(np.float64)[order]
+        width = int(u.max(initial=0.0)) + 2
+        want = v * width + u
+        keys, got_width, ascending = kernels.row_keys(u, v)
+        assert np.array_equal(keys, want) and got_width == width
+        assert ascending == bool(np.all(want[1:] >= want[:-1]))
+    assert kernels.row_keys(np.zeros(0), np.zeros(0))[1:] == (2, True)

@@ -1044,6 +1044,28 @@ def edge_pixels(edges: NDArray[np.uint8], gx: NDArray[np.int16], gy: NDArray[np.
 
 
 @_compiled
+def row_keys(u: NDArray[np.float64], v: NDArray[np.float64]
+             ) -> tuple[NDArray[np.float64], int, bool]:  # pragma: no cover - compiled
+    """Row-major keys v W + u of pixels (u, v) (integer values >= 0, (N,) columns) for W two
+    past the largest u (0 without pixels), W, and whether the keys ascend; see
+    :func:`~stackpick_sim.vision.occlusion._row_major` (the same values)."""
+    n = u.shape[0]
+    top = 0.0
+    for i in range(n):
+        if u[i] > top:
+            top = u[i]
+    width = int(top) + 2
+    scale = float(width)
+    keys = np.empty(n)
+    ascending = True
+    for i in range(n):
+        keys[i] = v[i] * scale + u[i]
+        if i > 0 and not keys[i] >= keys[i - 1]:
+            ascending = False
+    return keys, width, ascending
+
+
+@_compiled
 def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
                     fy: float, kcx: float, kcy: float, margin_px: float
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -1209,6 +1231,7 @@ def warm_up() -> None:
     table = np.zeros(256, np.uint8)
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
+    row_keys(col, col)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)
