@@ -947,46 +947,31 @@ def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
     return out, True
 
 
-#: The 8-neighbour ring clockwise from north-west (edges.RING): row and column offsets.
-_RING_ROWS = (-1, -1, -1, 0, 1, 1, 1, 0)
-_RING_COLS = (-1, 0, 1, 1, 1, 0, -1, -1)
-
-
 @_compiled
-def _ring_code(flat: NDArray[np.uint8], i: int, h: int, w: int) -> int:  # pragma: no cover
-    """The 8-neighbour code of pixel ``i`` of the flat (H x W) 0/1 map ``flat``: bit j set
-    where ring neighbour j (clockwise from north-west) is set, off the image 0."""
-    r, c = i // w, i % w
-    code = 0
-    for j in range(8):
-        rr, cc = r + _RING_ROWS[j], c + _RING_COLS[j]
-        if 0 <= rr < h and 0 <= cc < w and flat[rr * w + cc]:
-            code |= 1 << j
-    return code
-
-
-@_compiled
-def _stair_pass(b: NDArray[np.uint8], at: NDArray[np.int64], n: int, lut: NDArray[np.uint8],
-                gone: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
-    """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat,
-    ascending) of the 0/1 map ``b``: every pixel's 8-neighbour code read before any is
-    cleared, then those whose ``lut`` entry is 1 cleared; returns how many edge pixels are
-    left, compacted at the front of ``at`` (``gone``: scratch of at least ``n``)."""
-    h, w = b.shape
-    flat = b.ravel()
+def _stair_pass(padded: NDArray[np.uint8], at: NDArray[np.int64], n: int,
+                lut: NDArray[np.uint8], gone: NDArray[np.int64]) -> int:  # pragma: no cover
+    """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat
+    indices, ascending) of the 0/1 map ``padded`` (a zero border of one pixel round the
+    image): every pixel's 8-neighbour code (bit j: ring neighbour j clockwise from
+    north-west) read before any is cleared, then those whose ``lut`` entry is 1 cleared;
+    returns how many edge pixels are left, compacted at the front of ``at`` (``gone``:
+    scratch of at least ``n``)."""
+    w = padded.shape[1]
+    flat = padded.ravel()
     removed = 0
     for k in range(n):
-        code = _ring_code(flat, at[k], h, w)
-        if lut[code]:
-            gone[removed] = k
-            removed += 1
+        i = at[k]
+        code = (flat[i - w - 1] | flat[i - w] << 1 | flat[i - w + 1] << 2 | flat[i + 1] << 3
+                | flat[i + w + 1] << 4 | flat[i + w] << 5 | flat[i + w - 1] << 6
+                | flat[i - 1] << 7)
+        gone[removed] = k  # branch-free, as the appends of stairs_removed
+        removed += lut[code]
     for j in range(removed):
         flat[at[gone[j]]] = 0
     kept = 0
     for k in range(n):
-        if flat[at[k]]:
-            at[kept] = at[k]
-            kept += 1
+        at[kept] = at[k]
+        kept += flat[at[k]]
     return kept
 
 
@@ -999,23 +984,24 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     0), each pass reading every code before it clears any; see
     :func:`~stackpick_sim.vision.edges.remove_stairs` (the same pixels)."""
     h, w = edges.shape
-    b = np.zeros((h, w), np.uint8)
-    src, flat = edges.ravel(), b.ravel()
+    padded = np.zeros((h + 2, w + 2), np.uint8)
     n = 0
-    for i in range(h * w):
-        if src[i]:
-            flat[i] = 1
-            n += 1
-    at = np.empty(n, np.int64)
+    for r in range(h):
+        for c in range(w):
+            on = np.uint8(edges[r, c] != 0)
+            padded[r + 1, c + 1] = on
+            n += on
+    # Branch-free appends (on dense edge maps branches would mispredict): one spare slot.
+    at = np.empty(n + 1, np.int64)
+    flat = padded.ravel()
     k = 0
-    for i in range(h * w):
-        if flat[i]:
-            at[k] = i
-            k += 1
+    for i in range(w + 3, (h + 1) * (w + 2) - 1):
+        at[k] = i
+        k += flat[i]
     gone = np.empty(n, np.int64)
-    n = _stair_pass(b, at, n, first, gone)
-    _stair_pass(b, at, n, second, gone)
-    return b
+    n = _stair_pass(padded, at, n, first, gone)
+    _stair_pass(padded, at, n, second, gone)
+    return np.ascontiguousarray(padded[1:-1, 1:-1])
 
 
 @_compiled
