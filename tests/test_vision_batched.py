@@ -20,7 +20,7 @@ from stackpick_sim.vision.fitting import (
     within_pairs,
 )
 from stackpick_sim.vision.merging import MergedEllipse, merge_segments
-from stackpick_sim.vision.occlusion import INTERIOR_MARGIN_PX, OcclusionEvidence, evidence_all
+from stackpick_sim.vision.occlusion import DEFAULT_TOP, OcclusionEvidence, evidence_all
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
     _along,
@@ -221,7 +221,8 @@ def test_interior_edges_are_the_pixels_inside_the_shrunk_axes(
     off = Ellipse(cx=-30.0, cy=250.0, a=40.0, b=25.0, angle_deg=70.0)
     ellipses = [*probes, tiny, off]
     for e, ev in zip(ellipses, evidence_all(ellipses, points, None, grad), strict=True):
-        assert ev.interior_edge_px == np.count_nonzero(e.inside(points, INTERIOR_MARGIN_PX))
+        inside = e.inside(points, DEFAULT_TOP.interior_margin_px)
+        assert ev.interior_edge_px == np.count_nonzero(inside)
 
 
 def test_occlusion_evidence_of_equals_the_constructor() -> None:

@@ -35,11 +35,6 @@ NORMAL_OFFSETS_PX: tuple[float, ...] = (-1.0, 0.0, 1.0)
 #: Window (samples, ~1 px each) of the signed average: noise drops by sqrt(5) ~ 2.2x while
 #: a 5 px gap of an occluded arc still shows.
 WINDOW_SAMPLES = 5
-#: A boundary sample is supported when its windowed contrast reaches this multiple of the
-#: image's noise level (the median gradient magnitude)...
-NOISE_MULTIPLE = 2.0
-#: ...and at least this many grey levels per pixel (a noiseless image has a zero noise level).
-MIN_CONTRAST = 0.5
 
 
 def perimeter_px(ellipse: Ellipse) -> float:
@@ -217,8 +212,11 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
 
 
 def contrast_threshold(image: EdgeImage) -> float:
-    """Grey levels/px a boundary sample needs to count as supported."""
-    return max(MIN_CONTRAST, NOISE_MULTIPLE * image.noise)
+    """Grey levels/px a boundary sample needs to count as supported (the image's
+    ``support_noise_multiple`` times its noise level, at least ``support_min_contrast``:
+    :class:`~stackpick_sim.config.vision_params.EdgeParams`)."""
+    params = image.params
+    return max(params.support_min_contrast, params.support_noise_multiple * image.noise)
 
 
 def contrast_support(ellipse: Ellipse, image: EdgeImage,
@@ -232,9 +230,6 @@ def contrast_support(ellipse: Ellipse, image: EdgeImage,
 #: The default settings of the contrast refit (the ``contrast_*`` fields of TopParams: the
 #: reasons for each).
 REFIT_DEFAULT = TopParams()
-#: The inward reach (px) of the innermost-edge refit, by default (the top rule's rim band
-#: is as wide).
-REFIT_INNER_REACH_PX = REFIT_DEFAULT.contrast_inner_reach_px
 
 
 def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False,

@@ -227,12 +227,15 @@ class EdgeImage:
     ``edges``: (H, W) uint8 0/1, one pixel wide. ``gx``, ``gy``: (H, W) int16 Sobel gradients
     of the smoothed image (strongest colour channel per pixel), SOBEL_GAIN x grey levels/px.
     ``noise``: median gradient magnitude, grey levels/px (the flat background's noise level).
+    ``params``: the settings it was made with (their ``support_*`` fields set the contrast
+    an outline needs, :func:`~stackpick_sim.vision.contrast.contrast_threshold`).
     """
 
     edges: NDArray[np.uint8]
     gx: NDArray[np.int16]
     gy: NDArray[np.int16]
     noise: float
+    params: EdgeParams = DEFAULT
 
 
 def edge_image(image: NDArray[np.uint8], params: EdgeParams = DEFAULT) -> EdgeImage:
@@ -248,7 +251,7 @@ def edge_image(image: NDArray[np.uint8], params: EdgeParams = DEFAULT) -> EdgeIm
     low, high, noise = adaptive_thresholds(gx, gy, params)
     canny = cv2.Canny(gx, gy, low, high, L2gradient=True)
     edges = remove_stairs(cast("NDArray[np.uint8]", canny))
-    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise)
+    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise, params=params)
 
 
 def unblurred_gradients(image: NDArray[np.uint8], edges: EdgeImage) -> EdgeImage:
@@ -264,7 +267,8 @@ def unblurred_gradients(image: NDArray[np.uint8], edges: EdgeImage) -> EdgeImage
     of the smoothing against noise.
     """
     gx, gy = colour_gradients(image)
-    return EdgeImage(edges=edges.edges, gx=gx, gy=gy, noise=noise_level(gx, gy))
+    return EdgeImage(edges=edges.edges, gx=gx, gy=gy, noise=noise_level(gx, gy),
+                     params=edges.params)
 
 
 def detect_edges(image: NDArray[np.uint8]) -> NDArray[np.uint8]:

@@ -46,8 +46,6 @@ from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wa
 
 #: The default settings (see PoseParams: the reasons for each).
 DEFAULT = PoseParams()
-#: Samples a wall colour band needs to count as visible, by default (the rest test reads it).
-MIN_BAND_SAMPLES = DEFAULT.min_band_samples
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -250,7 +248,7 @@ def estimate_pose(ellipse: Ellipse, intrinsics: CameraIntrinsics, radii: Sequenc
     if image is not None:
         face = face_colour(ellipse, image) if face_rgb is None else face_rgb
         evidence = wall_evidences([(s.normal_cam, s.centre_cam) for s in unit], ellipse,
-                                  intrinsics, image, face, belt)
+                                  intrinsics, image, face, belt, params)
         scores = [e.share for e in evidence]
         best = choose_by_band(evidence, params)
     elif support is not None:
