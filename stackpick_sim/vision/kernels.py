@@ -988,7 +988,7 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     n = 0
     for r in range(h):
         for c in range(w):
-            on = np.uint8(edges[r, c] != 0)
+            on = int(edges[r, c] != 0)
             padded[r + 1, c + 1] = on
             n += on
     # Branch-free appends (on dense edge maps branches would mispredict): one spare slot.
