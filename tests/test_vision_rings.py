@@ -18,7 +18,7 @@ from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.markings import MarkingTest, find_markings, off_rim_share
 from stackpick_sim.vision.occlusion import OcclusionEvidence
-from stackpick_sim.vision.params import TopParams
+from stackpick_sim.vision.params import MarkingParams
 from stackpick_sim.vision.rings import hole_only
 
 SHAPE = (240, 320)
@@ -87,7 +87,7 @@ def test_the_hole_may_not_exceed_what_the_smallest_object_on_the_face_would_show
     assert hole_only(RING, points, 2.5, 0.5, 0.95)
     small_kind = MarkingTest(radii=(TAPE, 0.015), rim_radius_of=None, depth_ratio=1.0,
                              min_edge_share=0.75, margin_px=2.5, image=image,
-                             hole_scale=0.5)
+                             params=MarkingParams(ring_hole_scale=0.5))
     found = find_markings([RING], [_whole(150, 320)], small_kind, None, points)
     assert found.marked == frozenset()
 
@@ -102,7 +102,7 @@ def test_a_ring_face_lying_on_a_lid_is_the_top() -> None:
     assert mask_iou(found.top_ellipse, RING, SHAPE) > 0.9
     # With no interior edge read as a hole's, the ring fails on its hole and the lid apart
     # is taken.
-    no_hole = replace(CONFIG, top=TopParams(ring_hole_share=1.0, ring_hole_scale=0.0))
+    no_hole = replace(CONFIG, markings=MarkingParams(ring_hole_share=1.0, ring_hole_scale=0.0))
     found = detect(image, no_hole)
     assert found.top_ellipse is not None and mask_iou(found.top_ellipse, apart, SHAPE) > 0.9
 
@@ -132,7 +132,7 @@ def test_realistic_frames_whose_top_is_a_tape_roll(seed: int) -> None:
     # found as a ring round its hole, missed when no interior edge counts as the hole's.
     frame = next(iter_generated(load_scene("realistic"), [seed]))
     assert score_frame(run_ours(frame), frame).success
-    without = VisionCfg(top=TopParams(ring_hole_share=1.0, ring_hole_scale=0.0))
+    without = VisionCfg(markings=MarkingParams(ring_hole_share=1.0, ring_hole_scale=0.0))
     assert not score_frame(run_ours(frame, without), frame).success
 
 
@@ -145,5 +145,5 @@ def test_realistic_frames_whose_wrong_candidate_has_another_surface_across_its_r
     # is taken for the top.
     frame = next(iter_generated(load_scene("realistic"), [seed]))
     assert score_frame(run_ours(frame), frame).success
-    lenient = VisionCfg(top=TopParams(marking_max_off_rim_share=1.0))
+    lenient = VisionCfg(markings=MarkingParams(max_off_rim_share=1.0))
     assert not score_frame(run_ours(frame, lenient), frame).success
