@@ -60,9 +60,10 @@ ORACLE_PIXEL_STD = 0.05
 #: peaks), which an exact detector reports and a 0.05 px R would gate out. Added to R.
 #: Measured in simulation, a placeholder for a real pile.
 FACE_WOBBLE_STD = 3e-4
-#: The face height is the median of this many latest detections' heights: a pile settles
-#: under the running belt (measured on the paper scene: a top face sinks 0.5 mm in 0.5 s), so old
-#: heights go stale; the median outvotes single bad depths. Placeholder.
+#: Until enough heights agree (``episode.face_height_views``), the face height is the median
+#: of this many latest detections' heights: a pile settles under the running belt (measured
+#: on the paper scene: a top face sinks 0.5 mm in 0.5 s), so old heights go stale; the median
+#: outvotes single bad depths. Placeholder.
 FACE_Z_WINDOW = 9
 #: Lower bound of the belt speed jitter the filter assumes, m/s: the object can also creep
 #: on the belt or settle in its pile, which the configured jitter does not cover.
@@ -129,6 +130,25 @@ NORMAL_AGREEMENT_DEG = 10.0
 VOTE_SIGHT_DEG = 5.0
 
 
+def agreed_low_height(heights: list[float], agreement: float, views: int) -> float | None:
+    """The lowest height (m) on which ``views`` of ``heights`` (m) agree, or None.
+
+    The median of the first run of ``views`` sorted heights that spans at most
+    ``agreement`` m, from the lowest up. A monocular height's large errors are one-sided
+    (too high, see ``episode.face_height_agreement``), so the lowest agreeing group is the
+    face; a single fit that reads too low has no others agreeing with it.
+    """
+    if len(heights) < views:
+        return None
+    z = np.sort(np.asarray(heights, dtype=float))
+    spans = z[views - 1:] - z[: len(z) - views + 1]
+    ok = np.flatnonzero(spans <= agreement)
+    if ok.size == 0:
+        return None
+    first = int(ok[0])
+    return float(np.median(z[first:first + views]))
+
+
 class TargetEstimator:
     """Fuses the tracked face's detections; :meth:`state` predicts it at any time."""
 
@@ -156,9 +176,14 @@ class TargetEstimator:
         """Image frame: the camera pose whose image the filter's pixels are in."""
         self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
-        self._normal_views: list[tuple[FloatArray, int | None]] = []
+        self._normal_views: list[tuple[FloatArray, int | None, float | None]] = []
+        """Each voting view's two world normal solutions, the detector's pick among them
+        and the view's monocular face height (m, None: unknown)."""
         self._sights: list[FloatArray] = []
         self._zs: list[float] = []
+        self._height_agreement = cfg.episode.face_height_agreement
+        self._height_views = cfg.episode.face_height_views
+        self._vote_height_tol = cfg.episode.normal_vote_height_tol
         self._normal = np.array([0.0, 0.0, -1.0])
         self.correct_centres = not oracle
         self.radius: float | None = None
@@ -190,8 +215,12 @@ class TargetEstimator:
 
     @property
     def face_z(self) -> float:
-        """Height of the face centre, world z, m (median of the last detections' heights)."""
-        return float(np.median(self._zs[-FACE_Z_WINDOW:])) if self._zs else 0.0
+        """Height of the face centre, world z, m: :func:`agreed_low_height` of the track's
+        monocular heights (the median of the latest ones while too few agree)."""
+        if not self._zs:
+            return 0.0
+        low = agreed_low_height(self._zs, self._height_agreement, self._height_views)
+        return float(np.median(self._zs[-FACE_Z_WINDOW:])) if low is None else low
 
     @property
     def lowest_face_z(self) -> float:
@@ -453,10 +482,12 @@ class TargetEstimator:
 
     def _add_pose(self, obs: Observation, cand: Candidate) -> None:
         r_wc, p_wc = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        height = None
         if cand.centre_cam is not None:
             # A monocular pose is known up to scale: put the face at this track's radius.
             scale = self.radius / cand.radius if self.radius and cand.radius > 0 else 1.0
-            self._zs.append(float((r_wc @ (cand.centre_cam * scale) + p_wc)[2]))
+            height = float((r_wc @ (cand.centre_cam * scale) + p_wc)[2])
+            self._zs.append(height)
         if not self.correct_centres or cand.ellipse is None or not self.radius:
             if cand.normal_cam is not None:  # exact normals (oracle): largest agreeing group
                 self._add_normal(r_wc @ cand.normal_cam)
@@ -467,14 +498,18 @@ class TargetEstimator:
         if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
             return  # a line of sight already voted: it cannot tell the two solutions apart
         try:
-            sols = [np.asarray(sol.normal_cam) for sol in circle_poses(e, self.k, self.radius)]
+            poses = circle_poses(e, self.k, self.radius)
         except (ValueError, np.linalg.LinAlgError):
             return
+        sols = [np.asarray(sol.normal_cam) for sol in poses]
+        if height is None:  # the fit's own height at the track's radius (both solutions')
+            height = float(np.mean([(r_wc @ np.asarray(sol.centre_cam) + p_wc)[2]
+                                    for sol in poses]))
         self._sights.append(sight)
         chosen = None
         if cand.normal_cam is not None:
             chosen = int(np.argmax([float(n @ cand.normal_cam) for n in sols]))
-        self._add_normals(np.array([r_wc @ n for n in sols]), chosen)
+        self._add_normals(np.array([r_wc @ n for n in sols]), chosen, height)
 
     def _add_normal(self, n: FloatArray) -> None:
         self._normals.append(n / float(np.linalg.norm(n)))
@@ -484,26 +519,36 @@ class TargetEstimator:
         mean = normals[agree[best]].sum(axis=0)
         self._normal = mean / float(np.linalg.norm(mean))
 
-    def _add_normals(self, normals: FloatArray, chosen: int | None) -> None:
+    def _add_normals(self, normals: FloatArray, chosen: int | None,
+                     height: float | None = None) -> None:
         """Add one view's two world normal solutions, ``chosen`` the detector's pick among
-        them (or None); update the consensus :attr:`normal`.
+        them (or None), and the view's monocular face ``height`` (m, or None); update the
+        consensus :attr:`normal`.
 
         A face's pose from one view is two-fold ambiguous. The right normal is the same
         from every line of sight; the wrong one turns with it. So, over views from lines of
         sight at least VOTE_SIGHT_DEG apart, the normal is the solution the most views
         share (within NORMAL_AGREEMENT_DEG), ties going to the one the detector picked most
         often (its wall-colour test), then to the earliest; the mean of each view's nearest
-        agreeing solution.
+        agreeing solution. Only views whose height lies within
+        ``episode.normal_vote_height_tol`` of the face height (:attr:`face_z`) vote, when
+        any does: a fit that reads the face too high takes in its side wall, and its
+        outline's shape, tilted by the wall, gives both normal solutions off the face's.
         """
         normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-        self._normal_views.append((normals, chosen))
+        self._normal_views.append((normals, chosen, height))
+        face_z = self.face_z
+        voters = [(v, pick) for v, pick, z in self._normal_views
+                  if z is None or abs(z - face_z) <= self._vote_height_tol]
+        if not voters:
+            voters = [(v, pick) for v, pick, _ in self._normal_views]
         cos_min = np.cos(np.radians(NORMAL_AGREEMENT_DEG))
         best_key: tuple[int, int] | None = None
         best_mean = normals[0]
-        for cand in np.concatenate([v for v, _ in self._normal_views]):
+        for cand in np.concatenate([v for v, _ in voters]):
             support = picked = 0
             total = np.zeros(3)
-            for views, pick in self._normal_views:
+            for views, pick in voters:
                 c = views @ cand
                 j = int(np.argmax(c))
                 if c[j] >= cos_min:
