@@ -517,8 +517,9 @@ class EpisodeCfg:
     within this of the face height (``face_height_agreement``), m: a fit that reads the face
     too high takes in its side wall, whose outline tilts both normal solutions off the
     face's (by 20 deg and more on small printed lids seen from the approaching camera,
-    against the bellows' 20 deg). Three times the heights' agreement: a view nearer the
-    face sees it larger, its height no less precise. 0.0001 to 0.1 m."""
+    against the bellows' 20 deg). A placeholder, three times ``face_height_agreement``:
+    the right fits' heights scatter by a few tenths of a millimetre, the wall's read 4-20 mm
+    too high. 0.0001 to 0.1 m."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""
