@@ -492,7 +492,15 @@ class TargetEstimator:
             if cand.normal_cam is not None:  # exact normals (oracle): largest agreeing group
                 self._add_normal(r_wc @ cand.normal_cam)
             return
-        e = cand.ellipse
+        self._vote(obs.world_T_cam, cand, cand.ellipse, height)
+
+    def _vote(self, world_T_cam: FloatArray, cand: Candidate, e: Ellipse,
+              height: float | None) -> None:
+        """Let the view ``world_T_cam`` of fit ``e`` vote on the normal (``_add_normals``),
+        if no earlier view shared its line of sight; ``height``: the detector's pose's face
+        height (m), or None: the fit's own at the track's radius."""
+        assert self.radius is not None
+        r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
         sight = r_wc @ np.linalg.solve(self.k.K, np.array([e.cx, e.cy, 1.0]))
         sight /= float(np.linalg.norm(sight))
         if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
@@ -502,7 +510,7 @@ class TargetEstimator:
         except (ValueError, np.linalg.LinAlgError):
             return
         sols = [np.asarray(sol.normal_cam) for sol in poses]
-        if height is None:  # the fit's own height at the track's radius (both solutions')
+        if height is None:  # both solutions' heights, nearly one
             height = float(np.mean([(r_wc @ np.asarray(sol.centre_cam) + p_wc)[2]
                                     for sol in poses]))
         self._sights.append(sight)
