@@ -35,12 +35,13 @@ from stackpick_sim.episodes.target import (
     TargetState,
     agreed_low_height,
 )
-from stackpick_sim.geometry import CameraIntrinsics, project_circle
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
 from stackpick_sim.sim import robot
 from stackpick_sim.sim.cell import build_cell
 from stackpick_sim.sim.ik import tool_down_pose
 from stackpick_sim.sim.stacks import generate_scene
 from stackpick_sim.vision import circle_poses
+from stackpick_sim.vision.pose import CirclePose
 
 DOWN = np.array([0.0, 0.0, -1.0])
 #: A face 0.4 m out from the robot's base at belt-pile height (the look point's x), m.
@@ -335,6 +336,18 @@ def test_the_normal_is_the_pose_solution_all_views_share() -> None:
     assert math.degrees(math.acos(min(1.0, float(est.normal @ true_n)))) < 1.0
 
 
+def _fitted_view(t: float, cam: np.ndarray, c_cam: np.ndarray, ellipse: Ellipse,
+                 pose: CirclePose | None) -> Observation:
+    """A frame at ``t`` s from ``cam`` with one fit ``ellipse`` of the face centred at
+    ``c_cam`` (camera frame), with the detector's ``pose`` (None: a fit without one)."""
+    cand = Candidate(pixel=K.project(c_cam)[0],
+                     normal_cam=None if pose is None else np.asarray(pose.normal_cam),
+                     centre_cam=None if pose is None else np.asarray(pose.centre_cam),
+                     radius=RADIUS, is_top=pose is not None, ellipse=ellipse)
+    return Observation(capture_time=t, available_time=t, world_T_cam=cam, candidates=(cand,),
+                       detection=None, image=None)
+
+
 def test_views_along_one_line_of_sight_cast_one_vote_on_the_normal() -> None:
     # From a still camera the detector's pick between the pose's two solutions flips to the
     # wrong one in later frames: no new line of sight, no new evidence; the normal stays.
@@ -349,12 +362,7 @@ def test_views_along_one_line_of_sight_cast_one_vote_on_the_normal() -> None:
         c_cam, n_cam = r.T @ (FACE - p), r.T @ true_n
         ellipse = project_circle(c_cam, n_cam, RADIUS, K)
         sols = sorted(circle_poses(ellipse, K, RADIUS), key=lambda s: -float(s.normal_cam @ n_cam))
-        pose = sols[0] if right else sols[1]
-        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=np.asarray(pose.normal_cam),
-                         centre_cam=np.asarray(pose.centre_cam), radius=RADIUS, is_top=True,
-                         ellipse=ellipse)
-        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
-                           candidates=(cand,), detection=None, image=None)
+        return _fitted_view(t, cam, c_cam, ellipse, sols[0] if right else sols[1])
 
     first = view(0.0, True)
     est.start(first, first.candidates[0])
@@ -549,14 +557,8 @@ def test_views_that_read_the_face_too_high_do_not_vote_on_its_normal() -> None:
         c_cam = r.T @ (_on_belt(t) - p)
         n_cam = r.T @ (wall_n if wall else true_n)
         ellipse = project_circle(c_cam * (0.93 if wall else 1.0), n_cam, RADIUS, K)
-        sols = circle_poses(ellipse, K, RADIUS)
-        pose = max(sols, key=lambda s: float(s.normal_cam @ n_cam))
-        normal, centre = (None, None) if wall else (np.asarray(pose.normal_cam),
-                                                    np.asarray(pose.centre_cam))
-        cand = Candidate(pixel=K.project(c_cam)[0], normal_cam=normal, centre_cam=centre,
-                         radius=RADIUS, is_top=not wall, ellipse=ellipse)
-        return Observation(capture_time=t, available_time=t, world_T_cam=cam,
-                           candidates=(cand,), detection=None, image=None)
+        pose = max(circle_poses(ellipse, K, RADIUS), key=lambda s: float(s.normal_cam @ n_cam))
+        return _fitted_view(t, cam, c_cam, ellipse, None if wall else pose)
 
     first = view(0.0, False)
     est.start(first, first.candidates[0])
