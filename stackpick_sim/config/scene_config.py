@@ -503,8 +503,8 @@ class EpisodeCfg:
     0.0001 to 0.1 m (a suction cup's compliance is millimetres to centimetres)."""
     face_height_agreement: float = 0.001
     """The tracked face's height is the lowest of its monocular heights on which
-    ``face_height_views`` of them agree within this, m (:attr:`~stackpick_sim.episodes.
-    target.TargetEstimator.face_z`). A monocular height errs one way, too high: a fit that
+    ``face_height_views`` of them agree within this, m
+    (:func:`stackpick_sim.episodes.target.agreed_low_height`). A monocular height errs one way, too high: a fit that
     takes in the face's side wall, seen obliquely from the approaching wrist camera, is
     larger than the face, so read as nearer (5-20 mm too high on small printed lids, where
     the look pose's heights agree within 0.3 mm). 0.0001 to 0.02 m."""
