@@ -31,9 +31,11 @@ from stackpick_sim.episodes.pick import (
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import (
     ASSOCIATION_MAX,
+    NormalView,
     TargetEstimator,
     TargetState,
     agreed_low_height,
+    normal_voters,
 )
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, project_circle
 from stackpick_sim.sim import robot
@@ -537,6 +539,23 @@ def _seen_from(face: np.ndarray, distance: float, off_deg: float,
     pose[:3, :3] = np.column_stack([x, np.cross(sight, x), sight])
     pose[:3, 3] = face - distance * sight
     return pose
+
+
+def test_the_voters_on_the_normal_agree_with_the_face_height() -> None:
+    def view(height: float, sight_deg: float) -> NormalView:
+        a = math.radians(sight_deg)
+        return NormalView(normals=np.array([DOWN, DOWN]), chosen=None, height=height,
+                          sight=np.array([math.sin(a), 0.0, -math.cos(a)]))
+
+    wall, right, again, other = view(0.215, 0.0), view(0.2001, 1.0), view(0.2, 2.0), view(
+        0.2002, 12.0)
+    # A view reading the face too high does not vote, nor does it take its line of sight
+    # from a later view that reads the face right; one vote per line of sight.
+    assert normal_voters([wall, right, again, other], 0.2, 0.003) == [right, other]
+    # No view agrees: the nearest one votes alone.
+    near = view(0.209, 12.0)
+    assert normal_voters([wall, near], 0.2, 0.003) == [near]
+    assert normal_voters([], 0.2, 0.003) == []
 
 
 def test_views_that_read_the_face_too_high_do_not_vote_on_its_normal() -> None:

@@ -504,10 +504,11 @@ class EpisodeCfg:
     face_height_agreement: float = 0.001
     """The tracked face's height is the lowest of its monocular heights on which
     ``face_height_views`` of them agree within this, m
-    (:func:`stackpick_sim.episodes.target.agreed_low_height`). A monocular height errs one way, too high: a fit that
-    takes in the face's side wall, seen obliquely from the approaching wrist camera, is
-    larger than the face, so read as nearer (5-20 mm too high on small printed lids, where
-    the look pose's heights agree within 0.3 mm). 0.0001 to 0.02 m."""
+    (:func:`stackpick_sim.episodes.target.agreed_low_height`). A monocular height errs one
+    way, too high: a fit that takes in the face's side wall, seen obliquely from the
+    approaching wrist camera, is larger than the face, so read as nearer (5-20 mm too high on
+    small printed lids, where the look pose's heights agree within 0.3 mm). 0.0001 to
+    0.02 m."""
     face_height_views: int = 3
     """... and this many heights agree on it (1: the lowest height; more keeps a single fit
     that reads too far off the height); 1 to 20. Fewer heights so far: the median of the

@@ -25,7 +25,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -130,6 +130,36 @@ NORMAL_AGREEMENT_DEG = 10.0
 VOTE_SIGHT_DEG = 5.0
 
 
+@dataclass(frozen=True, kw_only=True)
+class NormalView:
+    """One view's pose of the tracked face, for the vote on its normal."""
+
+    normals: FloatArray
+    """(2, 3) the two unit normal solutions, world."""
+    chosen: int | None
+    """Which of them the detector picked (None: it gave no pose)."""
+    height: float
+    """The view's monocular face height, world z, m."""
+    sight: FloatArray
+    """(3,) unit line of sight to the face, world."""
+
+
+def normal_voters(views: list[NormalView], face_z: float, tol: float) -> list[NormalView]:
+    """The views that vote on the normal: those whose height lies within ``tol`` m of
+    ``face_z`` m (none: the nearest one), of each line of sight (within VOTE_SIGHT_DEG) the
+    first."""
+    if not views:
+        return []
+    off = np.array([abs(v.height - face_z) for v in views])
+    agreeing = [v for v, d in zip(views, off, strict=True) if d <= tol]
+    cos_min = math.cos(math.radians(VOTE_SIGHT_DEG))
+    voters: list[NormalView] = []
+    for v in agreeing or [views[int(np.argmin(off))]]:
+        if all(float(v.sight @ u.sight) <= cos_min for u in voters):
+            voters.append(v)
+    return voters
+
+
 def agreed_low_height(heights: list[float], agreement: float, views: int) -> float | None:
     """The lowest height (m) on which ``views`` of ``heights`` (m) agree, or None.
 
@@ -176,10 +206,8 @@ class TargetEstimator:
         """Image frame: the camera pose whose image the filter's pixels are in."""
         self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
-        self._normal_views: list[tuple[FloatArray, int | None, float | None]] = []
-        """Each voting view's two world normal solutions, the detector's pick among them
-        and the view's monocular face height (m, None: unknown)."""
-        self._sights: list[FloatArray] = []
+        self._normal_views: list[NormalView] = []
+        """Every view's pose solutions, for the normal's vote (:meth:`_add_normals`)."""
         self._zs: list[float] = []
         self._height_agreement = cfg.episode.face_height_agreement
         self._height_views = cfg.episode.face_height_views
@@ -496,15 +524,12 @@ class TargetEstimator:
 
     def _vote(self, world_T_cam: FloatArray, cand: Candidate, e: Ellipse,
               height: float | None) -> None:
-        """Let the view ``world_T_cam`` of fit ``e`` vote on the normal (``_add_normals``),
-        if no earlier view shared its line of sight; ``height``: the detector's pose's face
-        height (m), or None: the fit's own at the track's radius."""
+        """Add the view ``world_T_cam`` of fit ``e`` to the normal's vote
+        (:meth:`_add_normals`); ``height``: the detector's pose's face height (m), or None:
+        the fit's own at the track's radius."""
         assert self.radius is not None
         r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
         sight = r_wc @ np.linalg.solve(self.k.K, np.array([e.cx, e.cy, 1.0]))
-        sight /= float(np.linalg.norm(sight))
-        if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
-            return  # a line of sight already voted: it cannot tell the two solutions apart
         try:
             poses = circle_poses(e, self.k, self.radius)
         except (ValueError, np.linalg.LinAlgError):
@@ -513,11 +538,13 @@ class TargetEstimator:
         if height is None:  # both solutions' heights, nearly one
             height = float(np.mean([(r_wc @ np.asarray(sol.centre_cam) + p_wc)[2]
                                     for sol in poses]))
-        self._sights.append(sight)
         chosen = None
         if cand.normal_cam is not None:
             chosen = int(np.argmax([float(n @ cand.normal_cam) for n in sols]))
-        self._add_normals(np.array([r_wc @ n for n in sols]), chosen, height)
+        normals = np.array([r_wc @ n for n in sols])
+        self._add_normals(NormalView(
+            normals=normals / np.linalg.norm(normals, axis=1, keepdims=True), chosen=chosen,
+            height=height, sight=sight / float(np.linalg.norm(sight))))
 
     def _add_normal(self, n: FloatArray) -> None:
         self._normals.append(n / float(np.linalg.norm(n)))
@@ -527,11 +554,8 @@ class TargetEstimator:
         mean = normals[agree[best]].sum(axis=0)
         self._normal = mean / float(np.linalg.norm(mean))
 
-    def _add_normals(self, normals: FloatArray, chosen: int | None,
-                     height: float | None = None) -> None:
-        """Add one view's two world normal solutions, ``chosen`` the detector's pick among
-        them (or None), and the view's monocular face ``height`` (m, or None); update the
-        consensus :attr:`normal`.
+    def _add_normals(self, view: NormalView) -> None:
+        """Add one view's two world normal solutions; update the consensus :attr:`normal`.
 
         A face's pose from one view is two-fold ambiguous. The right normal is the same
         from every line of sight; the wrong one turns with it. So, over views from lines of
@@ -539,17 +563,15 @@ class TargetEstimator:
         share (within NORMAL_AGREEMENT_DEG), ties going to the one the detector picked most
         often (its wall-colour test), then to the earliest; the mean of each view's nearest
         agreeing solution. Only views whose height lies within
-        ``episode.normal_vote_height_tol`` of the face height (:attr:`face_z`) vote, when
-        any does: a fit that reads the face too high takes in its side wall, and its
-        outline's shape, tilted by the wall, gives both normal solutions off the face's.
+        ``episode.normal_vote_height_tol`` of the face height (:attr:`face_z`) vote (when
+        none does, the one nearest it): a fit that reads the face too high takes in its side
+        wall, and its outline's shape, tilted by the wall, gives both normal solutions off
+        the face's. Of the views along one line of sight the first of them votes.
         """
-        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-        self._normal_views.append((normals, chosen, height))
-        face_z = self.face_z
-        voters = [(v, pick) for v, pick, z in self._normal_views
-                  if z is None or abs(z - face_z) <= self._vote_height_tol]
-        if not voters:
-            voters = [(v, pick) for v, pick, _ in self._normal_views]
+        self._normal_views.append(view)
+        voters = [(v.normals, v.chosen) for v in normal_voters(
+            self._normal_views, self.face_z, self._vote_height_tol)]
+        normals = view.normals
         cos_min = np.cos(np.radians(NORMAL_AGREEMENT_DEG))
         best_key: tuple[int, int] | None = None
         best_mean = normals[0]
