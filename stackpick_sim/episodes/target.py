@@ -260,8 +260,8 @@ class TargetEstimator:
         approaches; a neighbour's rim) is larger, so read as nearer: too high. Measured on
         paper scenes: the look pose's heights within 0.3 mm while the approach's and
         servo's are 10-18 mm too high; a look-pose outline that takes in the wall, 20 mm
-        too high. So the face is expected at or above this bound, whatever the median
-        of the latest heights (:attr:`face_z`) says.
+        too high. So the face is expected at or above this bound, whatever height the
+        heights agree on (:attr:`face_z`).
         """
         return min(self._zs) if self._zs else 0.0
 
