@@ -153,8 +153,9 @@ class Audit:
             return
         rec.top_objects = truth.top_objects
         rec.target_object = match_object(truth, cand.pixel)
-        rec.target_kind = next((o.type_name for o in cell.objects
-                                if o.name == rec.target_object), None)
+        with audit_scope():
+            rec.target_kind = next((o.type_name for o in cell.objects
+                                    if o.name == rec.target_object), None)
         if rec.target_object is not None and cand.normal_cam is not None:
             t_obj = next(o for o in truth.objects if o.name == rec.target_object)
             rec.detection = PoseErrors(
