@@ -123,7 +123,7 @@ def test_top_face_linked_with_a_lower_silhouette_is_found_from_the_cut_chain(
     # boundary ends near the two points where the outlines meet.
     frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "split_at_junctions",
-                        lambda chains: [[c] for c in chains])
+                        lambda chains, *_: [[c] for c in chains])
     _assert_missed(frame)
 
 

@@ -10,7 +10,7 @@ import pytest
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.edges import detect_edges
 from stackpick_sim.vision.fitting import fit_ellipse, fit_segment, satisfies_eq2
-from stackpick_sim.vision.merging import MERGE_K, merge_segments
+from stackpick_sim.vision.merging import merge_segments
 from stackpick_sim.vision.segments import link_segments, neighbour_count
 from stackpick_sim.vision.synthetic import draw_ellipses
 
@@ -102,7 +102,6 @@ def test_eq3_merges_split_arcs_of_one_ellipse_only() -> None:
     assert abs(best.ellipse.a - one.a) < 0.7 and abs(best.ellipse.b - one.b) < 0.7
     assert sum(math.hypot(m.ellipse.cx - other.cx, m.ellipse.cy - other.cy) < 1.0
                for m in merged) == 1
-    assert 0.0 < MERGE_K < 1.0
 
 
 def test_segments_split_at_junction() -> None:

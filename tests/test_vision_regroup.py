@@ -10,7 +10,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou, project_
 from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.merging import boundary_samples
-from stackpick_sim.vision.regroup import SPLIT_REACH_PX, arc_pair_ellipses, split_at_junctions
+from stackpick_sim.vision.regroup import DEFAULT_SECTIONS, arc_pair_ellipses, split_at_junctions
 from stackpick_sim.vision.synthetic import render_cylinders
 
 SHAPE = (240, 320)
@@ -62,7 +62,8 @@ def test_chains_are_cut_where_another_chain_ends_near_them() -> None:
     # One chain ending 4 px off the through-going chain's pixel 40, one ending beyond the
     # reach off its pixel 80, and one ending next to its own first pixel.
     near = np.array([[40, 90], [40, 54]], np.int32)
-    far = np.array([[80, 90], [80, 50 + int(SPLIT_REACH_PX) + 2]], np.int32)
+    reach = int(DEFAULT_SECTIONS.top.arc_split_reach_px)
+    far = np.array([[80, 90], [80, 50 + reach + 2]], np.int32)
     at_end = np.array([[-1, 51], [-1, 90]], np.int32)
     parts = split_at_junctions([through, near, far, at_end])[0]
     assert [p.shape[0] for p in parts] == [40, 60]

@@ -9,8 +9,7 @@ from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.occlusion import select_top
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import (
-    CONTACT_GAP_M,
-    MIN_REST_UP,
+    DEFAULT_TOP,
     UP_CAM,
     contact,
     rests_on,
@@ -18,6 +17,8 @@ from stackpick_sim.vision.resting import (
 )
 from stackpick_sim.vision.synthetic import render_cylinders
 from stackpick_sim.vision.wall import face_colour, wall_evidences
+
+CONTACT_GAP_M, MIN_REST_UP = DEFAULT_TOP.rest_contact_gap_m, DEFAULT_TOP.rest_min_up
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 ORANGE, BLUE = (217, 153, 64), (77, 153, 217)  # the paper scene's large and small kinds

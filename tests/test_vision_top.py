@@ -364,7 +364,7 @@ def test_clearly_nearer_whole_face_wins_when_radii_are_known() -> None:
     assert select_top([big, small], edges, K, radius_of).index == 1
 
     def same_radius(e: Ellipse) -> float:
-        return 0.03  # depths then differ by < DEPTH_TIE_M: the size rule decides
+        return 0.03  # depths then differ by < top.depth_tie_m: the size rule decides
 
     assert select_top([big, small], edges, K, same_radius).index == 0
 

@@ -10,9 +10,7 @@ from stackpick_sim.vision.pose import circle_poses, unit_circle_poses
 from stackpick_sim.vision.wall import band_points, solution_band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
     COVER_DEPTH_FRACTIONS,
-    COVER_MARGIN_PX,
-    MIN_COVER_SAMPLES,
-    MIN_COVERED_SHARE,
+    DEFAULT_TOP,
     covered_share,
     covered_shares,
     face_bands,
@@ -20,6 +18,9 @@ from stackpick_sim.vision.wall_cover import (
 )
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+COVER_MARGIN_PX = DEFAULT_TOP.cover_margin_px
+MIN_COVER_SAMPLES = DEFAULT_TOP.cover_min_samples
+MIN_COVERED_SHARE = DEFAULT_TOP.cover_min_share
 #: A face tilted 35 deg about the camera's x axis: its wall shows on one side.
 TILTED = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(35.0, 0.0), 0.035, K)
 

@@ -13,7 +13,11 @@ import typing
 from dataclasses import dataclass, field
 from typing import Literal
 
-from stackpick_sim.config.vision_params import SKIPPABLE_STAGES, StageSections
+from stackpick_sim.config.vision_params import (
+    SKIPPABLE_STAGES,
+    OutlineTrackingParams,
+    StageSections,
+)
 from stackpick_sim.exceptions import ConfigError
 
 #: A pile larger than this cannot be placed so that every face overlaps another object
@@ -358,8 +362,8 @@ class VisionCfg(StageSections):
     defaults lie well above a pile frame's counts and change nothing on the project's
     scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
     ``[vision.segments]``, ``[vision.fits]``, ``[vision.merging]``, ``[vision.refine]``,
-    ``[vision.gate]``, ``[vision.top]``, ``[vision.report]``, ``[vision.pose]``,
-    ``[vision.ellipses]``: stackpick_sim/config/vision_params.py)."""
+    ``[vision.gate]``, ``[vision.top]``, ``[vision.markings]``, ``[vision.report]``,
+    ``[vision.pose]``, ``[vision.ellipses]``: stackpick_sim/config/vision_params.py)."""
 
     max_pixels: int = 640 * 480
     """Images with more pixels are detected on a copy downscaled by the smallest integer
@@ -547,6 +551,11 @@ class EpisodeCfg:
     """Longest sim time of each phase, s; past it the episode fails with ``timeout``. 0 to
     10 s each: the defaults are 0.2 to 1.2 s, and a phase that has not ended in ten times the
     slowest will not (a longer one only makes a failing episode take minutes)."""
+
+    outline: OutlineTrackingParams = field(default_factory=OutlineTrackingParams)
+    """Tracking mode: the tracked face's outline searched for around its prediction where
+    the detector misses it (the ``[episode.outline]`` table:
+    :class:`~stackpick_sim.config.vision_params.OutlineTrackingParams`)."""
 
     def __post_init__(self) -> None:
         from stackpick_sim.registry import known

@@ -30,10 +30,11 @@ FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed
 
 @dataclass(frozen=True, kw_only=True)
 class Section:
-    """A section of settings: ``SECTION`` is its key under ``vision``; ``RANGES`` maps a
-    field to its allowed (min, max, unit), checked for a number and for every number of a
-    list."""
+    """A section of settings: ``SECTION`` is its key under ``PREFIX`` (``vision``: the
+    detector's); ``RANGES`` maps a field to its allowed (min, max, unit), checked for a
+    number and for every number of a list."""
 
+    PREFIX: ClassVar[str] = "vision"
     SECTION: ClassVar[str] = ""
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {}
 
@@ -42,8 +43,8 @@ class Section:
             value = getattr(self, name)
             numbers = value if isinstance(value, tuple) else (value,)
             if not all(_number_within(v, lo, hi) for v in numbers):
-                raise ConfigError(f"vision.{self.SECTION}.{name} = {_shown(value)} is out of "
-                                  f"range; allowed: {_allowed(lo, hi, unit)}"
+                raise ConfigError(f"{self.PREFIX}.{self.SECTION}.{name} = {_shown(value)} is "
+                                  f"out of range; allowed: {_allowed(lo, hi, unit)}"
                                   + (" each" if isinstance(value, tuple) else ""))
 
 
@@ -65,7 +66,7 @@ def _ordered(section: Section, name: str) -> None:
     """ConfigError unless the (low, high) pair ``name`` of ``section`` has low <= high."""
     lo, hi = getattr(section, name)
     if lo > hi:
-        raise ConfigError(f"vision.{section.SECTION}.{name} = {[lo, hi]!r} must be "
+        raise ConfigError(f"{section.PREFIX}.{section.SECTION}.{name} = {[lo, hi]!r} must be "
                           "[low, high] with low <= high")
 
 
@@ -113,7 +114,8 @@ class EdgeParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "blur_sigma_px": (0.3, 5.0, "px"), "noise_multiple": (0.0, 100.0, ""),
         "contrast_fraction": (0.0, 1.0, ""), "min_high_threshold": (0.0, 255.0, "grey levels/px"),
-        "low_ratio": (0.05, 1.0, "")}
+        "low_ratio": (0.05, 1.0, ""), "support_noise_multiple": (0.0, 100.0, ""),
+        "support_min_contrast": (0.0, 255.0, "grey levels/px")}
 
     blur_sigma_px: float = 1.0
     """Gaussian smoothing sigma, px (the kernel covers +-2 sigma): suppresses pixel noise of a
@@ -131,6 +133,15 @@ class EdgeParams(Section):
     low_ratio: float = 0.4
     """Low hysteresis threshold as a ratio of the high one (Canny's recommended 1:2 to
     1:3)."""
+    support_noise_multiple: float = 2.0
+    """An outline sample shows consistent edge contrast (the support the top rule, the
+    reported ellipses' check and the refits read) when its windowed contrast across the
+    outline reaches this multiple (ratio) of the noise level (the median gradient
+    magnitude): the window's averaging lowers the noise ~2.2 times, so 2 keeps noise out
+    while faint boundaries between faces of one colour still count."""
+    support_min_contrast: float = 0.5
+    """...and at least this contrast, grey levels/px: a noiseless image's noise level is
+    zero, and a flat face's rendering dither must not count as an edge."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -177,7 +188,8 @@ class FitParams(Section):
     SECTION: ClassVar[str] = "fits"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "min_fit_px": (5, 1000, "px"), "min_bow_px": (0.0, 10.0, "px"),
-        "max_residual_px": (0.05, 5.0, "px")}
+        "max_residual_px": (0.05, 5.0, "px"), "min_axis_px": (1.0, 1000.0, "px"),
+        "max_axis_diagonals": (0.05, 10.0, "diagonals")}
 
     min_fit_px: int = 10
     """Chains shorter than this (px) are not fitted: a few pixels of arc do not fix an
@@ -188,14 +200,20 @@ class FitParams(Section):
     max_residual_px: float = 0.6
     """Largest RMS Sampson residual (px) of an accepted segment fit: anti-aliased synthetic
     and rendered edges fit to ~0.2-0.3 px; 0.6 px rejects arcs that mix two curves."""
+    min_axis_px: float = 5.0
+    """Smallest semi-minor axis (px) of any ellipse the detector fits, merges, refines or
+    pairs (every fit is held to this and ``max_axis_diagonals``): faces image with a
+    semi-minor axis of ~10 px and more; thinner fits are arcs of wall lines and shading."""
+    max_axis_diagonals: float = 1.0
+    """Largest semi-major axis of any fitted ellipse, as a multiple of the searched image's
+    diagonal (diagonals): a larger fit is a near-straight run fitted as a huge ellipse."""
 
 
 @dataclass(frozen=True, kw_only=True)
 class MergeParams(Section):
     """``merging`` stage: fits of one ellipse merged by the paper's Eq. 3, leftover segments
     absorbed, each ellipse validated by its edge support (:func:`~stackpick_sim.vision.
-    merging.merge_segments`). The top rule's arc-pair regrouping and its T-junction test read
-    the defaults."""
+    merging.merge_segments`). The top rule's arc-pair regrouping holds to them too."""
 
     SECTION: ClassVar[str] = "merging"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
@@ -309,7 +327,109 @@ class TopParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "hidden_min_support": (0.0, 1.0, ""), "contrast_reach_px": (1, 20, "px"),
         "contrast_inner_reach_px": (1, 30, "px"), "contrast_rounds": (1, 10, "rounds"),
-        "contrast_min_share": (0.0, 1.0, "")}
+        "contrast_min_share": (0.0, 1.0, ""), "min_support": (0.0, 1.0, ""),
+        "min_gap_px": (1, 1000, "px"), "junction_radius_px": (0.5, 20.0, "px"),
+        "crossing_reach_px": (0.0, 50.0, "px"), "interior_margin_px": (0.0, 20.0, "px"),
+        "max_interior_share": (0.0, 1.0, ""), "depth_tie_m": (0.0, 1.0, "m"),
+        "support_tie": (0.0, 1.0, ""), "unobstructed_min_support": (0.0, 1.0, ""),
+        "rim_band_px": (0.0, 30.0, "px"), "cover_min_share": (0.0, 1.0, ""),
+        "cover_margin_px": (0.0, 20.0, "px"), "cover_depth_tolerance_m": (0.0, 0.1, "m"),
+        "cover_min_samples": (1, 1000, "points"), "rest_contact_gap_m": (0.0, 0.1, "m"),
+        "rest_max_penetration_m": (0.0, 0.1, "m"), "rest_min_up": (0.0, 1.0, ""),
+        "arc_split_reach_px": (0.0, 50.0, "px"), "arc_grow_rounds": (0, 20, "rounds"),
+        "off_outline_px": (0.0, 20.0, "px")}
+
+    min_support: float = 0.9
+    """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
+    contrast: the top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions
+    and along low-contrast arcs."""
+    min_gap_px: int = 8
+    """Runs of the outline without support shorter than this (px) are edge drop-outs, not
+    occlusion: where a lower outline meets the top face in a T, Canny often breaks the
+    through-going edge for 4-7 px too."""
+    junction_radius_px: float = 3.0
+    """Another contour passing within this distance (px) of where a gap in the outline ends
+    makes the end a T-junction (Canny leaves a pixel or two of gap at a T instead of a
+    junction pixel)."""
+    off_outline_px: float = 1.5
+    """An edge pixel farther than this (px) from the outline belongs to another contour
+    (the T-junction test's; an occluder's pixels must lie farther inside the outline than
+    this too): the outline's own edge lies within the merge's pertaining distance
+    (``merging.tolerance_px``, the same default)."""
+    crossing_reach_px: float = 6.0
+    """An occluding contour runs on into the face it covers: besides passing within
+    ``junction_radius_px`` of the gap end, it must have pixels inside the outline (by more
+    than ``off_outline_px``) within this distance (px) of the end. A tilted cylinder's
+    own wall lines (which touch the faint face-to-wall rim) and the outlines of objects lying
+    under it stay outside its face."""
+    interior_margin_px: float = 2.5
+    """Edge pixels farther than this (px) inside the outline count as edges inside the face
+    (the outline's own pixels, blurred and fitted to ~1 px, stay outside the count)."""
+    max_interior_share: float = 0.05
+    """Edge pixels inside a face allowed, as a share [0, 1] of its perimeter (px per px):
+    isolated noise edges."""
+    depth_tie_m: float = 0.01
+    """A candidate face nearer the camera than every other by this much (m) is the top: an
+    object resting on another's wall lies higher than it though both faces show whole. The
+    face depths of one pile's candidates that are not clearly ordered differ by < 1 cm on
+    rendered paper-scene frames; a fit's depth error is ~1 mm."""
+    support_tie: float = 0.02
+    """Candidates whose supports (shares [0, 1]) differ by less than this are tied; the
+    larger ellipse, nearer the camera for equal radii, wins."""
+    unobstructed_min_support: float = 0.75
+    """Share [0, 1] of its outline a face with no T-junction and no edge inside must show for
+    the ``unobstructed`` fallback (and to join the depth test): an occluder's outline runs
+    into the face it covers, so such a face's gaps are boundaries too faint even for the
+    contrast test, a top face over a lower face of its colour and shade (~0.80 on rendered
+    paper-scene frames); far rims and arcs of two outlines fitted together show 0.5-0.6. Not
+    proof on its own: lower faces whose occluder only clips their rim reach 0.75-0.88 with
+    no edge inside, so this evidence is used only when nothing passes the rule, or with the
+    ``depth_tie_m`` margin."""
+    rim_band_px: float = 6.0
+    """Edge pixels inside a face's outline by at most this (px) can be its own rim (the
+    ``rimmed`` fallback and the rest check): a top face lying on a lower face of its own
+    colour and about its size is fitted on the lower face's strong silhouette where that
+    shows a sliver beyond it, and its own faint boundary then lies up to a few px inside the
+    fit (3-4 px on rendered paper-scene frames, as ``contrast_inner_reach_px``); an
+    occluder's outline runs across the face, deeper than this."""
+    cover_min_share: float = 0.15
+    """A face lies under another when at least this share [0, 1] of one pose solution's
+    predicted wall band lies inside the other face (the T-junction rule for side walls,
+    :mod:`~stackpick_sim.vision.wall_cover`): a false hit needs a second whole face right
+    beside its rim, on the side a wall would show. Chosen on rendered paper-scene frames."""
+    cover_margin_px: float = 1.0
+    """Wall band points must lie this far (px) inside the other face to count as covered:
+    its blurred outline and the fit error are no evidence."""
+    cover_depth_tolerance_m: float = 0.003
+    """A wall band point counts as covered only where the other face's plane lies nearer the
+    camera than the point, or farther by at most this (m): a face's depth error (~1 mm) plus
+    a 1-2 deg tilt error moving its far rim ~1 mm, on each of the two faces. A real cover has
+    the covering object's body between its face and the wall, well in front."""
+    cover_min_samples: int = 8
+    """Points a solution's wall band needs outside its face for its covered share to count
+    (fewer: 0), above the pose's ``min_band_samples``: a share over a few points of a thin
+    band is noise, and can put a top face under a lower one."""
+    rest_contact_gap_m: float = 0.003
+    """Two reconstructed cylinders farther apart than this (m) do not touch (the rest check
+    between whole faces, :mod:`~stackpick_sim.vision.resting`): a face's depth error is ~1 mm
+    and a 1-2 deg tilt error moves a far rim ~1 mm."""
+    rest_max_penetration_m: float = 0.004
+    """Cylinders overlapping deeper than this (m) are no consistent reconstruction (a wrong
+    pose solution, a misfitted face) and give no evidence: the pose errors above, both ways."""
+    rest_min_up: float = 0.3
+    """A contact normal (from the lower body to the upper, unit) with at least this upward
+    component means the upper body rests on the lower: the ground truth's own threshold
+    (an object is top when nothing touches it from above by more than this)."""
+    arc_split_reach_px: float = 6.0
+    """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
+    within this distance (px): Canny runs a face's outline on into a lower same-colour face's
+    silhouette and leaves the faint boundary between them ending 4-7 px short of it (as
+    ``min_gap_px``)."""
+    arc_grow_rounds: int = 3
+    """Rounds of growing an arc pair's ellipse by the chains lying on it (within the merge's
+    tolerance and absorbing share) and refitting (within ``fits.max_residual_px``): the
+    pair's own fit extrapolates up to a few px off the face's far arcs, and the first refit
+    on the arcs near it pulls it within the merge's tolerance of the rest."""
 
     fallbacks: tuple[str, ...] = FALLBACKS
     """The fallbacks tried, by name, when no ellipse passes the top rule (see the section's
@@ -348,7 +468,7 @@ class TopParams(Section):
     a few px inside the lower face's strong silhouette (4-5 px on rendered paper-scene
     frames: a rim offset of ~1.5 mm at 0.3 m); the face's smooth inside holds no other
     edge. The rest check's refit of a face with its own rim inside holds to it too (the
-    band that rim is looked for in keeps the default width)."""
+    band that rim is looked for in is ``rim_band_px``)."""
     contrast_rounds: int = 2
     """Contrast refit rounds, each re-centring the search on the previous fit: the first
     moves a fit that is a few px off onto the faint edge, the second fits on it whole."""
@@ -363,6 +483,45 @@ class TopParams(Section):
         if unknown or len(set(self.fallbacks)) != len(self.fallbacks):
             raise ConfigError(f"vision.top.fallbacks = {list(self.fallbacks)!r} is not "
                               f"allowed; give distinct names of {', '.join(FALLBACKS)}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkingParams(Section):
+    """The top rule's tests of whole faces with markings (printed artwork, a can end's rings)
+    that the scene's ``marking_depth_ratio`` and ``marking_min_edge_share`` switch on
+    (:mod:`~stackpick_sim.vision.markings`)."""
+
+    SECTION: ClassVar[str] = "markings"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "surface_chroma_tolerance": (0.0, 2.0, ""),
+        "surface_brightness_range": (0.01, 100.0, ""),
+        "crossing_min_support": (0.0, 1.0, ""), "min_part_samples": (1, 64, "samples")}
+
+    surface_chroma_tolerance: float = 0.12
+    """Two parts of a face's rim band (inside and outside an inner whole face) are two
+    surfaces, the face a fit round another face and its wall or a lower face, when their
+    median colours' chromaticities (r, g, b over their sum) differ by more than this (L1):
+    face and wall of one object differ by ~0.02-0.07 on rendered paper-scene frames, the
+    grey belt sits ~0.3 from a coloured face."""
+    surface_brightness_range: tuple[float, float] = (0.7, 1.0 / 0.7)
+    """...or when the outer part's brightness (channel sum) over the inner part's lies
+    outside this (low, high) range of ratios: a cylinder's wall under the ring light is
+    darker than its face (about tan(tilt) of it plus ambient light), while a face's own rim
+    band, printed or tinplate, keeps within about 0.75-1.1 of itself round it (vignetting,
+    shading, artwork at the rim; measured on rendered realistic-scene frames)."""
+    crossing_min_support: float = 0.75
+    """Where two whole faces with markings cross, the upper one's outline shows edge contrast
+    along at least this share [0, 1] of its run over the lower one, and the lower one's
+    hidden outline along less (a hidden arc still picks up contrast where the upper face's
+    artwork or rings cross it; as ``top.unobstructed_min_support``)."""
+    min_part_samples: int = 4
+    """Fewest rim band or outline samples either part needs for the two-surface and the
+    crossing tests to decide (fewer: no verdict), of 64 rim band and 32-plus outline
+    samples."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _ordered(self, "surface_brightness_range")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -435,7 +594,9 @@ class PoseParams(Section):
         "subpixel_tolerance_px": (0.3, 10.0, "px"), "profile_reach_px": (0.5, 10.0, "px"),
         "profile_step_px": (0.1, 2.0, "px"), "profile_rounds": (0, 10, "rounds"),
         "profile_min_share": (0.0, 1.0, ""), "outlier_medians": (1.0, 100.0, ""),
-        "outlier_min_px": (0.0, 10.0, "px")}
+        "outlier_min_px": (0.0, 10.0, "px"), "band_chroma_tolerance": (0.0, 2.0, ""),
+        "band_min_brightness": (0.0, 1.0, ""), "band_brightness_margin": (0.0, 10.0, ""),
+        "band_belt_delta": (0.0, 255.0, "grey levels")}
 
     subpixel_tolerance_px: float = 1.2
     """Collection tolerance (px) of the top face's sub-pixel refit on the edge pixels along
@@ -478,6 +639,25 @@ class PoseParams(Section):
     lone_band_min_share: float = 0.5
     """A lone visible band showing the face's hue on less than this share [0, 1] is the wrong
     solution's."""
+    band_chroma_tolerance: float = 0.12
+    """A wall band sample shows the face's hue when the L1 distance between their
+    chromaticities (r, g, b over their sum) is at most this: face and wall of one object
+    differ by ~0.02-0.07 on rendered paper-scene frames, the grey belt sits ~0.35 from
+    orange, ~0.3 from blue. The rest check reads the wall bands by the same test."""
+    band_min_brightness: float = 0.12
+    """A band sample darker than this share [0, 1] of the face's brightness carries no usable
+    hue (deep shadow); an upright wall under the ring light measures ~0.27 of its face."""
+    band_brightness_margin: float = 0.3
+    """A wall sample is at most tan(tilt) plus this share of the face's brightness (ratio),
+    the tilt being the face normal's angle to the viewing ray: under a ring light at the
+    camera a Lambertian wall faces the light by at most sin(tilt) where the face does by
+    cos(tilt). The margin covers ambient light on near-frontal walls (~0.2) and shading
+    (rendered paper-scene frames: true walls at <= tan(tilt) + 0.2, the same-coloured lower
+    faces the other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4)."""
+    band_belt_delta: float = 14.0
+    """A band sample within this many grey levels of the bare belt's colour in every channel
+    is belt, not wall (what tells them apart when the face has the belt's hue: a grey
+    object): the belt's own spread under the ring light, as ``roi.foreground_delta``."""
     wall_tie: float = 0.15
     """Without a colour image: edge support [0, 1] of the two solutions' predicted wall
     silhouette lines closer than this is a tie."""
@@ -530,6 +710,44 @@ class EllipsesParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class OutlineTrackingParams(Section):
+    """Tracking mode: a tracked face's outline searched for around its predicted ellipse
+    where the detector misses it (:func:`~stackpick_sim.vision.moving_edges.track_outline`;
+    the scene's ``[episode.outline]`` table: the tracker's settings, not the detector's)."""
+
+    PREFIX: ClassVar[str] = "episode"
+    SECTION: ClassVar[str] = "outline"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "search_px": (0.5, 100.0, "px"), "min_axis_px": (1.0, 1000.0, "px"),
+        "samples": (8, 1024, "points"), "min_step": (0.0, 255.0, "grey levels/px"),
+        "inlier_px": (0.1, 20.0, "px"), "min_inlier_share": (0.0, 1.0, ""),
+        "size_tolerance": (0.0, 1.0, "")}
+
+    search_px: float = 6.0
+    """How far (px) the outline is searched for along the predicted ellipse's normals: the
+    prediction's error plus the face's motion between the tick of the prediction and the
+    capture (~3 px at 0.3 m/s). Placeholder."""
+    min_axis_px: float = 8.0
+    """Predicted faces smaller than this (semi-major axis, px) are not searched for: too few
+    pixels along their outline."""
+    samples: int = 72
+    """Points along the predicted outline where the edge is searched for (one every 5 deg)."""
+    min_step: float = 4.0
+    """Smallest grey-level step (grey levels/px along the normal, on the grey image smoothed
+    over 3 px) taken for the outline: several times the camera's noise (std ~1 grey level).
+    Placeholder."""
+    inlier_px: float = 1.5
+    """A sample's edge farther than this (px) from the fitted ellipse is an outlier (the
+    edge of a neighbour or of the face's markings)."""
+    min_inlier_share: float = 0.6
+    """Share [0, 1] of the samples that must be inliers of the final fit: most of the outline
+    must show."""
+    size_tolerance: float = 0.2
+    """The fit must keep its semi-axes within this share of the predicted semi-major axis
+    (ratio): a fit on a neighbour's outline or on arcs of two faces changes size."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class StageSections:
     """One section per stage (fields named by each section's ``SECTION``): the scene's
     ``[vision]`` table (:class:`~stackpick_sim.config.scene_config.VisionCfg`) and
@@ -543,6 +761,7 @@ class StageSections:
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     top: TopParams = field(default_factory=TopParams)
+    markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)
     pose: PoseParams = field(default_factory=PoseParams)
     ellipses: EllipsesParams = field(default_factory=EllipsesParams)

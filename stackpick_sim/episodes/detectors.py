@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import SceneConfig
+from stackpick_sim.config.vision_params import OutlineTrackingParams
 from stackpick_sim.episodes.audit import CellTruth
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, face_depth_range
 from stackpick_sim.pipeline import Detections, FaceCandidate, Frame, Hints
@@ -38,12 +39,8 @@ from stackpick_sim.vision.undistort import undistort
 
 FloatArray = NDArray[np.float64]
 
-#: How far (px) the tracked face's outline is searched for around its predicted ellipse
-#: (prediction error plus the face's motion between the tick of the prediction and the
-#: capture: ~3 px at 0.3 m/s). Placeholder.
-TRACKED_SEARCH_PX = 6.0
-#: Faces smaller than this (semi-major axis, px) are not searched for: too few pixels.
-MIN_TRACKED_AXIS_PX = 8.0
+#: The tracking mode's default outline search (see OutlineTrackingParams).
+DEFAULT_OUTLINE = OutlineTrackingParams()
 #: Once a face is tracked its depth is predicted; the detector is told this range around it.
 TRACKED_DEPTH_MARGIN = 0.25
 
@@ -98,21 +95,24 @@ def other_candidate(ellipse: Ellipse) -> FaceCandidate:
 
 
 def tracked_outline(image: NDArray[np.uint8], intrinsics: CameraIntrinsics, hints: Hints,
-                    cands: tuple[FaceCandidate, ...]) -> FaceCandidate | None:
+                    cands: tuple[FaceCandidate, ...],
+                    params: OutlineTrackingParams = DEFAULT_OUTLINE) -> FaceCandidate | None:
     """A candidate from the predicted face's outline, when no detection resembles it (the
-    predicted ellipse is in pinhole pixels: a distorted frame is undistorted first)."""
+    predicted ellipse is in pinhole pixels: a distorted frame is undistorted first;
+    ``params``: the scene's ``episode.outline`` settings)."""
     e = hints.expected_ellipse
-    if e is None or e.a < MIN_TRACKED_AXIS_PX:
+    reach = params.search_px
+    if e is None or e.a < params.min_axis_px:
         return None
     for c in cands:
         d = c.ellipse
-        if (d is not None and math.hypot(d.cx - e.cx, d.cy - e.cy) < TRACKED_SEARCH_PX
-                and abs(d.a - e.a) < TRACKED_SEARCH_PX):
+        if (d is not None and math.hypot(d.cx - e.cx, d.cy - e.cy) < reach
+                and abs(d.a - e.a) < reach):
             return None  # the detector found it: its fit is the better one
     pinhole = undistort(image, intrinsics)
     gray = np.asarray(cv2.GaussianBlur(cv2.cvtColor(pinhole, cv2.COLOR_RGB2GRAY)
                                        .astype(np.float32), (3, 3), 0), dtype=np.float32)
-    fit = track_outline(gray, e, TRACKED_SEARCH_PX)
+    fit = track_outline(gray, e, reach, params)
     if fit is None:
         return None
     return FaceCandidate(pixel=np.array([fit.cx, fit.cy]), normal_cam=None, centre_cam=None,
@@ -133,7 +133,8 @@ class VisionDetector:
         assert frame.image is not None
         detection = detect(frame.image, detector_config(self.cfg, frame.intrinsics, hints))
         cands = detection_candidates(detection)
-        tracked = tracked_outline(frame.image, frame.intrinsics, hints, cands)
+        tracked = tracked_outline(frame.image, frame.intrinsics, hints, cands,
+                                  self.cfg.episode.outline)
         if tracked is not None:
             cands = (*cands, tracked)
         return Detections(candidates=cands, reason=detection.reason, raw=detection)
@@ -165,7 +166,8 @@ class BaselineDetector:
                      else radius_by_colour(rgb, cfg.radii_m, cfg.kind_colours))
         grad = edge_image(rgb, cfg.edges)
         choice = select_top(found, grad, k, radius_of, image=rgb, height_of=cfg.height_of(),
-                            belt=belt, markings=marking_test(cfg, rgb, grad))
+                            belt=belt, markings=marking_test(cfg, rgb, grad), params=cfg.top,
+                            pose_params=cfg.pose)
         cands = []
         for i, e in enumerate(found):
             if i != choice.index:

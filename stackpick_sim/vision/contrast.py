@@ -35,11 +35,6 @@ NORMAL_OFFSETS_PX: tuple[float, ...] = (-1.0, 0.0, 1.0)
 #: Window (samples, ~1 px each) of the signed average: noise drops by sqrt(5) ~ 2.2x while
 #: a 5 px gap of an occluded arc still shows.
 WINDOW_SAMPLES = 5
-#: A boundary sample is supported when its windowed contrast reaches this multiple of the
-#: image's noise level (the median gradient magnitude)...
-NOISE_MULTIPLE = 2.0
-#: ...and at least this many grey levels per pixel (a noiseless image has a zero noise level).
-MIN_CONTRAST = 0.5
 
 
 def perimeter_px(ellipse: Ellipse) -> float:
@@ -217,8 +212,11 @@ def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:
 
 
 def contrast_threshold(image: EdgeImage) -> float:
-    """Grey levels/px a boundary sample needs to count as supported."""
-    return max(MIN_CONTRAST, NOISE_MULTIPLE * image.noise)
+    """Grey levels/px a boundary sample needs to count as supported (the image's
+    ``support_noise_multiple`` times its noise level, at least ``support_min_contrast``:
+    :class:`~stackpick_sim.config.vision_params.EdgeParams`)."""
+    params = image.params
+    return max(params.support_min_contrast, params.support_noise_multiple * image.noise)
 
 
 def contrast_support(ellipse: Ellipse, image: EdgeImage,
@@ -232,9 +230,6 @@ def contrast_support(ellipse: Ellipse, image: EdgeImage,
 #: The default settings of the contrast refit (the ``contrast_*`` fields of TopParams: the
 #: reasons for each).
 REFIT_DEFAULT = TopParams()
-#: The inward reach (px) of the innermost-edge refit, by default (the top rule's rim band
-#: is as wide).
-REFIT_INNER_REACH_PX = REFIT_DEFAULT.contrast_inner_reach_px
 
 
 def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False,
@@ -254,34 +249,21 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     inward.
     """
     current = ellipse
-    h, w = image.gx.shape
     reach = params.contrast_reach_px
     inward = params.contrast_inner_reach_px if innermost else reach
     offsets = np.arange(-inward, reach + 1, dtype=np.float64)
+    threshold = contrast_threshold(image)
     for _ in range(params.contrast_rounds):
         pts, normals = outline(current)
-        q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]  # (n, k, 2)
-        u = np.clip(np.rint(q[..., 0]).astype(np.int64), 0, w - 1)
-        v = np.clip(np.rint(q[..., 1]).astype(np.int64), 0, h - 1)
-        g = image.gx[v, u] * normals[:, None, 0] + image.gy[v, u] * normals[:, None, 1]
-        k = WINDOW_SAMPLES
-        padded = np.concatenate([g[-(k // 2):], g, g[: k // 2]], axis=0)
-        kernel = np.ones(k) / k
-        smooth = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
-                           for j in range(offsets.size)], axis=1)
-        mag = np.abs(smooth) / SOBEL_GAIN
-        best = np.argmax(mag, axis=1)
-        if innermost:
-            # Local peaks (not below either neighbour across the outline) that pass.
-            padded_mag = np.pad(mag, ((0, 0), (1, 1)))
-            peak = ((mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:])
-                    & (mag >= contrast_threshold(image)))
-            best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
-        strength = mag[np.arange(best.size), best]
-        ok = strength >= contrast_threshold(image)
-        if np.count_nonzero(ok) < params.contrast_min_share * ok.size:
+        # The offsets' gradients, their windowed means and each sample's pick, in one
+        # compiled pass (kernels.contrast_peaks: the same values as the array form).
+        found = kernels.contrast_peaks(
+            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+            np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+            image.gx, image.gy, offsets, WINDOW_SAMPLES, SOBEL_GAIN, threshold, innermost)
+        if found.shape[0] < params.contrast_min_share * pts.shape[0]:
             return None
-        fit = fit_ellipse(q[np.flatnonzero(ok), best[ok]])
+        fit = fit_ellipse(found)
         if fit is None:
             return None
         current = fit

@@ -33,6 +33,8 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
+    FitParams,
+    MergeParams,
     PoseParams,
     ReportParams,
     StageSections,
@@ -51,7 +53,6 @@ from stackpick_sim.vision.edges import (
     unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import (
-    MIN_FIT_PX,
     fit_all,
     plausible,
     rms_residual,
@@ -79,7 +80,6 @@ from stackpick_sim.vision.merging import (
     support_shares,
 )
 from stackpick_sim.vision.occlusion import (
-    INTERIOR_MARGIN_PX,
     OcclusionEvidence,
     TopChoice,
     clearly_nearest,
@@ -132,6 +132,8 @@ REQUIRED_STAGES: tuple[str, ...] = ("edges", "segments", "fitting", "merging", "
 DEFAULT_REPORT = ReportParams()
 #: The top rule's default settings.
 DEFAULT_TOP = TopParams()
+#: The fits' default settings.
+DEFAULT_FITS = FitParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,8 +156,8 @@ class DetectorConfig(StageSections):
     :mod:`~stackpick_sim.vision.markings`).
 
     ``roi``, ``edges``, ``segments``, ``fits``, ``merging``, ``refine``, ``gate``, ``top``,
-    ``report``, ``pose``: each stage's tuned settings (the scene's ``[vision.SECTION]`` tables,
-    :mod:`~stackpick_sim.config.vision_params`);
+    ``markings``, ``report``, ``pose``: each stage's tuned settings (the scene's
+    ``[vision.SECTION]`` tables, :mod:`~stackpick_sim.config.vision_params`);
     ``ellipses``: the scoring of :func:`~stackpick_sim.vision.ellipses.find_ellipses` (the
     ellipse stages alone).
     ``stages``: the stages run, in order (default :data:`STAGES`; see :meth:`without` and
@@ -368,7 +370,7 @@ def merging_stage(state: State, config: DetectorConfig) -> State:
     fits = state.fits
     merged = merge_segments(state.chains, [(i, f[2]) for i, f in enumerate(fits)],
                             state.edges("merging").edges, [f[3] for f in fits],
-                            config.merging)
+                            config.merging, config.fits)
     return state.updated(merged=_best_supported(merged, config.limits.max_ellipses))
 
 
@@ -377,7 +379,7 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     refine.refine_all`)."""
     merged = state.merged
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
-                         config.refine)
+                         config.refine, config.fits)
     return state.updated(merged=[
         MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
                       support=m.support) for m, e in zip(merged, refined, strict=True)])
@@ -426,7 +428,7 @@ def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
         return choice
     above = select_resting_rimmed([m.ellipse for m in merged], choice, state.edges("top"),
                                   state.points, cues.k_crop, cues.radius_of, cues.height_of,
-                                  cues.rgb, cues.belt, params)
+                                  cues.rgb, cues.belt, params, cues.pose)
     return choice if above is None else replace(choice, index=above)
 
 
@@ -465,8 +467,9 @@ def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
     """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
     work, grad = state.work, state.edges("pose")
     top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
-                                  config.pose, config.refine.min_normal_cos)
-    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose)
+                                  config.pose, config.refine.min_normal_cos, config.fits,
+                                  config.refine.min_pixels)
+    top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose, config.fits)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).
     face = face_colour(top_ellipse, work) if work.ndim == 3 else None
@@ -509,14 +512,15 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings)
+                markings=markings, top=config.top, pose=config.pose)
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     """The top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) with every cue."""
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
-                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings)
+                      colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
+                      params=cues.top, pose_params=cues.pose)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -538,7 +542,7 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     grad = state.edges("top")
     arc_chains, arcs = _every_arc(state, config)
     extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
-                                   state.crop, state.gate)
+                                   state.crop, state.gate, config)
     # Only whole faces with markings across them can be chosen so (the rule's evidence of
     # each ellipse is its own: the union's is the same).
     extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
@@ -554,20 +558,22 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     if both.index < n:
         return merged, replace(mine, index=both.index)
     face = extra[both.index - n]
-    if choice.index is not None and _refit_round(face, merged[choice.index].ellipse):
+    if choice.index is not None and _refit_round(face, merged[choice.index].ellipse,
+                                                 config.top.interior_margin_px):
         return merged, choice
-    return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad)
+    return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad,
+                      config.merging)
 
 
-def _refit_round(face: Ellipse, chosen: Ellipse) -> bool:
+def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float) -> bool:
     """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
     holds the other's centre) round it and beyond, the chosen face reaching into its rim band
     (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
     silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
-    lying within the arc face's rim band is a fit on an arc of that face's outline and its
-    artwork, and gives way."""
+    lying within the arc face's rim band (``margin_px``, the rule's interior margin) is a fit
+    on an arc of that face's outline and its artwork, and gives way."""
     return ((holds_centre(face, chosen) or holds_centre(chosen, face))
-            and not inside_rim_band(chosen, face, INTERIOR_MARGIN_PX))
+            and not inside_rim_band(chosen, face, margin_px))
 
 
 def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -592,7 +598,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # nearly whole face than the top.
         merged, retried, spare = _retry_on_contrast(merged, choice.evidence, grad, found.crop,
                                                     found.gate, limits.max_refits,
-                                                    config.report.min_support, config.top)
+                                                    config.report.min_support, config.top,
+                                                    config.fits)
     if retried:
         choice = _select([m.ellipse for m in merged], found, cues)
     if retried and choice.index is not None:
@@ -621,7 +628,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
                              arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
-                            cues.radius_of)
+                            cues.radius_of, config)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -633,7 +640,8 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
     use, limits, grad = config.top.fallbacks, config.limits, found.edges("top")
     edge_pixels = (found.points, found.grads)
     if choice.index is None and "rimmed" in use:
-        # A face whose fit took in a same-colour lower face's sliver (see RIM_BAND_PX).
+        # A face whose fit took in a same-colour lower face's sliver (see
+        # TopParams.rim_band_px).
         rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
         if rimmed is not None:
             return merged, replace(choice, index=rimmed, reason="")
@@ -643,7 +651,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         merged, choice = _regroup_arcs(
             merged, choice, _longest_arcs(range(len(found.pieces)), found.chains,
                                           limits.max_arcs),
-            found.chains, grad, edge_pixels, found.crop, found.gate)
+            found.chains, grad, edge_pixels, found.crop, found.gate, config)
     if choice.index is None and spare is not None and "spare_refit" in use:
         # A contrast refit with no T-junction and no edge inside, most of its outline
         # showing (select_unobstructed's evidence: a top face over a lower face of its
@@ -662,7 +670,7 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         arc_chains, arcs = _every_arc(found, config)
         merged, choice = _regroup_arcs(merged, choice, arcs, found.chains, grad,
                                        edge_pixels, found.crop, found.gate, unobstructed=True,
-                                       arc_chains=arc_chains)
+                                       arc_chains=arc_chains, config=config)
     return merged, choice
 
 
@@ -689,7 +697,7 @@ def _every_arc(state: State, config: DetectorConfig
     their junctions) and the ``limits.max_arcs`` longest of their arcs: what the marked
     arc-pair faces, the nearer arc-pair face and the last fallback draw pairs from."""
     arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
-                                        config.fits.min_fit_px)
+                                        config.fits.min_fit_px, config.top.arc_split_reach_px)
     return arc_chains, _longest_arcs(arcs, arc_chains, config.limits.max_arcs)
 
 
@@ -781,7 +789,8 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,
-                       margin_px=INTERIOR_MARGIN_PX, image=rgb, gradients=grad)
+                       margin_px=config.top.interior_margin_px, image=rgb, gradients=grad,
+                       params=config.markings)
 
 
 def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
@@ -829,7 +838,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
                        grad: EdgeImage, shape: tuple[int, int],
                        gate: tuple[float, float] | None = None, max_refits: int = 8,
                        min_support: float = DEFAULT_REPORT.min_support,
-                       params: TopParams = DEFAULT_TOP
+                       params: TopParams = DEFAULT_TOP, fits_params: FitParams = DEFAULT_FITS
                        ) -> tuple[list[MergedEllipse], bool,
                                   tuple[int, Ellipse, OcclusionEvidence] | None]:
     """Refit on the edge contrast (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`)
@@ -841,7 +850,8 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     :func:`~stackpick_sim.vision.occlusion.select_unobstructed` takes among those within the
     size ``gate`` ((min, max) semi-major axis, px, or None) as (index of the ellipse it
     refits, refit, its evidence), else None. ``params``: the refit's reach, rounds and least
-    share (the ``contrast_*`` fields)."""
+    share (the ``contrast_*`` fields) and the rule's settings; ``fits_params``: the refits'
+    axis bounds."""
     todo = [i for i, ev in enumerate(evidence)
             if ev.occluded and not ev.occluded_ends and ev.support >= min_support]
     if len(todo) > max_refits:  # the best-supported, in their order
@@ -851,10 +861,10 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost, params)) is not None
-             and plausible(r, shape) and (gate is None or gate[0] <= r.a <= gate[1])]
+             and plausible(r, shape, fits_params) and (gate is None or gate[0] <= r.a <= gate[1])]
     if not tries:
         return merged, False, None
-    checked = select_top([r for _, r in tries], grad).evidence
+    checked = select_top([r for _, r in tries], grad, params=params).evidence
     passed: dict[int, Ellipse] = {}
     for (i, r), ev in zip(tries, checked, strict=True):
         if not ev.occluded and i not in passed:  # the strongest-edge refit first
@@ -868,16 +878,18 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
 
 
 def last_resort_arcs(pieces: list[NDArray[np.int32]], chains: Sequence[NDArray[np.int32]],
-                     fitted: set[int], min_arc_px: int = MIN_FIT_PX
+                     fitted: set[int], min_arc_px: int = DEFAULT_FITS.min_fit_px,
+                     split_reach_px: float = DEFAULT_TOP.arc_split_reach_px
                      ) -> tuple[tuple[NDArray[np.int32], ...], list[int]]:
     """The chains the last arc pairs are drawn from, and which of them are arcs (indices):
     the fitted ``pieces``, then the edge ``chains`` ((N_i, 2) pixels) cut at their junctions
-    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`). Arcs are the pieces and the
+    (:func:`~stackpick_sim.vision.regroup.split_at_junctions`, within ``split_reach_px``).
+    Arcs are the pieces and the
     parts at least ``min_arc_px`` long of the chains that were cut or that are not in ``fitted``
     (the chains some piece of which was fitted)."""
     out = list(pieces)
     arcs = list(range(len(pieces)))
-    for k, parts in enumerate(split_at_junctions(chains)):
+    for k, parts in enumerate(split_at_junctions(chains, split_reach_px)):
         for part in parts:
             if part.shape[0] >= min_arc_px and (len(parts) > 1 or k not in fitted):
                 arcs.append(len(out))
@@ -889,7 +901,7 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
                   arcs: Sequence[int], chains: tuple[NDArray[np.int32], ...],
                   grad: EdgeImage, edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                   shape: tuple[int, int], gate: tuple[float, float] | None,
-                  unobstructed: bool = False,
+                  config: DetectorConfig, unobstructed: bool = False,
                   arc_chains: tuple[NDArray[np.int32], ...] | None = None
                   ) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule: the ellipses of pairs of the ``arcs``
@@ -897,9 +909,9 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
     win), and with ``unobstructed``, when none passes, through its last resorts
     (:func:`~stackpick_sim.vision.occlusion.select_unobstructed`, then :func:`~stackpick_sim.
     vision.occlusion.select_rimmed`). Only one chosen so is added (with its evidence) to
-    ``merged``; otherwise both come back unchanged."""
+    ``merged``; otherwise both come back unchanged. ``config``: the detector's settings."""
     found, extra = _arc_pair_faces(arcs, chains if arc_chains is None else arc_chains, grad,
-                                   edge_pixels[0], edge_pixels[1], shape, gate)
+                                   edge_pixels[0], edge_pixels[1], shape, gate, config)
     if not found:
         return merged, choice
     if extra.index is None and unobstructed:
@@ -909,34 +921,35 @@ def _regroup_arcs(merged: list[MergedEllipse], choice: TopChoice,
     if extra.index is None:
         return merged, choice
     return _with_face(merged, choice, found[extra.index], extra.evidence[extra.index], chains,
-                      grad)
+                      grad, config.merging)
 
 
 def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ...],
                     grad: EdgeImage, points: NDArray[np.float64], grads: NDArray[np.float64],
-                    shape: tuple[int, int], gate: tuple[float, float] | None
-                    ) -> tuple[list[Ellipse], TopChoice]:
+                    shape: tuple[int, int], gate: tuple[float, float] | None,
+                    config: DetectorConfig) -> tuple[list[Ellipse], TopChoice]:
     """The ellipses of pairs of the ``arcs`` (indices into ``arc_chains``;
     :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`), refined on the edge map (its
     pixels ``points`` and their gradients ``grads``) like the merged ones and within the size
     ``gate``, and the top rule's choice among them alone (no intrinsics: the depth, wall and
-    rest tests need rivals)."""
-    found = arc_pair_ellipses(arc_chains, arcs, shape, gate)
+    rest tests need rivals; ``config``: the settings of the fits, refits and rule)."""
+    found = arc_pair_ellipses(arc_chains, arcs, shape, gate, config)
     if found:
-        found = [e for e in refine_all(found, points, grads, shape)
+        found = [e for e in refine_all(found, points, grads, shape, fits_params=config.fits)
                  if gate is None or gate[0] <= e.a <= gate[1]]
     if not found:
         return [], TopChoice(index=None, evidence=())
-    return found, select_top(found, grad, edge_points=points)
+    return found, select_top(found, grad, edge_points=points, params=config.top)
 
 
 def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
                evidence: OcclusionEvidence, chains: tuple[NDArray[np.int32], ...],
-               grad: EdgeImage) -> tuple[list[MergedEllipse], TopChoice]:
-    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it and their
-    residual), and the choice of it, ``evidence`` added to ``choice``'s."""
+               grad: EdgeImage, params: MergeParams) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it by the merge's
+    ``params`` and their residual), and the choice of it, ``evidence`` added to
+    ``choice``'s."""
     support = float(support_shares([ellipse], support_map(grad.edges))[0])
-    on = chains_on(ellipse, *chain_table(chains))
+    on = chains_on(ellipse, *chain_table(chains), params)
     residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
     merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
                                      support=support)]
@@ -948,8 +961,8 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
                      arc_chains: tuple[NDArray[np.int32], ...], grad: EdgeImage,
                      edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                      shape: tuple[int, int], gate: tuple[float, float] | None,
-                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None]
-                     ) -> tuple[list[MergedEllipse], TopChoice]:
+                     intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None],
+                     config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """``choice`` (an index) unchanged, unless an ellipse of pairs of the ``arcs`` that passes
     the top rule (:func:`_arc_pair_faces`), or fails it on support alone with nothing crossing
     it (:func:`~stackpick_sim.vision.occlusion.unobstructed`: the rule's depth test hears
@@ -957,23 +970,23 @@ def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Seque
     (neither holds the other's centre: a refit of a face already weighed, too large a refit
     reading too near) is clearly nearer the camera than the chosen one and every other such
     (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): then it is added to ``merged``
-    and chosen."""
+    and chosen. ``config``: the detector's settings."""
     assert choice.index is not None
     chosen = merged[choice.index].ellipse
     weighed = [merged[i].ellipse for i in _weighed(choice)]
     found, extra = _arc_pair_faces(arcs, arc_chains, grad, edge_pixels[0], edge_pixels[1],
-                                   shape, gate)
+                                   shape, gate, config)
     passed = [i for i, ev in enumerate(extra.evidence) if (not ev.occluded or unobstructed(ev))
               and not any(holds_centre(w, found[i]) or holds_centre(found[i], w)
                           for w in weighed)]
     if not passed:
         return merged, choice
     faces = [chosen, *(found[i] for i in passed)]
-    nearest = clearly_nearest(faces, intrinsics, radius_of)
+    nearest = clearly_nearest(faces, intrinsics, radius_of, config.top)
     if nearest is None or nearest == 0:  # no face clearly nearest, or the chosen one is
         return merged, choice
     i = passed[nearest - 1]
-    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad)
+    return _with_face(merged, choice, found[i], extra.evidence[i], chains, grad, config.merging)
 
 
 def _weighed(choice: TopChoice) -> list[int]:
@@ -1074,10 +1087,11 @@ def _same_outlines(ellipses: list[Ellipse], indices: list[int],
 
 
 def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
-                   params: PoseParams) -> Ellipse:
+                   params: PoseParams, fits_params: FitParams) -> Ellipse:
     """:func:`~stackpick_sim.vision.refine.refine_on_profile` of ``ellipse`` on the unblurred
     gradients of the window of ``work`` around it (the window keeps the cost per face),
-    ``params.profile_window_margin_px`` beyond the profile search."""
+    ``params.profile_window_margin_px`` beyond the profile search (fits within
+    ``fits_params``' axis bounds)."""
     u0, v0, u1, v1 = ellipse.bounds()
     margin = params.profile_reach_px + params.profile_window_margin_px
     h, w = work.shape[:2]
@@ -1086,9 +1100,11 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     if min(c1 - c0, r1 - r0) < MIN_SIDE_PX:
         return ellipse
     window = np.ascontiguousarray(work[r0:r1, c0:c1])
-    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise)
+    box = EdgeImage(edges=grad.edges[r0:r1, c0:c1], gx=grad.gx, gy=grad.gy, noise=grad.noise,
+                    params=grad.params)
     raw = unblurred_gradients(window, box)
-    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params)
+    fit = refine_on_profile(_moved(ellipse, -c0, -r0), raw, (r1 - r0, c1 - c0), params,
+                            fits_params)
     return _moved(fit, c0, r0)
 
 

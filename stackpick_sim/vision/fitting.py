@@ -29,15 +29,6 @@ from stackpick_sim.vision import kernels
 
 #: The default settings (see FitParams: the reasons for each).
 DEFAULT = FitParams()
-#: The defaults by name: the shortest fitted segment (px), the least bow (px) and the largest
-#: RMS residual (px) of an accepted fit (the merge's and the arc pairs' refits hold to it too).
-MIN_FIT_PX = DEFAULT.min_fit_px
-MIN_BOW_PX = DEFAULT.min_bow_px
-MAX_RESIDUAL_PX = DEFAULT.max_residual_px
-#: Smallest semi-minor axis (px) of an accepted ellipse (faces are >= ~10 px).
-MIN_AXIS_PX = 5.0
-#: Largest semi-major axis as a multiple of the image diagonal (beyond: a near-line fit).
-MAX_AXIS_DIAGONALS = 1.0
 #: Squared axis ratio above which a fit's Eq. 2 condition is evaluated (below it the
 #: condition holds with a margin far beyond float64 rounding: the terms are ~ratio^2 and
 #: carry a relative error of ~1e-16, the result is the ratio itself).
@@ -198,40 +189,42 @@ def bow_px(points: NDArray) -> float:
     return math.sqrt(max(0.0, smallest))
 
 
-def plausible(ellipse: Ellipse, shape: tuple[int, int]) -> bool:
-    """True when the axes are within MIN_AXIS_PX and MAX_AXIS_DIAGONALS of an (H, W) image."""
+def plausible(ellipse: Ellipse, shape: tuple[int, int], params: FitParams = DEFAULT) -> bool:
+    """True when the axes are within ``params.min_axis_px`` and ``params.max_axis_diagonals``
+    of an (H, W) image."""
     diagonal = math.hypot(*shape)
-    return MIN_AXIS_PX <= ellipse.b and ellipse.a <= MAX_AXIS_DIAGONALS * diagonal
+    return params.min_axis_px <= ellipse.b and ellipse.a <= params.max_axis_diagonals * diagonal
 
 
-def fit_segment(points: NDArray, shape: tuple[int, int]) -> tuple[Ellipse, float] | None:
+def fit_segment(points: NDArray, shape: tuple[int, int], params: FitParams = DEFAULT
+                ) -> tuple[Ellipse, float] | None:
     """(ellipse, rms residual px) of a segment (N, 2), or None if too short, straight or bad."""
-    if points.shape[0] < MIN_FIT_PX or bow_px(points) < MIN_BOW_PX:
+    if points.shape[0] < params.min_fit_px or bow_px(points) < params.min_bow_px:
         return None
     ellipse = fit_ellipse(points)
-    if ellipse is None or not plausible(ellipse, shape):
+    if ellipse is None or not plausible(ellipse, shape, params):
         return None
     residual = rms_residual(ellipse, points)
-    if residual > MAX_RESIDUAL_PX:
+    if residual > params.max_residual_px:
         return None
     return ellipse, residual
 
 
-def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3
-                 ) -> list[tuple[NDArray, Ellipse, float]]:
+def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3,
+                 params: FitParams = DEFAULT) -> list[tuple[NDArray, Ellipse, float]]:
     """Fit a segment; if the fit fails on a long segment, split it in halves and retry.
 
     Returns (points, ellipse, residual) per accepted piece. A wall line that runs smoothly
     (no corner) into a face arc fails as a whole, and its arc half then fits on its own.
     """
-    fit = fit_segment(points, shape)
+    fit = fit_segment(points, shape, params)
     if fit is not None:
         return [(points, fit[0], fit[1])]
-    if depth == 0 or points.shape[0] < 2 * MIN_FIT_PX:
+    if depth == 0 or points.shape[0] < 2 * params.min_fit_px:
         return []
     half = points.shape[0] // 2
-    return (fit_or_split(points[:half], shape, depth - 1)
-            + fit_or_split(points[half:], shape, depth - 1))
+    return (fit_or_split(points[:half], shape, depth - 1, params)
+            + fit_or_split(points[half:], shape, depth - 1, params))
 
 
 #: A piece of a chain being fitted: (chain index, path of halves taken, e.g. "01", pixels).
@@ -269,7 +262,7 @@ def _direct_fits(pending: list[_Piece], shape: tuple[int, int], params: FitParam
     failed = [p for p in pending if p[2].shape[0] < params.min_fit_px]
     for p, bow in zip(long_enough, bows, strict=True):
         e = fit_ellipse(p[2]) if bow >= params.min_bow_px else None
-        if e is None or not plausible(e, shape):
+        if e is None or not plausible(e, shape, params):
             failed.append(p)
         else:
             fitted.append((p, e))

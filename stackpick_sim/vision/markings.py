@@ -9,7 +9,7 @@ on the artwork) shows no T-junction and nothing inside it: it passes the rule an
 an unoccluded top face lying inside the true one.
 
 What tells such an outline from a smaller object lying on the face is where it would lie. A
-face whose outline shows whole (support >= TOP_MIN_SUPPORT, no T-junction end) has nothing
+face whose outline shows whole (support >= ``top.min_support``, no T-junction end) has nothing
 across its outline: whatever lies on it lies wholly inside it, and an object resting on it is
 nearer the camera than it, by about its own height. A face's depth from its image size is
 proportional to r / a (its radius r, from its colour when the object kinds' colours are known,
@@ -24,7 +24,7 @@ and its semi-major axis a, px). Of the smaller ellipses centred on such a face:
 * one that fails the rule and runs across the face's whole outline is a fit on its markings
   and outline together, when nothing else lies on the face; but when it shows whole itself
   and the face's rim band shows two surfaces, one inside it and one outside it (their colours
-  apart in hue, SURFACE_CHROMA_TOLERANCE, or in brightness, SURFACE_BRIGHTNESS_RANGE), the
+  apart in hue, ``surface_chroma_tolerance``, or in brightness, ``surface_brightness_range``), the
   face's outline runs over another surface beyond it: the outer ellipse is no face but a fit
   of the inner face's outline with an outline beyond it (its own cylinder's wall
   silhouette, a lower face's edge), and it is judged no further.
@@ -48,7 +48,7 @@ vision.occlusion.rim_only`.)
 
 A face of its own reaching into it is one that passes the rule, or a whole face with markings
 crossing it (neither holds the other's centre) whose outline runs on across it as an edge
-while its own outline under that face is hidden (CROSSING_MIN_SUPPORT). Failure class: *a
+while its own outline under that face is hidden (``crossing_min_support``). Failure class: *a
 lower lid fitted whole*: where a printed lid lies across another of its kind, the lower one's
 ellipse (fitted on its visible arcs) shows no T-junction, its hidden arc picking up the upper
 lid's artwork edges; both show whole with markings, and only the two outlines' runs across
@@ -56,7 +56,8 @@ each other tell which lies on which (the paper's rule of the occluding contour r
 through).
 
 The tests read only ellipses, their evidence, the faces' colours and, for crossing faces, the
-edge contrast along their outlines (a few hundred pixels each): no image pass (cheap).
+edge contrast along their outlines (a few hundred pixels each): no image pass (cheap). Their
+settings: :class:`~stackpick_sim.config.vision_params.MarkingParams`.
 """
 
 from __future__ import annotations
@@ -70,10 +71,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import MarkingParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.wall import CHROMA_TOLERANCE, column_median
+from stackpick_sim.vision.wall import column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
     from stackpick_sim.vision.occlusion import OcclusionEvidence
@@ -85,26 +87,10 @@ INSIDE_SAMPLES = 32
 #: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
 #: most of this band; a can end's rim (its outer 12 %) lies on it.
 RIM_SAMPLE_SCALE = 0.94
-#: Two parts of a face's rim band (inside and outside an inner whole face) are two surfaces
-#: when their median colours' chromaticities (r, g, b over their sum) differ by more than
-#: this (L1): the wall test's tolerance between a face and its own wall
-#: (:data:`~stackpick_sim.vision.wall.CHROMA_TOLERANCE`).
-SURFACE_CHROMA_TOLERANCE = CHROMA_TOLERANCE
-#: ...or when the outer part's brightness (channel sum) over the inner part's lies outside
-#: this range: a cylinder's wall under the ring light is darker than its face (wall.py:
-#: about tan(tilt) of it plus ambient light), and a face's own rim band, printed or
-#: tinplate, keeps within about 0.75-1.1 of itself round it (vignetting, shading, artwork
-#: at the rim; measured on rendered realistic-scene frames).
-SURFACE_BRIGHTNESS_RANGE = (0.7, 1.0 / 0.7)
-#: Where two whole faces with markings cross, the upper one's outline shows edge contrast
-#: along at least this share of its run over the lower one, and the lower one's hidden
-#: outline along less (a hidden arc still picks up contrast where the upper face's artwork
-#: or rings cross it; the top rule's fallback reads a face's gaps the same way,
-#: occlusion.FALLBACK_MIN_SUPPORT).
-CROSSING_MIN_SUPPORT = 0.75
-#: Rim band samples of the two-surface test, and how many each part needs at least.
+#: Rim band samples of the two-surface test.
 BAND_SAMPLES = 64
-MIN_PART_SAMPLES = 4
+#: The default settings of the two-surface and crossing tests (see MarkingParams).
+DEFAULT = MarkingParams()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -118,7 +104,8 @@ class MarkingTest:
     inside the face a marking's whole outline lies (the margin of the interior-edge count);
     ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
     (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
-    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test)."""
+    the test of a whole face crossing another (:func:`_crosses_over`; None: no such test);
+    ``params``: those two tests' settings."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
@@ -127,6 +114,7 @@ class MarkingTest:
     margin_px: float
     image: NDArray[np.uint8] | None = None
     gradients: EdgeImage | None = None
+    params: MarkingParams = DEFAULT
     #: The pair tests' verdicts on this image so far, by (test, ellipse, ellipse): when
     #: arc-pair faces join the top rule, it judges the merge's faces again. Not an argument:
     #: a copy by ``dataclasses.replace`` (another image, other gradients) starts empty.
@@ -145,7 +133,7 @@ class Markings:
 
 
 def whole_with_edges_inside(ev: OcclusionEvidence) -> bool:
-    """No T-junction end, support >= TOP_MIN_SUPPORT, more interior edges than allowed: a
+    """No T-junction end, support >= ``top.min_support``, more interior edges than allowed: a
     face whose outline shows whole and that failed on interior edges alone."""
     return not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside
 
@@ -227,7 +215,7 @@ def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvi
         return False
     image = test.image
     return _kept(test, ("two_surfaces", face, inner),
-                 lambda: two_surfaces(face, inner, image, test.margin_px))
+                 lambda: two_surfaces(face, inner, image, test.margin_px, test.params))
 
 
 def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool]) -> bool:
@@ -239,16 +227,17 @@ def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool
 
 
 def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
-                 margin_px: float) -> bool:
+                 margin_px: float, params: MarkingParams = DEFAULT) -> bool:
     """Whether ``face``'s rim band (BAND_SAMPLES points at RIM_SAMPLE_SCALE) shows two
     surfaces in the (H, W, 3) RGB ``image``: the median colour of its points more than
     ``margin_px`` outside ``inner`` and that of those more than ``margin_px`` inside it differ
-    in chromaticity by more than SURFACE_CHROMA_TOLERANCE, or in brightness by a ratio
-    outside SURFACE_BRIGHTNESS_RANGE (False with fewer than MIN_PART_SAMPLES either side)."""
+    in chromaticity by more than ``params.surface_chroma_tolerance``, or in brightness by a
+    ratio outside ``params.surface_brightness_range`` (False with fewer than
+    ``params.min_part_samples`` either side)."""
     band = rim_band(face)
     within = inner.inside(band, margin_px)
     beyond = ~inner.inside(band, -margin_px)
-    if min(int(within.sum()), int(beyond.sum())) < MIN_PART_SAMPLES:
+    if min(int(within.sum()), int(beyond.sum())) < params.min_part_samples:
         return False
     h, w = image.shape[:2]
     pix = np.rint(band).astype(np.int64)
@@ -258,8 +247,8 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     other = column_median(colours[beyond])
     own_sum, other_sum = max(float(own.sum()), 1e-9), max(float(other.sum()), 1e-9)
     chroma = float(np.abs(own / own_sum - other / other_sum).sum())
-    lo, hi = SURFACE_BRIGHTNESS_RANGE
-    return chroma > SURFACE_CHROMA_TOLERANCE or not lo <= other_sum / own_sum <= hi
+    lo, hi = params.surface_brightness_range
+    return chroma > params.surface_chroma_tolerance or not lo <= other_sum / own_sum <= hi
 
 
 def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
@@ -269,9 +258,9 @@ def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     faces overlap, the upper one's outline runs on as an edge across the lower one, whose own
     outline is hidden under it. So ``other`` lies on ``face`` when its outline samples
     inside ``face`` (by ``margin_px``) show consistent edge contrast
-    (:mod:`~stackpick_sim.vision.contrast`) along at least CROSSING_MIN_SUPPORT of them and
-    ``face``'s samples inside ``other`` along less, each with at least MIN_PART_SAMPLES
-    samples there (False without the ``gradients``)."""
+    (:mod:`~stackpick_sim.vision.contrast`) along at least ``crossing_min_support`` of them
+    and ``face``'s samples inside ``other`` along less, each with at least
+    ``min_part_samples`` samples there (``test.params``; False without the ``gradients``)."""
     if (test.gradients is None or not whole_with_edges_inside(evidence)
             or holds_centre(other, face) or holds_centre(face, other)):
         return False
@@ -280,9 +269,9 @@ def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     split = int(lines.offsets[1])
     over = face.inside(lines.points[:split], test.margin_px)
     under = other.inside(lines.points[split:], test.margin_px)
-    if min(int(over.sum()), int(under.sum())) < MIN_PART_SAMPLES:
+    if min(int(over.sum()), int(under.sum())) < test.params.min_part_samples:
         return False
-    return (float(shown[:split][over].mean()) >= CROSSING_MIN_SUPPORT
+    return (float(shown[:split][over].mean()) >= test.params.crossing_min_support
             > float(shown[split:][under].mean()))
 
 

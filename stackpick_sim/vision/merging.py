@@ -27,12 +27,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import MergeParams
+from stackpick_sim.config.vision_params import FitParams, MergeParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import perimeter_px, unit_circle
+from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
-    MAX_RESIDUAL_PX,
     distance_rows,
     ellipse_distances,
     ellipse_params,
@@ -45,15 +45,6 @@ from stackpick_sim.vision.fitting import (
 
 #: The default settings (see MergeParams: the reasons for each).
 DEFAULT = MergeParams()
-#: The defaults by name, which the top rule's arc-pair regrouping and T-junction test read:
-#: the Eq. 3 threshold, the pertaining distance (px), the largest RMS residual of a merged
-#: refit (px), the share of a segment's pixels that must lie on a merged ellipse, and the
-#: least edge support of a kept ellipse.
-MERGE_K = DEFAULT.k
-MERGE_TOLERANCE_PX = DEFAULT.tolerance_px
-MERGE_MAX_RESIDUAL_PX = DEFAULT.max_residual_px
-ABSORB_FRACTION = DEFAULT.absorb_fraction
-MIN_SUPPORT = DEFAULT.min_support
 #: Circumference samples are checked against the edge map dilated by this radius, px: one
 #: pixel of quantisation either way. Not a setting: it defines the support measure itself,
 #: which the merge, the top rule and the report all read, and against which their support
@@ -182,7 +173,7 @@ class _Groups:
         return [g for g, e in enumerate(self.ellipses) if e is not None]
 
     def join(self, gi: int, gj: int, merged: Ellipse, d: NDArray[np.float64],
-             tol_px: float = MERGE_TOLERANCE_PX) -> None:
+             tol_px: float = DEFAULT.tolerance_px) -> None:
         """Merge group ``gj`` into ``gi``, whose ellipse becomes ``merged`` (``d``: the
         distances of every piece pixel to it; ``tol_px``: the pertaining distance)."""
         self.ellipses[gi], self.ellipses[gj] = merged, None
@@ -208,7 +199,8 @@ class _Pieces:
 
 def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
                    edges: NDArray[np.uint8], residuals: Sequence[float] | None = None,
-                   params: MergeParams = DEFAULT) -> list[MergedEllipse]:
+                   params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT
+                   ) -> list[MergedEllipse]:
     """Merge per-segment fits by Eq. 3, absorb leftovers, validate by support.
 
     ``chains`` are all edge segments, (N_i, 2) int32 (u, v); ``fits`` (segment index,
@@ -216,8 +208,8 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     ``edges`` the (H, W) 0/1 edge map; ``residuals`` the RMS residual (px) of each fit on
     its own segment, parallel to ``fits``, when known (:func:`~stackpick_sim.vision.fitting.
     fit_all` gives them): a group that stays that one fit keeps it rather than have it
-    computed again. ``params``: the merge's settings. Returns ellipses sorted by support,
-    best first.
+    computed again. ``params``: the merge's settings; ``fits_params``: the axis bounds every
+    refit is held to. Returns ellipses sorted by support, best first.
 
     Each group's pixels within tolerance are found once, when its ellipse is (re)fitted; a
     refused pair changes nothing, so the next best pair is read off the same counts.
@@ -231,7 +223,7 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
     # changes an ellipse.
     leading = seg_of_piece == list(range(len(fits)))
     pieces, state = _start(chains, fits, leading, params.tolerance_px)
-    while _merge_best(state, pieces, shape, params):
+    while _merge_best(state, pieces, shape, params, fits_params):
         pass
     # The pieces' pairs stay valid for absorbing when the pieces lead ``chains``.
     kept = state.alive()
@@ -246,11 +238,12 @@ def merge_segments(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, 
            for g, m in enumerate(state.members)]
     return _absorb_and_validate(chains, state.members, state.ellipses, edges,
                                 (final_g, state.pair_p, pieces.points.shape[0]) if leading
-                                else None, state.rest, pieces.everything, own, params)
+                                else None, state.rest, pieces.everything, own, params,
+                                fits_params)
 
 
 def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]],
-           leading: bool, tol_px: float = MERGE_TOLERANCE_PX) -> tuple[_Pieces, _Groups]:
+           leading: bool, tol_px: float = DEFAULT.tolerance_px) -> tuple[_Pieces, _Groups]:
     """The pieces' pixels and the merge's first state (a group per fit), with the (group,
     pixel) pairs within ``tol_px`` of each fit; when the pieces are the ``leading`` chains,
     those of the later chains' pixels too (:attr:`_Groups.rest`)."""
@@ -299,7 +292,7 @@ def _pair_scores(state: _Groups, alive: list[int]) -> NDArray[np.float64]:
 
 
 def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
-                params: MergeParams = DEFAULT) -> bool:
+                params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT) -> bool:
     """Merge the best-scoring pair of groups whose union refits (refusing, in turn, those
     that do not); whether a pair merged."""
     alive = state.alive()
@@ -311,7 +304,7 @@ def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
         if c[bi, bj] <= params.k:
             return False
         gi, gj = alive[bi], alive[bj]
-        union = _union_fit(pieces, state.owner, (gi, gj), shape, params)
+        union = _union_fit(pieces, state.owner, (gi, gj), shape, params, fits_params)
         if union is None:
             state.refused.add((gi, gj))
             c[bi, bj] = c[bj, bi] = 0.0
@@ -321,15 +314,16 @@ def _merge_best(state: _Groups, pieces: _Pieces, shape: tuple[int, int],
 
 
 def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int],
-               shape: tuple[int, int], params: MergeParams = DEFAULT
-               ) -> tuple[Ellipse, NDArray[np.float64]] | None:
+               shape: tuple[int, int], params: MergeParams = DEFAULT,
+               fits_params: FitParams = FIT_DEFAULT) -> tuple[Ellipse, NDArray[np.float64]] | None:
     """The refit on the union of two ``groups`` and the distances of every piece pixel to
-    it, when it is plausible, within ``params.max_residual_px`` and keeps each group on it
-    (:func:`_keeps_members`); None otherwise."""
+    it, when it is plausible (``fits_params``' axis bounds), within
+    ``params.max_residual_px`` and keeps each group on it (:func:`_keeps_members`); None
+    otherwise."""
     gi, gj = groups
     in_union = (owner == gi) | (owner == gj)
     merged = fit_ellipse(pieces.pixels[in_union])
-    if merged is None or not plausible(merged, shape):
+    if merged is None or not plausible(merged, shape, fits_params):
         return None
     d = ellipse_distances(merged, pieces.points)
     if (float(np.sqrt(np.mean(d[in_union] ** 2))) > params.max_residual_px
@@ -350,7 +344,7 @@ def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int],
-                   fraction: float = ABSORB_FRACTION) -> bool:
+                   fraction: float = DEFAULT.absorb_fraction) -> bool:
     """True when ``fraction`` of each merged group's pixels lie on the refit ellipse
     (``on``: (N,) pixel within tolerance of it).
 
@@ -434,7 +428,7 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
 
 
 def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int], Ellipse]],
-            extras: list[list[int]], shape: tuple[int, int]
+            extras: list[list[int]], shape: tuple[int, int], fits_params: FitParams
             ) -> tuple[dict[int, Ellipse | None], dict[int, float]]:
     """Each group refitted with its ``extras`` (the segments lying on it besides its own),
     unless they only repeat its pixels; the refits (None: failed or implausible) and the
@@ -449,7 +443,8 @@ def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int],
         # The chains themselves (int32, in this order): the fit's input as it stands.
         union = np.concatenate([chains[s] for s in segs + extras[g]])
         refit = fit_ellipse(union)
-        refits[g] = refit if refit is not None and plausible(refit, shape) else None
+        refits[g] = (refit if refit is not None and plausible(refit, shape, fits_params)
+                     else None)
         if (e := refits[g]) is not None:
             # One ellipse, about one a frame: its residual on the fit's own input (the
             # same pixels) costs a third of a batched pass.
@@ -459,17 +454,18 @@ def _refits(chains: tuple[NDArray[np.int32], ...], groups: list[tuple[list[int],
 
 def _finals(groups: list[tuple[list[int], Ellipse]], extras: list[list[int]],
             refits: dict[int, Ellipse | None], refit_rms: dict[int, float],
-            known_rms: list[float | None], table: _Chains
+            known_rms: list[float | None], table: _Chains, max_residual_px: float
             ) -> tuple[list[tuple[list[int], Ellipse]], list[float]]:
     """Per group, its final (segments, ellipse): the refit with its extras when that stays
-    within MAX_RESIDUAL_PX, the fit in hand without them when the refit strays, the fit in
-    hand with them otherwise (not refitted, or the refit failed); and their RMS residuals
-    (``known_rms``: per group, the residual of its fit on its own segments when known)."""
+    within ``max_residual_px`` (a segment fit's), the fit in hand without them when the refit
+    strays, the fit in hand with them otherwise (not refitted, or the refit failed); and their
+    RMS residuals (``known_rms``: per group, the residual of its fit on its own segments when
+    known)."""
     residuals = _unrefitted_residuals(groups, extras, refits, known_rms, table)
     finals: list[tuple[list[int], Ellipse]] = []
     for g, (segs, ellipse) in enumerate(groups):
         refit = refits.get(g)
-        if refit is not None and refit_rms[g] <= MAX_RESIDUAL_PX:
+        if refit is not None and refit_rms[g] <= max_residual_px:
             finals.append((segs + extras[g], refit))
             residuals[g] = refit_rms[g]
         elif refit is not None:
@@ -506,7 +502,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
                          rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
                          everything: NDArray[np.float64] | None = None,
                          own: Sequence[float | None] | None = None,
-                         params: MergeParams = DEFAULT) -> list[MergedEllipse]:
+                         params: MergeParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT
+                         ) -> list[MergedEllipse]:
     """Add leftover segments lying on each final ellipse, refit (unless they only repeat
     its pixels), keep supported ones.
 
@@ -516,7 +513,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     all the chains' pixels concatenated (float64), when at hand; ``own``: per group, the RMS
     residual of its ellipse on its own segments when known (None: not known), which stands
     for the residual on them and on extras that only repeat their pixels; ``params``: the
-    absorbing share, the tolerance and the least support kept."""
+    absorbing share, the tolerance and the least support kept; ``fits_params``: the refits'
+    axis bounds."""
     alive = [g for g, e in enumerate(ellipses) if e is not None]
     groups = [(sorted(set(members[g])), e) for g in alive if (e := ellipses[g]) is not None]
     if not groups:
@@ -526,8 +524,9 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     lying = _lying_segments(table, groups, known, rest, params)
     extras = [[s for s in lying[g] if s not in segs] for g, (segs, _) in enumerate(groups)]
     shape = (int(edges.shape[0]), int(edges.shape[1]))
-    refits, refit_rms = _refits(chains, groups, extras, shape)
-    finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table)
+    refits, refit_rms = _refits(chains, groups, extras, shape, fits_params)
+    finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table,
+                                fits_params.max_residual_px)
     shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= params.min_support]

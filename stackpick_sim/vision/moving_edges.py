@@ -4,11 +4,13 @@ Once a face is tracked its ellipse in the next frame is known to a few pixels. W
 detector misses it (on the approach a top face often overlaps faces of its own colour, and
 its outline's contrast drops below what whole-image edge linking keeps), the outline can
 still be found by looking only where it should be: ViSP's moving edges (``vpMeEllipse``,
-Marchand et al.). Along the normal of the predicted ellipse at :data:`SAMPLES` points the
+Marchand et al.). Along the normal of the predicted ellipse at ``samples`` points the
 grey level's derivative is sampled over +-``search_px``; the strongest step above
-:data:`MIN_STEP` is the outline there. A direct least-squares ellipse fit on those points,
+``min_step`` is the outline there. A direct least-squares ellipse fit on those points,
 refit without the ones far from it, is the measurement; it is accepted only if most
-samples found an edge close to it and it keeps the predicted size and place.
+samples found an edge close to it and it keeps the predicted size and place. The settings:
+:class:`~stackpick_sim.config.vision_params.OutlineTrackingParams` (the scene's
+``[episode.outline]`` table).
 """
 
 from __future__ import annotations
@@ -19,21 +21,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import OutlineTrackingParams
 from stackpick_sim.geometry import Ellipse
 
 FloatArray = NDArray[np.float64]
 
-#: Points along the outline where the edge is searched for.
-SAMPLES = 72
-#: Smallest grey-level step (per px, along the normal, on a 0-255 image smoothed over 3 px)
-#: taken for the outline: several times the camera's noise (std 1 grey level). Placeholder.
-MIN_STEP = 4.0
-#: A sample's edge farther than this from the fitted ellipse is an outlier, px.
-INLIER_PX = 1.5
-#: Share of the samples that must be inliers of the final fit.
-MIN_INLIER_SHARE = 0.6
-#: The fit must keep its axes within this share of the predicted ones.
-SIZE_TOLERANCE = 0.2
+#: The default settings (see OutlineTrackingParams: the reasons for each).
+DEFAULT = OutlineTrackingParams()
+#: Search reach (px) of the final search, around the fit itself: its distance to the
+#: outline after the inlier refits is about a pixel; twice that with margin.
+CLOSE_SEARCH_PX = 2.0
 
 
 def _normals(e: Ellipse, n: int) -> tuple[FloatArray, FloatArray]:
@@ -48,9 +45,11 @@ def _normals(e: Ellipse, n: int) -> tuple[FloatArray, FloatArray]:
     return pts, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
 
 
-def _edge_points(gray: NDArray[np.float32], e: Ellipse, search_px: float) -> FloatArray:
-    """(m, 2) strongest grey-level steps along the normals of ``e`` within +-``search_px``."""
-    pts, nrm = _normals(e, SAMPLES)
+def _edge_points(gray: NDArray[np.float32], e: Ellipse, search_px: float,
+                 params: OutlineTrackingParams) -> FloatArray:
+    """(m, 2) strongest grey-level steps along the normals of ``e`` within +-``search_px``
+    (at ``params.samples`` points, at least ``params.min_step``)."""
+    pts, nrm = _normals(e, params.samples)
     offsets = np.arange(-search_px, search_px + 0.5, 1.0)
     grid = pts[:, None, :] + offsets[None, :, None] * nrm[:, None, :]  # (S, K, 2)
     h, w = gray.shape
@@ -61,7 +60,7 @@ def _edge_points(gray: NDArray[np.float32], e: Ellipse, search_px: float) -> Flo
     prof = cv2.remap(gray, mx, my, cv2.INTER_LINEAR).astype(np.float64)  # (S, K)
     step = np.abs(prof[:, 2:] - prof[:, :-2]) / 2.0  # central difference, per px
     best = np.argmax(step, axis=1)
-    strong = step[np.arange(len(best)), best] >= MIN_STEP
+    strong = step[np.arange(len(best)), best] >= params.min_step
     keep = inside & strong
     s = offsets[1:-1][best]
     return np.asarray((pts + s[:, None] * nrm)[keep])
@@ -91,33 +90,38 @@ def _distances(e: Ellipse, points: FloatArray) -> FloatArray:
 
 
 def track_outline(gray: NDArray[np.float32], predicted: Ellipse,
-                  search_px: float) -> Ellipse | None:
+                  search_px: float | None = None,
+                  params: OutlineTrackingParams = DEFAULT) -> Ellipse | None:
     """The face's ellipse found around ``predicted`` in ``gray``, or None.
 
     ``gray`` (H, W) float32 grey levels 0-255 (smoothed by the caller), ``predicted`` the
     tracked face's ellipse at the frame's capture (px), ``search_px`` how far the outline
-    may be from it along its normals.
+    may be from it along its normals (None: ``params.search_px``); ``params``: the search's
+    and the acceptance tests' settings.
     """
-    points = _edge_points(gray, predicted, search_px)
+    if search_px is None:
+        search_px = params.search_px
+    points = _edge_points(gray, predicted, search_px, params)
     fit = _fit(points)
     for _ in range(2):
         if fit is None:
             return None
-        inliers = points[_distances(fit, points) <= INLIER_PX]
+        inliers = points[_distances(fit, points) <= params.inlier_px]
         fit = _fit(inliers)
     if fit is None:
         return None
     # A final search close to the fit itself, then the acceptance tests.
-    points = _edge_points(gray, fit, 2.0)
+    points = _edge_points(gray, fit, CLOSE_SEARCH_PX, params)
     fit2 = _fit(points)
     if fit2 is None:
         return None
-    inl = _distances(fit2, points) <= INLIER_PX
+    inl = _distances(fit2, points) <= params.inlier_px
     fit2 = _fit(points[inl]) if inl.sum() >= 6 else None
-    if fit2 is None or inl.sum() < MIN_INLIER_SHARE * SAMPLES:
+    if fit2 is None or inl.sum() < params.min_inlier_share * params.samples:
         return None
-    if (abs(fit2.a - predicted.a) > SIZE_TOLERANCE * predicted.a
-            or abs(fit2.b - predicted.b) > SIZE_TOLERANCE * predicted.a
+    tolerance = params.size_tolerance
+    if (abs(fit2.a - predicted.a) > tolerance * predicted.a
+            or abs(fit2.b - predicted.b) > tolerance * predicted.a
             or math.hypot(fit2.cx - predicted.cx, fit2.cy - predicted.cy) > search_px):
         return None
     return fit2

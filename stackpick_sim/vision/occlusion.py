@@ -5,7 +5,7 @@ occluding one and the edge that ends at it is occluded; an ellipse with an occlu
 under something. Canny often leaves a pixel or two of gap at a T instead of a junction pixel,
 so the T is read off the ellipse itself: walk its circumference, find the runs without edge
 support (gaps), and call a gap end *occluded* when another contour (edge pixels off this
-ellipse) passes within JUNCTION_RADIUS_PX of where this ellipse's edge stops.
+ellipse) passes within ``junction_radius_px`` of where this ellipse's edge stops.
 
 Two more pieces of evidence make the rule robust, both implied by "nothing rests on it and
 its face is >= 98% visible":
@@ -24,14 +24,15 @@ T-junction) lies under it (:mod:`stackpick_sim.vision.resting`); one face fitted
 that verdict.
 
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
-than every other by DEPTH_TIE_M wins (a second fit of the same face is no rival); faces that
+than every other by ``depth_tie_m`` wins (a second fit of the same face is no rival); faces that
 failed on support alone with nothing crossing them take part in this test too. Otherwise the
-best-supported candidate wins (ties within SUPPORT_TIE go to the larger ellipse, which is
+best-supported candidate wins (ties within ``support_tie`` go to the larger ellipse, which is
 nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
 the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
-(FALLBACK_MIN_SUPPORT), lies under nothing visible; its gaps are boundaries too faint to see.
+(``unobstructed_min_support``), lies under nothing visible; its gaps are boundaries too faint
+to see.
 After the detector's contrast refit, :func:`select_rimmed` is the next: a whole face whose
-only interior edges lie within RIM_BAND_PX of its outline (its own faint rim, fitted on a
+only interior edges lie within ``rim_band_px`` of its outline (its own faint rim, fitted on a
 same-colour lower face's sliver beyond it). Such a face can also lie on the face the rule
 chose: :func:`select_resting_rimmed` (called by the detector on a choice) takes it when its
 cylinder, refitted on its innermost edge, rests on the chosen one's.
@@ -40,7 +41,8 @@ marking or relief inside a larger face's outline (printed artwork, a can end's g
 candidate, and a face whose outline shows whole and whose interior edges are only its own
 markings is one (:mod:`~stackpick_sim.vision.markings`).
 The rule needs only a list of ellipses and an edge map, so it applies to any detector's
-ellipses.
+ellipses. Its settings (the names above) are the fields of
+:class:`~stackpick_sim.config.vision_params.TopParams`.
 """
 
 from __future__ import annotations
@@ -48,18 +50,16 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import TopParams
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import (
-    REFIT_DEFAULT,
-    REFIT_INNER_REACH_PX,
     contrast_profiles,
     contrast_threshold,
     outlines,
@@ -67,64 +67,15 @@ from stackpick_sim.vision.contrast import (
 )
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
-from stackpick_sim.vision.merging import MERGE_TOLERANCE_PX, support_map
+from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import rests_on
 from stackpick_sim.vision.wall_cover import BandCache, under_another
 
-#: An unoccluded face must have edge support along this share of its circumference. The
-#: top face is >= 98% visible; 0.9 leaves room for Canny's gaps at junctions and at low
-#: contrast arcs.
-TOP_MIN_SUPPORT = 0.9
-#: Gaps shorter than this along the circumference, px, are Canny drop-outs, not occlusion:
-#: where a lower outline meets the top face in a T, Canny often breaks the through-going
-#: edge for 4-7 px too (seen on the simulator's frames).
-MIN_GAP_PX = 8
-#: Another contour within this distance (px) of a gap end makes the end a T-junction.
-JUNCTION_RADIUS_PX = 3
-#: An occluding contour runs on into the face it covers: besides passing within
-#: JUNCTION_RADIUS_PX of the gap end, it must have pixels inside the outline (by more than
-#: MERGE_TOLERANCE_PX) within this distance (px) of the end. A tilted cylinder's own wall
-#: lines (its silhouette and shading edges, which touch the faint face-to-wall rim) and the
-#: outlines of objects lying under it stay outside its face.
-CROSSING_REACH_PX = 6.0
-#: Edge pixels farther than this inside the outline (px) count as interior edges.
-INTERIOR_MARGIN_PX = 2.5
-#: Interior edge pixels allowed, as a share of the perimeter (isolated noise edges).
-MAX_INTERIOR_SHARE = 0.05
-#: A candidate face nearer the camera than every other by this much (m) is the top: an
-#: object resting on another's wall lies higher than it though both faces show whole. Face
-#: depths of one pile's top candidates that were not clearly ordered differ by < 1 cm on
-#: rendered paper-scene frames; the fit's depth error is ~1 mm.
-DEPTH_TIE_M = 0.01
-#: Candidates whose supports differ by less than this are tied.
-SUPPORT_TIE = 0.02
-#: Last resort (:func:`select_unobstructed`), when no ellipse passes the rule: a face with no
-#: T-junction and no edge pixel inside, with edge contrast along at least this share of its
-#: outline. An occluder's outline runs into the face it covers (interior edges, T-ends), so
-#: such a face's gaps are boundaries too faint even for the contrast test: a top face over a
-#: lower face of its colour and shade (~0.80 on rendered paper-scene frames). Far rims and
-#: arcs of two outlines fitted together show about half their outline (0.5-0.6). Not proof
-#: on its own: lower faces whose occluder only clips their rim also reach 0.75-0.88 with no
-#: edge inside (on the same frames), so this evidence is used only when nothing passes, or
-#: with the DEPTH_TIE_M margin. Placeholder chosen on those frames, not tuned further.
-FALLBACK_MIN_SUPPORT = 0.75
-
-#: Default of TopParams.hidden_min_support (see there).
-HIDDEN_MIN_SUPPORT = TopParams().hidden_min_support
-
-#: Last resort after the contrast refit (:func:`select_rimmed`): edge pixels inside a face's
-#: outline by at most this (px) can be its own rim. A top face lying on a lower face of its
-#: own colour and about its size is fitted on the lower face's strong silhouette where the
-#: lower face shows a sliver beyond it; its own faint boundary then lies up to a few px inside
-#: the fit (the contrast refit's inward reach, see REFIT_INNER_REACH_PX; 3-4 px measured on
-#: rendered paper-scene frames), and where it is too near the silhouette for the contrast refit
-#: to separate it, the fit keeps it inside as "interior edges". An occluder's outline runs
-#: across the face, deeper than this. Such a fit is too large by up to this much, so its depth
-#: from its size reads too near (up to ~2 cm for a small face at 0.22 m): it is no evidence
-#: in the depth test (a lower face's misfit can win it, as on the paper scene with
-#: objects.count = [5, 5]), only a last resort.
-RIM_BAND_PX = float(REFIT_INNER_REACH_PX)
+#: The top rule's default settings (the reasons for each: TopParams).
+DEFAULT_TOP = TopParams()
+#: The pose's default settings (the rest test reads its wall band test).
+DEFAULT_POSE = PoseParams()
 #: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
 #: factor on the paper scene's frames (see GateParams.slack): the slack of a depth
 #: compared through r / a.
@@ -133,17 +84,20 @@ PERSPECTIVE_ENLARGEMENT = 1.04
 
 @dataclass(frozen=True, kw_only=True)
 class OcclusionEvidence:
-    """Occlusion evidence of one ellipse against an edge map."""
+    """Occlusion evidence of one ellipse against an edge map, and the settings it is judged
+    by (``params``)."""
 
     support: float
     longest_gap_px: int
     occluded_ends: int
     interior_edge_px: int
     perimeter_px: int
+    params: TopParams = field(default=DEFAULT_TOP, repr=False)
 
     @classmethod
     def of(cls, support: float, longest_gap_px: int, occluded_ends: int,
-           interior_edge_px: int, perimeter_px: int) -> OcclusionEvidence:
+           interior_edge_px: int, perimeter_px: int, params: TopParams = DEFAULT_TOP
+           ) -> OcclusionEvidence:
         """``OcclusionEvidence(support=support, ...)`` (an equal object) at a fraction of the
         frozen dataclass constructor's cost, as :meth:`~stackpick_sim.geometry.Ellipse.of`:
         :func:`evidence_all` builds one per ellipse."""
@@ -152,17 +106,18 @@ class OcclusionEvidence:
         d["support"], d["longest_gap_px"], d["occluded_ends"] = (support, longest_gap_px,
                                                                  occluded_ends)
         d["interior_edge_px"], d["perimeter_px"] = interior_edge_px, perimeter_px
+        d["params"] = params
         return ev
 
     @property
     def weakly_supported(self) -> bool:
-        """Edge support along less than TOP_MIN_SUPPORT of the circumference."""
-        return self.support < TOP_MIN_SUPPORT
+        """Edge support along less than ``params.min_support`` of the circumference."""
+        return self.support < self.params.min_support
 
     @property
     def edges_inside(self) -> bool:
-        """More interior edge pixels than MAX_INTERIOR_SHARE of the perimeter."""
-        return self.interior_edge_px > MAX_INTERIOR_SHARE * self.perimeter_px
+        """More interior edge pixels than ``params.max_interior_share`` of the perimeter."""
+        return self.interior_edge_px > self.params.max_interior_share * self.perimeter_px
 
     @property
     def occluded(self) -> bool:
@@ -176,7 +131,7 @@ class OcclusionEvidence:
         if self.occluded_ends:
             return f"{self.occluded_ends} edge end(s) at T-junctions"
         if self.weakly_supported:
-            return f"support {self.support:.2f} < {TOP_MIN_SUPPORT}"
+            return f"support {self.support:.2f} < {self.params.min_support}"
         if self.edges_inside:
             return f"{self.interior_edge_px} edge px inside the face"
         return ""
@@ -195,16 +150,16 @@ class TopChoice:
 
 
 def evidence_for(ellipse: Ellipse, edge_points: NDArray[np.float64],
-                 support: NDArray[np.uint8], gradients: EdgeImage | None = None
-                 ) -> OcclusionEvidence:
+                 support: NDArray[np.uint8], gradients: EdgeImage | None = None,
+                 params: TopParams = DEFAULT_TOP) -> OcclusionEvidence:
     """Occlusion evidence of ``ellipse`` given the edge pixels (M, 2) (u, v) and the
     (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX); see :func:`evidence_all`."""
-    return evidence_all([ellipse], edge_points, support, gradients)[0]
+    return evidence_all([ellipse], edge_points, support, gradients, params)[0]
 
 
 def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
-                 support: NDArray[np.uint8] | None, gradients: EdgeImage | None = None
-                 ) -> tuple[OcclusionEvidence, ...]:
+                 support: NDArray[np.uint8] | None, gradients: EdgeImage | None = None,
+                 params: TopParams = DEFAULT_TOP) -> tuple[OcclusionEvidence, ...]:
     """Occlusion evidence of each ellipse given the edge pixels (M, 2) (u, v) (integer
     pixel coordinates, any order; row-major order, np.nonzero's, spares a sort) and the
     (H, W) 0/1 support map (edges dilated by SUPPORT_RADIUS_PX; unused with ``gradients``).
@@ -213,7 +168,8 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     (:mod:`stackpick_sim.vision.contrast`), which also sees edges too faint for the edge map.
     All ellipses are handled together: their outlines are one array, the interior edges are
     counted row by row (:func:`_interior_counts`), and the pixels near the gap ends are
-    (end, pixel) pairs of one array.
+    (end, pixel) pairs of one array. ``params``: the rule's settings (the gaps, T-junctions
+    and interior edges measured, and the evidence's judgement).
     """
     if not ellipses:
         return ()
@@ -231,7 +187,7 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     n_e = len(ellipses)
     # Any order of the pixels gives the same evidence: row-major, as the counts need.
     edge_points, keys, width = _row_major(edge_points)
-    interior = _interior_counts(ellipses, keys, width, INTERIOR_MARGIN_PX)
+    interior = _interior_counts(ellipses, keys, width, params.interior_margin_px)
     counts = lines.counts
     support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
@@ -244,19 +200,20 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     occluded_ends = [0] * n_e
     if firsts:
         lasts = (unsupported & ok[lines.window[3]]).nonzero()[0].tolist()  # sample after: ok
-        ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest)
+        ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest,
+                                 params.min_gap_px)
         if ends:
             for e in _junction_owners(ellipses, np.array(owners), samples[ends],
-                                      edge_points):
+                                      edge_points, params):
                 occluded_ends[e] += 1
     return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
-                     sizes))
+                     sizes, [params] * n_e))
 
 
-def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int]
-              ) -> tuple[list[int], list[int]]:
+def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int],
+              min_gap_px: int) -> tuple[list[int], list[int]]:
     """The supported samples at the ends of the gaps (runs of unsupported samples of at
-    least MIN_GAP_PX along their outline, cyclic) and each one's outline, given every run's
+    least ``min_gap_px`` along their outline, cyclic) and each one's outline, given every run's
     first and last samples (``firsts``, ``lasts``: ascending global sample indices) and the
     outlines' sample ``offsets`` (E + 1); ``longest`` (per outline) is raised to the longest
     run of each outline with runs."""
@@ -274,7 +231,7 @@ def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: 
         length = (last - first) % (stop - start) + 1
         if length > runs.get(e, 0):
             runs[e] = length
-        if length >= MIN_GAP_PX:
+        if length >= min_gap_px:
             ends += [first - 1 if first > start else stop - 1,
                      last + 1 if last + 1 < stop else start]
             owners += [e, e]
@@ -288,9 +245,12 @@ def _row_major(edge_points: NDArray[np.float64]
     """The edge pixels (M, 2) (integer u, v >= 0) in row-major order (sorted only when they
     are not: np.nonzero's order already is), their ascending keys v W + u, and W (past the
     largest u), as :func:`_interior_counts` takes them."""
-    width = int(edge_points[:, 0].max(initial=0.0)) + 2
-    keys = edge_points[:, 1] * width + edge_points[:, 0]
-    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
+    # The width, the keys and their order in one compiled pass (kernels.row_keys: the same
+    # values as the array form).
+    keys, width, ascending = kernels.row_keys(
+        np.ascontiguousarray(edge_points[:, 0], np.float64),
+        np.ascontiguousarray(edge_points[:, 1], np.float64))
+    if not ascending:
         order = np.argsort(keys, kind="stable")
         edge_points, keys = edge_points[order], keys[order]
     return edge_points, keys, width
@@ -327,14 +287,19 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
 
 
 def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
-                     ends: NDArray[np.float64], edge_points: NDArray[np.float64]) -> list[int]:
+                     ends: NDArray[np.float64], edge_points: NDArray[np.float64],
+                     params: TopParams) -> list[int]:
     """The ellipse (``owner``, indices into ``ellipses``) of each gap end
     (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
     ``edge_points``, in row-major order) off the ellipse (Sampson distance above
-    MERGE_TOLERANCE_PX) lies within JUNCTION_RADIUS_PX of it, and one inside the outline by
-    more than MERGE_TOLERANCE_PX within CROSSING_REACH_PX of it. Only the pixels of the rows
-    within reach of an end are tested, all (end, pixel) pairs in one pass."""
-    reach = max(JUNCTION_RADIUS_PX, CROSSING_REACH_PX)
+    ``params.off_outline_px``) lies within ``params.junction_radius_px`` of it, and one inside
+    the outline by more than ``params.off_outline_px`` within ``params.crossing_reach_px`` of
+    it. Only
+    the pixels of the rows within reach of an end are tested, all (end, pixel) pairs in one
+    pass."""
+    radius, crossing = params.junction_radius_px, params.crossing_reach_px
+    off = params.off_outline_px
+    reach = max(radius, crossing)
     # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
     # pixels run into the face). The (end, pixel) tests in one compiled pass
     # (kernels.junction_ends: the same arithmetic as the pairs' array form).
@@ -342,19 +307,21 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     for e in ellipses:
         t = math.radians(e.angle_deg)
         rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
-                     max(e.a - MERGE_TOLERANCE_PX, 1e-6), max(e.b - MERGE_TOLERANCE_PX, 1e-6)))
+                     max(e.a - off, 1e-6), max(e.b - off, 1e-6)))
     both = kernels.junction_ends(
         np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
         np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
         np.array(rows, np.float64).reshape(-1, 8), float(reach),
-        float(JUNCTION_RADIUS_PX ** 2), float(CROSSING_REACH_PX ** 2), MERGE_TOLERANCE_PX)
+        float(radius ** 2), float(crossing ** 2), off)
     return cast("list[int]", owner[both].tolist())
 
 
 def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
-                     radius_of: Callable[[Ellipse], float | None]) -> int | None:
-    """Index of the face nearer the camera than every other by DEPTH_TIE_M (face-centre
-    depth from its radius), or None when a radius is unknown or no face is clearly nearest.
+                     radius_of: Callable[[Ellipse], float | None],
+                     params: TopParams = DEFAULT_TOP) -> int | None:
+    """Index of the face nearer the camera than every other by ``params.depth_tie_m``
+    (face-centre depth from its radius), or None when a radius is unknown or no face is
+    clearly nearest.
 
     Faces of two objects that both show whole do not overlap, so a candidate holding the
     nearest one's centre, or whose centre it holds, is that face fitted twice: it is no rival.
@@ -373,28 +340,29 @@ def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
     rivals = [d for face, d in zip(faces, depths, strict=True)
               if not (holds_centre(face, faces[nearest])
                       or holds_centre(faces[nearest], face))]
-    if rivals and min(rivals) - depths[nearest] < DEPTH_TIE_M:
+    if rivals and min(rivals) - depths[nearest] < params.depth_tie_m:
         return None
     return nearest
 
 
 def select_unobstructed(evidence: Sequence[OcclusionEvidence]) -> int | None:
     """Index of the best-supported ellipse with no T-junction end, no interior edge pixel and
-    support >= FALLBACK_MIN_SUPPORT, or None: the top rule's last resort when no ellipse
-    passes it (see FALLBACK_MIN_SUPPORT)."""
+    support >= ``unobstructed_min_support``, or None: the top rule's last resort when no
+    ellipse passes it (see TopParams.unobstructed_min_support)."""
     ok = [i for i, ev in enumerate(evidence) if unobstructed(ev)]
     return max(ok, key=lambda i: evidence[i].support, default=None)
 
 
-def hidden_by_no_outline(choice: TopChoice, min_support: float = HIDDEN_MIN_SUPPORT) -> bool:
+def hidden_by_no_outline(choice: TopChoice,
+                         min_support: float = DEFAULT_TOP.hidden_min_support) -> bool:
     """Whether an ellipse besides the chosen one failed the rule on support alone (at least
-    ``min_support``, below TOP_MIN_SUPPORT) with no T-junction end and no edge pixel
+    ``min_support``, below the rule's ``min_support``) with no T-junction end and no edge pixel
     inside: the failure class *top face hidden by same-colour neighbours*. An occluder whose
     outline shows runs into the face it covers (interior edges, T-ends); a face cut short with
     nothing crossing it lies under a face whose boundary with it shows no contrast, a face of
     its colour and shade that the merge may never have fitted, which can be the top."""
     return any(i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
-               and min_support <= ev.support < TOP_MIN_SUPPORT
+               and min_support <= ev.support and ev.weakly_supported
                for i, ev in enumerate(choice.evidence))
 
 
@@ -411,23 +379,25 @@ def deep_edge_counts(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float6
 def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
              edge_points: NDArray[np.float64]) -> list[int]:
     """Indices of the ellipses that failed the top rule on interior edges alone (no
-    T-junction end, support >= TOP_MIN_SUPPORT) and whose interior edge pixels all but
-    MAX_INTERIOR_SHARE of the perimeter lie within RIM_BAND_PX of the outline (see
-    RIM_BAND_PX): a whole face with its own rim inside its fit."""
+    T-junction end, support >= ``min_support``) and whose interior edge pixels all but
+    ``max_interior_share`` of the perimeter lie within ``rim_band_px`` of the outline (the
+    settings the evidence is judged by; see TopParams.rim_band_px): a whole face with its own
+    rim inside its fit."""
     failed = [i for i, ev in enumerate(evidence)
               if not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside]
     if not failed:
         return []
-    deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, RIM_BAND_PX)
+    params = evidence[failed[0]].params
+    deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, params.rim_band_px)
     return [i for i, d in zip(failed, deep, strict=True)
-            if d <= MAX_INTERIOR_SHARE * evidence[i].perimeter_px]
+            if d <= params.max_interior_share * evidence[i].perimeter_px]
 
 
 def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
                   edge_points: NDArray[np.float64]) -> int | None:
-    """Index of the best-supported of the :func:`rim_only` ellipses (ties within SUPPORT_TIE
-    to the larger), or None: a last resort when no ellipse passes the rule, nor after the
-    contrast refit (see RIM_BAND_PX)."""
+    """Index of the best-supported of the :func:`rim_only` ellipses (ties within
+    ``support_tie`` to the larger), or None: a last resort when no ellipse passes the rule,
+    nor after the contrast refit (see TopParams.rim_band_px)."""
     ok = rim_only(ellipses, evidence, edge_points)
     return _best_supported(ok, ellipses, evidence) if ok else None
 
@@ -437,11 +407,12 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
                           radius_of: Callable[[Ellipse], float | None],
                           height_of: Callable[[float], float | None], image: NDArray[np.uint8],
                           belt: NDArray[np.float64] | None = None,
-                          params: TopParams = REFIT_DEFAULT) -> int | None:
+                          params: TopParams = DEFAULT_TOP,
+                          pose_params: PoseParams = DEFAULT_POSE) -> int | None:
     """Index of a :func:`rim_only` ellipse whose object rests on the chosen face's, or None.
 
     The top rule's choice can be a whole lower face with a top face resting on it whose fit
-    took in a same-colour lower face's sliver (see RIM_BAND_PX): that fit fails on its own
+    took in a same-colour lower face's sliver (see TopParams.rim_band_px): that fit fails on its own
     rim inside it, and the lower face wins. The rest test (:mod:`~stackpick_sim.vision.
     resting`) tells them apart once the rimmed face is refitted on its innermost consistent
     edge (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`; the fit itself is too
@@ -455,7 +426,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     so it reads nearer than its face is, and a face reading farther lies below the chosen
     one; such a lower face resting on it (a lean on its wall, below its face) is left to the
     top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands;
-    ``params``: the contrast refit's settings (the ``contrast_*`` fields)."""
+    ``params``: the contrast refit's and the rest test's settings; ``pose_params``: the wall
+    band test's."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
@@ -474,24 +446,27 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     above = []
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
-        if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt)[0]:
+        if rests_on([chosen, face], intrinsics, radius_of, height_of, image, belt=belt,
+                    params=params, pose_params=pose_params)[0]:
             above.append(i)
     return _best_supported(above, ellipses, evidence) if above else None
 
 
 def _best_supported(indices: Sequence[int], ellipses: Sequence[Ellipse],
                     evidence: Sequence[OcclusionEvidence]) -> int:
-    """The best-supported of ``indices`` (non-empty); ties within SUPPORT_TIE go to the larger
-    ellipse, which is nearer the camera for equal radii."""
+    """The best-supported of ``indices`` (non-empty); ties within the evidence's
+    ``support_tie`` go to the larger ellipse, which is nearer the camera for equal radii."""
     best = max(evidence[i].support for i in indices)
-    return max((i for i in indices if evidence[i].support >= best - SUPPORT_TIE),
+    tie = evidence[indices[0]].params.support_tie
+    return max((i for i in indices if evidence[i].support >= best - tie),
                key=lambda i: ellipses[i].area)
 
 
 def unobstructed(ev: OcclusionEvidence) -> bool:
-    """No T-junction end, no interior edge pixel, support >= FALLBACK_MIN_SUPPORT."""
+    """No T-junction end, no interior edge pixel, support >= the evidence's
+    ``unobstructed_min_support``."""
     return (not ev.occluded_ends and not ev.interior_edge_px
-            and ev.support >= FALLBACK_MIN_SUPPORT)
+            and ev.support >= ev.params.unobstructed_min_support)
 
 
 def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
@@ -500,7 +475,7 @@ def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence]
               ) -> tuple[frozenset[int], frozenset[int]]:
     """(markings, marked faces) of :func:`~stackpick_sim.vision.markings.find_markings`
     (both empty without a ``test``), less the marked faces whose interior edges all lie in
-    their rim band: a fit too large for its face (see RIM_BAND_PX), not a face with markings
+    their rim band: a fit too large for its face (see :func:`rim_only`), not a face with markings
     across it."""
     if test is None:
         return frozenset(), frozenset()
@@ -520,7 +495,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                height_of: Callable[[float], float | None] | None = None,
                colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                belt: NDArray[np.float64] | None = None,
-               markings: MarkingTest | None = None) -> TopChoice:
+               markings: MarkingTest | None = None,
+               params: TopParams = DEFAULT_TOP,
+               pose_params: PoseParams = DEFAULT_POSE) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -530,7 +507,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:mod:`stackpick_sim.vision.wall_cover`; with ``radius_of``, only where that face lies in
     front of the wall). With ``intrinsics`` and ``radius_of`` (an
     ellipse's face radius, m, or None if unknown) the nearest remaining candidate wins when
-    it is nearer than the others (other than fits of the same face) by DEPTH_TIE_M; faces
+    it is nearer than the others (other than fits of the same face) by ``depth_tie_m``; faces
     that failed on support alone with nothing crossing them (:func:`select_unobstructed`'s)
     take part in this depth test too. With ``intrinsics``, ``radius_of``, ``height_of`` (the
     cylinder height, m, of a face radius, or None if unknown) and the (H, W, 3) RGB ``image``
@@ -544,11 +521,12 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     (:attr:`~stackpick_sim.vision.roi.Roi.belt`), for the rest test's wall bands. With
     ``markings`` (its settings), an ellipse that is a marking or relief inside a whole face is
     no candidate, and a whole face that holds only such markings is one
-    (:mod:`~stackpick_sim.vision.markings`).
+    (:mod:`~stackpick_sim.vision.markings`). ``params``: the rule's settings;
+    ``pose_params``: the rest test's wall band test's (the pose's).
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
-    evidence, edge_points = _evidence_and_pixels(ellipses, edges, edge_points)
+    evidence, edge_points = _evidence_and_pixels(ellipses, edges, edge_points, params)
     inner, marked = _markings(ellipses, evidence, edge_points, markings, radius_of)
     candidates = [i for i, ev in enumerate(evidence)
                   if (not ev.occluded or i in marked) and i not in inner]
@@ -556,23 +534,24 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
         return TopChoice(index=None, evidence=evidence,
                          reason=f"all {len(ellipses)} ellipses occluded")
     # The depth test also hears faces that failed on support alone with nothing crossing
-    # them (see FALLBACK_MIN_SUPPORT): one clearly nearer than every whole face is above them.
+    # them (see TopParams.unobstructed_min_support): one clearly nearer than every whole face
+    # is above them.
     pool = candidates + [i for i, ev in enumerate(evidence)
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
-                 colour_of=colour_of, belt=belt)
+                 colour_of=colour_of, belt=belt, params=params, pose_params=pose_params)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of)
+    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of, params)
     if nearest is not None:
         return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)
 
 
 def _evidence_and_pixels(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
-                         edge_points: NDArray[np.float64] | None
+                         edge_points: NDArray[np.float64] | None, params: TopParams
                          ) -> tuple[tuple[OcclusionEvidence, ...], NDArray[np.float64]]:
     """:func:`evidence_all` of ``ellipses`` over ``edges`` (an edge map, or an EdgeImage:
     support from the edge contrast), and the edge map's pixels (M, 2) (u, v) in
@@ -586,7 +565,7 @@ def _evidence_and_pixels(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage
         if edge_points is None:
             vv, uu = np.nonzero(binary)
             edge_points = np.stack([uu, vv], axis=1).astype(np.float64)
-    return evidence_all(ellipses, edge_points, support, gradients), edge_points
+    return evidence_all(ellipses, edge_points, support, gradients, params), edge_points
 
 
 def _without_under(pool: list[int], candidates: list[int], under: list[bool],
@@ -614,6 +593,8 @@ class _Cues:
     image: NDArray[np.uint8] | None
     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None
     belt: NDArray[np.float64] | None
+    params: TopParams
+    pose_params: PoseParams
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -624,7 +605,7 @@ def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[i
     if cues.intrinsics is None or len(pool) < 2:
         return pool, candidates
     under = under_another([ellipses[i] for i in pool], cues.intrinsics, cues.radius_of,
-                          cache=bands)
+                          cache=bands, params=cues.params)
     return _without_under(pool, candidates, under, False)
 
 
@@ -639,7 +620,8 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         return pool, candidates
     faces = [ellipses[i] for i in pool]
     under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
-                     colour_of=cues.colour_of, cache=bands, belt=cues.belt)
+                     colour_of=cues.colour_of, cache=bands, belt=cues.belt, params=cues.params,
+                     pose_params=cues.pose_params)
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
 
 
@@ -664,10 +646,11 @@ def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]
 
 def _clearly_nearest_of(ellipses: Sequence[Ellipse], pool: list[int],
                         intrinsics: CameraIntrinsics | None,
-                        radius_of: Callable[[Ellipse], float | None] | None) -> int | None:
+                        radius_of: Callable[[Ellipse], float | None] | None,
+                        params: TopParams) -> int | None:
     """The index (of ``pool``'s) of the face clearly nearest the camera
     (:func:`clearly_nearest`), or None: without intrinsics or radii, or with one face."""
     if intrinsics is None or radius_of is None or len(pool) < 2:
         return None
-    nearest = clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of)
+    nearest = clearly_nearest([ellipses[i] for i in pool], intrinsics, radius_of, params)
     return None if nearest is None else pool[nearest]

@@ -21,11 +21,12 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import PoseParams, RefineParams
+from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
+from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
 from stackpick_sim.vision.wall import column_median
 
@@ -85,11 +86,13 @@ def _subpixel_columns(image: EdgeImage, u: NDArray[np.float64], v: NDArray[np.fl
 
 def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float64],
                     grads: NDArray[np.float64], shape: tuple[int, int],
-                    params: PoseParams = POSE_DEFAULT, min_normal_cos: float = MIN_NORMAL_COS
+                    params: PoseParams = POSE_DEFAULT, min_normal_cos: float = MIN_NORMAL_COS,
+                    fits_params: FitParams = FIT_DEFAULT, min_pixels: int = MIN_PIXELS
                     ) -> Ellipse:
     """Final refit of ``ellipse`` on the sub-pixel positions of the edge pixels (M, 2) with
     unit gradients (M, 2) along it (within ``params.subpixel_tolerance_px``, gradient within
-    the ``min_normal_cos`` cone of its normal)."""
+    the ``min_normal_cos`` cone of its normal, the fit within ``fits_params``' axis
+    bounds; fewer than ``min_pixels`` keep ``ellipse``)."""
     tol = params.subpixel_tolerance_px
     def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.ascontiguousarray(c, np.float64)
@@ -101,29 +104,19 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
                                  ellipse.a + tol + 1, 4.0 * tol * tol,
                                  min_normal_cos * min_normal_cos, image.gx, image.gy,
                                  MAX_SHIFT_PX)
-    if pts.shape[0] < MIN_PIXELS:
+    if pts.shape[0] < min_pixels:
         return ellipse
     fit = fit_ellipse(pts)
-    return fit if fit is not None and plausible(fit, shape) else ellipse
+    return fit if fit is not None and plausible(fit, shape, fits_params) else ellipse
 
 
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(M, 2) edge pixels (u, v) in row-major order and their (M, 2) unit gradient
     directions (each with contiguous columns)."""
-    edges = np.asarray(image.edges)
-    w = edges.shape[1]
-    # flatnonzero of a bool map: np.nonzero's row-major order at a fifth of findNonZero's
-    # cost.
-    at = np.flatnonzero(edges.view(np.bool_))  # 0/1 bytes are valid bools
-    pts = np.empty((2, at.shape[0]))
-    np.floor_divide(at, w, out=pts[1], casting="unsafe")
-    np.remainder(at, w, out=pts[0], casting="unsafe")
-    gx = image.gx.ravel()[at].astype(np.float64)
-    gy = image.gy.ravel()[at].astype(np.float64)
-    norm = np.maximum(np.hypot(gx, gy), 1e-9)
-    g = np.empty((2, at.shape[0]))
-    np.divide(gx, norm, out=g[0])
-    np.divide(gy, norm, out=g[1])
+    # One compiled pass over the edge map (kernels.edge_pixels: np.flatnonzero's order and
+    # the same unit gradients as the array form).
+    pts, g = kernels.edge_pixels(np.ascontiguousarray(image.edges, np.uint8), image.gx,
+                                 image.gy)
     return pts.T, g.T
 
 
@@ -201,35 +194,40 @@ def refine(ellipse: Ellipse, points: NDArray[np.float64], grads: NDArray[np.floa
 
 def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                grads: NDArray[np.float64], shape: tuple[int, int],
-               params: RefineParams = DEFAULT) -> list[Ellipse]:
+               params: RefineParams = DEFAULT, fits_params: FitParams = FIT_DEFAULT
+               ) -> list[Ellipse]:
     """:func:`refine` of every ellipse, in lockstep: each round (one per tolerance of
-    ``params``) collects the pixels along all current fits in one pass over (ellipse, pixel)
-    pairs, then refits each ellipse that collected enough (an ellipse stops at its first
-    failed round, as :func:`refine` alone). A fit on the same pixels as the fit in hand is
-    not repeated."""
+    ``params``; fits within ``fits_params``' axis bounds) collects the pixels along all
+    current fits in one pass over (ellipse, pixel) pairs, then refits each ellipse that
+    collected enough (an ellipse stops at its first failed round, as :func:`refine` alone).
+    A fit on the same pixels as the fit in hand is not repeated."""
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
     n = len(current)
     a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
     reach = a + params.tolerances_px[0] + 1
-    pu, pv = points[:, 0], points[:, 1]
-    pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
-                               reach)
+    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv).
+    u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+    gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
+    pe, pm = kernels.box_pairs(u, v, cx, cy, reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
     starts = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
-    # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    u, v, gu, gv = pu[pm], pv[pm], grads[:, 0][pm], grads[:, 1][pm]
-    # The fits' input, built once: pixel coordinates are exact in float32.
-    pair_points = points[pm].astype(np.float32)
+    pixels_in = np.ascontiguousarray(points, np.float64)
     active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
+    # Each fit's quadratic form, a row rewritten before the round after its refit.
+    forms = np.array([_form(e) for e in current], np.float64)
+    refitted: list[int] = []
     for tol in params.tolerances_px:
+        for e in refitted:
+            forms[e] = _form(current[e])
+        refitted = []
         # The pairs along each active fit, and their pixels, in one compiled pass.
-        forms = np.array([_form(e) for e in current], np.float64)
-        sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
-                                               pair_points, 4.0 * tol * tol,
+        # (Pixel coordinates are exact in float32, the fits' input.)
+        sel, at, pixels = kernels.along_select(forms, starts, active, pm, u, v, gu, gv,
+                                               pixels_in, 4.0 * tol * tol,
                                                params.min_normal_cos * params.min_normal_cos)
         bounds = at.tolist()
         for e in active.nonzero()[0].tolist():
@@ -239,18 +237,21 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = key
             fit = fit_ellipse(pixels[lo:hi]) if hi - lo >= params.min_pixels else None
-            if fit is None or not plausible(fit, shape):
+            if fit is None or not plausible(fit, shape, fits_params):
                 active[e] = False
                 continue
             current[e] = fit
+            refitted.append(e)
         if not active.any():
             break
     return current
 
 
 def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int],
-                      params: PoseParams = POSE_DEFAULT) -> Ellipse:
-    """Refit ``ellipse`` on the sub-pixel gradient peaks across its whole outline.
+                      params: PoseParams = POSE_DEFAULT, fits_params: FitParams = FIT_DEFAULT
+                      ) -> Ellipse:
+    """Refit ``ellipse`` on the sub-pixel gradient peaks across its whole outline (fits
+    within ``fits_params``' axis bounds).
 
     Along each outline sample's normal the normal gradient is read (bilinear) every
     ``params.profile_step_px`` within ``params.profile_reach_px``; the strongest interior
@@ -275,7 +276,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
         if peaks.shape[0] < least * n:
             return current
         fit = fit_ellipse(peaks)
-        if fit is None or not plausible(fit, shape):
+        if fit is None or not plausible(fit, shape, fits_params):
             return current
         if round_ == params.profile_rounds - 1:
             d = ellipse_distances(fit, peaks)
@@ -285,7 +286,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
             # All inliers: the refit would repeat the fit on the same points.
             if least * n <= kept < inliers.size:
                 fit = fit_ellipse(peaks[inliers]) or fit
-        current = fit if plausible(fit, shape) else current
+        current = fit if plausible(fit, shape, fits_params) else current
     return current
 
 

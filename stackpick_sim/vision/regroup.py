@@ -5,18 +5,19 @@ lies on the other's own ellipse. A face lying on faces of its own colour keeps o
 arcs of its outline between the junctions with theirs (the faint boundaries between same-
 colour faces break it up, and Canny links the rest with the lower faces' silhouettes): an
 arc of a sixth of the outline or less fits an ellipse that extrapolates far off the face, no
-pair of its arcs scores C > MERGE_K, and the face is never fitted although most of its
+pair of its arcs scores C > ``merging.k``, and the face is never fitted although most of its
 outline lies in the edge map (seen on rendered paper-scene frames, where it loses top faces
 lying on lower faces of their own colour).
 
 So when no ellipse passes the top rule, the ellipse of each pair of fitted arcs is fitted
 directly, held to the merge's own checks on a merged pair (RMS residual at most
-MERGE_MAX_RESIDUAL_PX, each arc staying on it by ABSORB_FRACTION), then grown by every edge
-chain lying on it (ABSORB_FRACTION, as the merge's leftovers) and refitted while the residual
-stays within MAX_RESIDUAL_PX (GROW_ROUNDS). Whether such an ellipse is a face at all, and
-the top one, is left to the top rule: a fit of arcs of two outlines shows little edge
-contrast along the rest of its outline, and a lower face has edges inside it or
-T-junctions.
+``merging.max_residual_px``, each arc staying on it by ``merging.absorb_fraction``), then
+grown by every edge chain lying on it (``merging.absorb_fraction``, as the merge's leftovers)
+and refitted while the residual stays within ``fits.max_residual_px``
+(``top.arc_grow_rounds``; the settings: :mod:`~stackpick_sim.config.vision_params`).
+Whether such an ellipse is a face at all, and the top one, is left to the top rule: a fit of
+arcs of two outlines shows little edge contrast along the rest of its outline, and a lower
+face has edges inside it or T-junctions.
 
 The arcs are given as indices into the edge chains: the detector first pairs the fitted arcs,
 and only when nothing else passes (after its last contrast refit), or to rival a contrast refit
@@ -24,7 +25,7 @@ its retry chose, the chains the fitting stage dropped and the parts of chains cu
 junctions too (:func:`~stackpick_sim.vision.detector.last_resort_arcs`). Between close
 junctions a face's outline breaks into arcs of 10-30 px whose own five-parameter fits are
 ill-posed (the pixel staircase of an arc of a sixth of the outline or less fits a flat ellipse
-a few px across, below MIN_AXIS_PX), so no piece of it is fitted, yet a pair of such arcs
+a few px across, below ``fits.min_axis_px``), so no piece of it is fitted, yet a pair of such arcs
 across the face fixes its ellipse (a top face lying across faces of its colour, its whole
 outline in the edge map in such pieces). And where
 Canny runs a face's outline on into a lower face's silhouette, the face's arc is a part of a
@@ -39,29 +40,19 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import MergeParams, StageSections
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.fitting import (
-    MAX_RESIDUAL_PX,
     ellipse_distances,
     fit_ellipse,
     plausible,
     rms_residual,
 )
-from stackpick_sim.vision.merging import (
-    ABSORB_FRACTION,
-    MERGE_MAX_RESIDUAL_PX,
-    MERGE_TOLERANCE_PX,
-)
 
-#: Another chain's end within this distance (px) of a chain's pixel marks a junction there
-#: (:func:`split_at_junctions`): Canny leaves an edge that ends at another 4-7 px short of it
-#: (see occlusion.MIN_GAP_PX), a faint boundary between faces of one colour the most.
-SPLIT_REACH_PX = 6.0
-#: Rounds of growing a pair's ellipse by the chains lying on it and refitting: the pair's
-#: own fit extrapolates up to a few px off the face's far arcs, the first refit on the arcs
-#: near it pulls it within the merge's tolerance of the rest.
-GROW_ROUNDS = 3
+#: The default settings of every stage (the arc pairs read the fits', the merge's and the top
+#: rule's).
+DEFAULT_SECTIONS = StageSections()
 
 
 def _bounds(points: NDArray[np.int32]) -> tuple[float, float, float, float]:
@@ -80,23 +71,26 @@ def chain_table(chains: Sequence[NDArray[np.int32]]
 
 
 def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int64],
-              lengths: NDArray[np.float64]) -> tuple[int, ...]:
-    """Indices of the chains with ABSORB_FRACTION of their pixels within MERGE_TOLERANCE_PX of
-    ``ellipse``, given all chains' pixels concatenated (N, 2), the chain of each (N,) and the
-    chains' lengths (C,) (one distance pass over all pixels)."""
-    near = ellipse_distances(ellipse, pixels) < MERGE_TOLERANCE_PX
+              lengths: NDArray[np.float64], params: MergeParams = DEFAULT_SECTIONS.merging
+              ) -> tuple[int, ...]:
+    """Indices of the chains with ``params.absorb_fraction`` of their pixels within
+    ``params.tolerance_px`` of ``ellipse``, given all chains' pixels concatenated (N, 2), the
+    chain of each (N,) and the chains' lengths (C,) (one distance pass over all pixels)."""
+    near = ellipse_distances(ellipse, pixels) < params.tolerance_px
     hits = np.bincount(owner[near], minlength=lengths.shape[0])
-    return tuple(np.flatnonzero(hits >= ABSORB_FRACTION * lengths).tolist())
+    return tuple(np.flatnonzero(hits >= params.absorb_fraction * lengths).tolist())
 
 
 def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                       shape: tuple[int, int],
-                      axis_range: tuple[float, float] | None = None) -> list[Ellipse]:
+                      axis_range: tuple[float, float] | None = None,
+                      sections: StageSections = DEFAULT_SECTIONS) -> list[Ellipse]:
     """Ellipses fitted to pairs of the chains ``arcs`` (indices into ``chains``, all edge
     segments, (N_j, 2) int32 (u, v)) and grown by the chains lying on them; see the module
     docstring. ``shape``: the (H, W) image; ``axis_range``: (min, max) semi-major axis (px) of
-    a face, or None. Each ellipse once: a pair of arcs that both lie on an ellipse already
-    grown is not fitted again."""
+    a face, or None; ``sections``: the settings read (the fits', the merge's, the top rule's
+    ``arc_grow_rounds``; a DetectorConfig is one). Each ellipse once:
+    a pair of arcs that both lie on an ellipse already grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
     boxes = np.array([_bounds(chains[k]) for k in arcs], np.float64).reshape(-1, 4)
     # Both arcs within one face's extent: the pairs whose joint box spans at most 2 ``hi``
@@ -118,11 +112,11 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
         if any(ci in g and cj in g for g in grown_sets):
             continue
         union = np.concatenate([chains[ci], chains[cj]])
-        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range)
+        fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range, sections)
         if fit is None:
             continue
         fit, lying = _grown(fit, union, (ci, cj), chains, distinct, (pixels, owner, lengths),
-                            shape)
+                            shape, sections)
         grown_sets.append({ci, cj, *lying})
         out.append(fit)
     return out
@@ -131,50 +125,57 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
 def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],
            chains: Sequence[NDArray[np.int32]], distinct: list[int],
            table: tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.float64]],
-           shape: tuple[int, int]) -> tuple[Ellipse, tuple[int, ...]]:
+           shape: tuple[int, int], sections: StageSections
+           ) -> tuple[Ellipse, tuple[int, ...]]:
     """A pair's ``fit`` (its two arcs' pixels ``union``, their indices ``pair``) grown by the
-    ``chains`` lying on it and refitted, up to GROW_ROUNDS times while the residual stays
-    within MAX_RESIDUAL_PX, and the chains lying on it (indices); ``distinct``: the chains
-    counted once, ``table`` their :func:`chain_table`."""
+    ``chains`` lying on it and refitted, up to ``top.arc_grow_rounds`` times while the
+    residual stays within ``fits.max_residual_px`` (of ``sections``), and the chains lying on
+    it (indices); ``distinct``: the chains counted once, ``table`` their :func:`chain_table`."""
     lying: tuple[int, ...] = ()
-    for _ in range(GROW_ROUNDS):
-        on = tuple(distinct[k] for k in chains_on(fit, *table))
+    fits = sections.fits
+    for _ in range(sections.top.arc_grow_rounds):
+        on = tuple(distinct[k] for k in chains_on(fit, *table, sections.merging))
         if on == lying:
             break
         lying = on
         grown = np.concatenate([union] + [chains[k] for k in lying if k not in pair])
         refit = fit_ellipse(grown)
-        if (refit is None or not plausible(refit, shape)
-                or rms_residual(refit, grown) > MAX_RESIDUAL_PX):
+        if (refit is None or not plausible(refit, shape, fits)
+                or rms_residual(refit, grown) > fits.max_residual_px):
             break
         fit = refit
     return fit, lying
 
 
 def _pair_fit(union: NDArray[np.int32], n: int, shape: tuple[int, int],
-              axis_range: tuple[float, float] | None) -> Ellipse | None:
+              axis_range: tuple[float, float] | None, sections: StageSections
+              ) -> Ellipse | None:
     """The ellipse fitted to two arcs given one after the other in ``union`` (the first
     ``n`` pixels the first arc), when it is plausible in an (H, W) image of ``shape``, its
     semi-major axis within ``axis_range`` and it passes the merge's checks on a merged pair
     (RMS residual, each arc's share on it); else None."""
     fit = fit_ellipse(union)
-    if (fit is None or not plausible(fit, shape)
+    if (fit is None or not plausible(fit, shape, sections.fits)
             or (axis_range is not None and not axis_range[0] <= fit.a <= axis_range[1])):
         return None
     # The residual and each arc's share on the fit, in one compiled pass.
+    merge = sections.merging
     t = math.radians(fit.angle_deg)
     rms, near_first, near_second = kernels.pair_lies(
         np.ascontiguousarray(union, np.int32), n, fit.cx, fit.cy, fit.a, fit.b, math.cos(t),
-        math.sin(t), MERGE_TOLERANCE_PX)
-    if (rms > MERGE_MAX_RESIDUAL_PX or near_first < ABSORB_FRACTION * n
-            or near_second < ABSORB_FRACTION * (union.shape[0] - n)):
+        math.sin(t), merge.tolerance_px)
+    share = merge.absorb_fraction
+    if (rms > merge.max_residual_px or near_first < share * n
+            or near_second < share * (union.shape[0] - n)):
         return None
     return fit
 
 
-def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray[np.int32]]]:
+def split_at_junctions(chains: Sequence[NDArray[np.int32]],
+                       reach_px: float = DEFAULT_SECTIONS.top.arc_split_reach_px
+                       ) -> list[list[NDArray[np.int32]]]:
     """Each chain ((N_i, 2) int32 pixels) cut at its pixels nearest to the ends of the other
-    chains within SPLIT_REACH_PX (its own two end pixels excepted): the pieces of each, in
+    chains within ``reach_px`` (its own two end pixels excepted): the pieces of each, in
     order, views of it (a chain with no junction is its one piece).
 
     Canny runs a face's outline on into the silhouette of a lower face of its colour beyond
@@ -186,7 +187,7 @@ def split_at_junctions(chains: Sequence[NDArray[np.int32]]) -> list[list[NDArray
     pixels = np.ascontiguousarray(np.concatenate(chains), np.int32)
     starts = np.zeros(len(chains) + 1, np.int64)
     np.cumsum([c.shape[0] for c in chains], out=starts[1:])
-    at = np.flatnonzero(kernels.junction_cuts(pixels, starts, SPLIT_REACH_PX ** 2)).tolist()
+    at = np.flatnonzero(kernels.junction_cuts(pixels, starts, reach_px ** 2)).tolist()
     out = []
     k = 0
     for c, start in zip(chains, starts.tolist(), strict=False):

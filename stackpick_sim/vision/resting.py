@@ -17,8 +17,9 @@ separation along a direction,
 penetration depth when overlapping, and the maximising ``d`` is the contact normal from B to A
 (the separating axis); a cylinder's support function is closed-form, so the maximum is taken
 over a fixed set of directions, all pairs in one array pass. When the bodies touch (within
-CONTACT_GAP_M .. CONTACT_PENETRATION_M) and the normal points up (UP_CAM) by MIN_REST_UP or
-more, A rests on B. A face seen square on (neither solution's band visible) takes the smaller
+the top rule's ``rest_contact_gap_m`` .. ``rest_max_penetration_m``) and the normal points up
+(UP_CAM) by ``rest_min_up`` or more, A rests on B (settings: :class:`~stackpick_sim.config.
+vision_params.TopParams`). A face seen square on (neither solution's band visible) takes the smaller
 tilt, as the pose does; a face whose visible bands cannot tell its solution gives no evidence.
 """
 
@@ -31,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import (
-    MIN_BAND_SAMPLES,
     CirclePose,
     choose_by_band,
     unit_circle_poses,
@@ -48,16 +49,10 @@ from stackpick_sim.vision.wall import (
 )
 from stackpick_sim.vision.wall_cover import BandCache, face_bands
 
-#: Two bodies farther apart than this (m) do not touch. The face depth error is ~1 mm and a
-#: 1-2 deg tilt error moves a far rim ~1 mm.
-CONTACT_GAP_M = 0.003
-#: Bodies overlapping deeper than this (m) are not a consistent reconstruction (a wrong pose
-#: solution, a misfitted face): no evidence. The pose errors above, both ways.
-CONTACT_PENETRATION_M = 0.004
-#: A contact normal (from the lower body to the upper) with at least this upward component
-#: means the upper body rests on the lower: the ground truth's own threshold
-#: (:mod:`stackpick_sim.sim.ground_truth`).
-MIN_REST_UP = 0.3
+#: The top rule's default settings (the contact gap, penetration and upward share).
+DEFAULT_TOP = TopParams()
+#: The pose's default settings (its wall band test and the band choice).
+DEFAULT_POSE = PoseParams()
 #: World up in the camera frame: the look pose looks straight down (OpenCV axes, +z forward).
 UP_CAM = np.array([0.0, 0.0, -1.0])
 #: Directions searched for the separating axis (a Fibonacci sphere): ~3 deg apart, so the
@@ -112,7 +107,7 @@ def _separations(centres: NDArray[np.float64], normals: NDArray[np.float64],
 
 
 #: Every this many of the separating-axis directions form the coarse set of the cost gate in
-#: :func:`rests_on`: a pair apart along one of them by more than CONTACT_GAP_M does not touch
+#: :func:`rests_on`: a pair apart along one of them by more than the contact gap does not touch
 #: (the separation is a maximum over the directions, so a subset's is a lower bound). On 200
 #: rendered paper-scene frames this rules out 62 of 114 candidate face pairs whichever their
 #: pose solutions, and every pair of 44 of the 87 calls.
@@ -135,7 +130,9 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
              height_of: Callable[[float], float | None], image: NDArray[np.uint8], *,
              colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
              cache: BandCache | None = None,
-             belt: NDArray[np.float64] | None = None) -> list[bool]:
+             belt: NDArray[np.float64] | None = None,
+             params: TopParams = DEFAULT_TOP, pose_params: PoseParams = DEFAULT_POSE
+             ) -> list[bool]:
     """Per face (whole faces of an (H, W, 3) RGB image, pixel frame of ``intrinsics``): does
     another face's cylinder rest on its cylinder (see the module docstring). ``radius_of``:
     a face's radius (m); ``height_of``: the cylinder height (m) of a radius; a face for which
@@ -144,20 +141,22 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     ``colour_of``: a face's colour in ``image`` (:func:`~stackpick_sim.vision.wall.
     face_colour`), when the caller keeps them; ``cache``: the wall bands the cover test
     computed (:func:`~stackpick_sim.vision.wall_cover.face_bands`); ``belt``: the bare
-    belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`)."""
+    belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`);
+    ``params``: the contact settings (``rest_*``); ``pose_params``: the wall band test's and
+    the band choice's (as the pose's)."""
     under = [False] * len(faces)
     bodies = _bodies(faces, intrinsics, radius_of, height_of)
     if bodies is None:
         return under
-    near, apart = _touching_pairs(bodies)
+    near, apart = _touching_pairs(bodies, params.rest_contact_gap_m)
     if not near:
         return under
     picks = _solution_picks(faces, bodies, sorted({p for pq in near for p in pq}),
-                            intrinsics, image, colour_of, cache, belt)
+                            intrinsics, image, colour_of, cache, belt, pose_params)
     # The chosen solutions' pairs not already apart along the coarse directions.
     todo = [(p, q) for p, q in near if p in picks and q in picks
             and not apart[(p, q)][picks[p]][picks[q]]]
-    for _upper, lower in _resting_pairs(bodies, picks, todo):
+    for _upper, lower in _resting_pairs(bodies, picks, todo, params):
         under[bodies.kinds[lower][0]] = True
     return under
 
@@ -208,12 +207,12 @@ def _known_kinds(faces: Sequence[Ellipse], radius_of: Callable[[Ellipse], float 
     return kinds
 
 
-def _touching_pairs(bodies: _Bodies) -> tuple[list[tuple[int, int]],
-                                              dict[tuple[int, int], list[list[bool]]]]:
+def _touching_pairs(bodies: _Bodies, gap_m: float
+                    ) -> tuple[list[tuple[int, int]], dict[tuple[int, int], list[list[bool]]]]:
     """The cost gate, before the wall bands choose the solutions: the pairs (p, q), p < q,
     of ``bodies.kinds`` that may touch, and for each, whether each combination of their
     solutions ([j][k]: p's j, q's k) is apart along one of the coarse directions by more
-    than CONTACT_GAP_M (pairs apart whichever their solutions do not touch; on rendered
+    than ``gap_m`` (pairs apart whichever their solutions do not touch; on rendered
     paper-scene frames about half the calls have no other pair)."""
     n = len(bodies.kinds)
     face_pairs = [(p, q) for p in range(n) for q in range(p + 1, n)]
@@ -221,7 +220,7 @@ def _touching_pairs(bodies: _Bodies) -> tuple[list[tuple[int, int]],
                        for k in (0, 1)], np.int64)
     apart = (_separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights, combos,
                           *_direction_set(coarse=True)).max(axis=1)
-             > CONTACT_GAP_M).reshape(-1, 2, 2).tolist()
+             > gap_m).reshape(-1, 2, 2).tolist()
     gaps = dict(zip(face_pairs, apart, strict=True))
     return [pq for pq in face_pairs if not all(gaps[pq][0] + gaps[pq][1])], gaps
 
@@ -229,18 +228,18 @@ def _touching_pairs(bodies: _Bodies) -> tuple[list[tuple[int, int]],
 def _solution_picks(faces: Sequence[Ellipse], bodies: _Bodies, involved: list[int],
                     intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
                     colour_of: Callable[[Ellipse], NDArray[np.float64]] | None,
-                    cache: BandCache | None, belt: NDArray[np.float64] | None
-                    ) -> dict[int, int]:
+                    cache: BandCache | None, belt: NDArray[np.float64] | None,
+                    params: PoseParams) -> dict[int, int]:
     """The pose solution (0 or 1) of each ``involved`` body (indices into ``bodies.kinds``)
     its wall bands favour (:func:`~stackpick_sim.vision.pose.choose_by_band`); a face seen
     square on (no band shows) takes the smaller tilt; a face whose bands cannot tell has
     none."""
     picks: dict[int, int] = {}
     evidence = wall_evidences_of([faces[bodies.kinds[p][0]] for p in involved],
-                                 intrinsics, image, colour_of, cache, belt)
+                                 intrinsics, image, colour_of, cache, belt, params)
     for p, bands in zip(involved, evidence, strict=True):
-        pick = choose_by_band(bands)
-        if pick is None and all(b.samples < MIN_BAND_SAMPLES for b in bands):
+        pick = choose_by_band(bands, params)
+        if pick is None and all(b.samples < params.min_band_samples for b in bands):
             # Seen square on, no wall shows and the two solutions nearly coincide: the
             # smaller tilt, as the pose takes (a flat face another object leans on).
             pick = int(np.argmax([float(s.normal_cam[2]) for s in bodies.units[p]]))
@@ -249,23 +248,24 @@ def _solution_picks(faces: Sequence[Ellipse], bodies: _Bodies, involved: list[in
     return picks
 
 
-def _resting_pairs(bodies: _Bodies, picks: dict[int, int], todo: list[tuple[int, int]]
-                   ) -> list[tuple[int, int]]:
+def _resting_pairs(bodies: _Bodies, picks: dict[int, int], todo: list[tuple[int, int]],
+                   params: TopParams) -> list[tuple[int, int]]:
     """Of the pairs ``todo`` (with their ``picks``' solutions): (upper, lower) for each
-    pair in contact (within CONTACT_GAP_M .. CONTACT_PENETRATION_M) whose contact normal
-    points up by MIN_REST_UP or more, one way or the other."""
+    pair in contact (within ``params.rest_contact_gap_m`` .. ``rest_max_penetration_m``)
+    whose contact normal points up by ``rest_min_up`` or more, one way or the other."""
     if not todo:
         return []
     sep, normal = contact(bodies.centres, bodies.normals, bodies.radii, bodies.heights,
                          np.array([(2 * p + picks[p], 2 * q + picks[q]) for p, q in todo],
                                   np.int64))
     up = normal @ UP_CAM
-    touching = (sep <= CONTACT_GAP_M) & (sep >= -CONTACT_PENETRATION_M)
+    touching = (sep <= params.rest_contact_gap_m) & (sep >= -params.rest_max_penetration_m)
+    min_up = params.rest_min_up
     out = []
     for (p, q), t, u in zip(todo, touching.tolist(), up.tolist(), strict=True):
-        if t and u >= MIN_REST_UP:
+        if t and u >= min_up:
             out.append((p, q))
-        elif t and u <= -MIN_REST_UP:
+        elif t and u <= -min_up:
             out.append((q, p))
     return out
 
@@ -274,14 +274,15 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                       image: NDArray[np.uint8],
                       colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                       cache: BandCache | None = None,
-                      belt: NDArray[np.float64] | None = None) -> list[list[WallEvidence]]:
+                      belt: NDArray[np.float64] | None = None,
+                      params: PoseParams = DEFAULT_POSE) -> list[list[WallEvidence]]:
     """Per face, :func:`~stackpick_sim.vision.wall.wall_evidences` of its two unit-radius
     pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
     face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
     pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
     face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
     depth). ``colour_of``: a face's colour, when the caller keeps them; ``belt``: the bare
-    belt's colour (C,) or None."""
+    belt's colour (C,) or None; ``params``: the band test's settings."""
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
     colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
@@ -290,5 +291,5 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     tans = [tan_tilt(s.normal_cam, s.centre_cam) for f in faces
             for s in unit_circle_poses(f, intrinsics)]
     evidence = band_evidences(pu[:, :per], pv[:, :per], keep[:, :per], image, colours, tans,
-                              belt)
+                              belt, params)
     return [evidence[2 * i:2 * i + 2] for i in range(len(faces))]

@@ -10,7 +10,7 @@ the frame's largest surface. (Not the median over the frame's border: that is ta
 whatever lies beyond the belt's sides once the camera sees them: from 0.40 m up, the frame's
 top and bottom rows.) The belt's colour (the mean of the small copy's pixels within
 ``belt_colour_levels`` of that level) is kept as well: the side-wall tests tell a grey
-object's wall from bare belt by it (:data:`~stackpick_sim.vision.wall.BELT_DELTA`).
+object's wall from bare belt by it (``pose.band_belt_delta``).
 Anything uncertain (a frame too small, foreground everywhere) falls back to the whole frame.
 The settings and their reasons: :class:`~stackpick_sim.config.vision_params.RoiParams`."""
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.exceptions import StackpickError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.detection import Detection
@@ -56,7 +57,8 @@ class Cues:
     (None when unread); ``colour_of``, an ellipse's face colour; ``radius_of``, the radius of
     an ellipse's object kind read from its colour (None without the kinds' colours);
     ``height_of``, a radius's cylinder height; ``markings``, the test for a marking inside a
-    face."""
+    face; ``top``, the top rule's settings; ``pose``, the pose's (the rest test reads its wall
+    band test)."""
 
     k_crop: CameraIntrinsics
     rgb: NDArray[np.uint8] | None
@@ -65,6 +67,8 @@ class Cues:
     radius_of: Callable[[Ellipse], float | None] | None
     height_of: Callable[[float], float | None] | None
     markings: MarkingTest
+    top: TopParams = field(default_factory=TopParams)
+    pose: PoseParams = field(default_factory=PoseParams)
 
 
 def _no_points() -> NDArray[np.float64]:

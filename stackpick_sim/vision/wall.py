@@ -5,12 +5,14 @@ circle_poses`). Each predicts where the cylinder's side wall shows: the band swe
 moving into the object along the face normal, outside the face ellipse. The wall is the same
 material as the face, so in the image it has the face's hue (chromaticity); its brightness
 differs: the ring light at the camera meets it obliquely, so it is darker than the face, at
-most about tan(tilt) of it (WALL_BRIGHTNESS_MARGIN). A sample counts as wall when it has the
+most about tan(tilt) of it (``band_brightness_margin``). A sample counts as wall when it has the
 face's hue at a wall's brightness. On the wrong solution's side the band falls on the grey
 belt or on another object; a lower face of the same colour passes the hue test but is about
 as bright as the face, which no wall of a face tilted < 45 deg is. A grey object's wall has
-the belt's hue too: given the bare belt's colour, a sample that has it (BELT_DELTA) is not
-wall either (on the coloured objects of the paper's scenes the hue test already rejects it).
+the belt's hue too: given the bare belt's colour, a sample that has it (``band_belt_delta``)
+is not wall either (on the coloured objects of the paper's scenes the hue test already
+rejects it). The test's settings are the ``band_*`` fields of
+:class:`~stackpick_sim.config.vision_params.PoseParams`.
 
 The solution whose predicted band matches better resolves the two-fold tilt ambiguity
 (:mod:`stackpick_sim.vision.pose`). (Not used: calling a face whose best band is mostly not
@@ -23,6 +25,7 @@ unit-radius solutions are used throughout.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import PoseParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import unit_circle
@@ -43,24 +47,9 @@ WALL_RIM_POINTS = 32
 #: Samples closer than this (px) to the face ellipse are dropped: the blurred face edge there
 #: mixes both colours.
 WALL_MARGIN_PX = 2.0
-#: Largest L1 distance between the chromaticities (r, g, b) / (r + g + b) of a band sample
-#: and the face. Face and wall of one object differ by ~0.02-0.07 (measured on rendered
-#: paper-scene frames); the grey belt sits ~0.35 from orange, ~0.3 from blue.
-CHROMA_TOLERANCE = 0.12
-#: A band sample darker than this share of the face's brightness carries no usable hue
-#: (deep shadow). An upright wall under the ring light measures ~0.27 of its face.
-MIN_RELATIVE_BRIGHTNESS = 0.12
-#: A wall sample may be at most tan(tilt) + this share of the face's brightness, the tilt
-#: being the face normal's angle to the viewing ray: under a ring light at the camera a
-#: Lambertian wall faces the light by at most sin(tilt) where the face does by cos(tilt).
-#: The margin covers ambient light on near-frontal walls (~0.2) and shading (measured on
-#: rendered paper-scene frames: true walls at <= tan(tilt) + 0.2, the same-coloured lower
-#: faces that the other solution's band lands on at ~1.0 with tan(tilt) ~ 0.3-0.4).
-WALL_BRIGHTNESS_MARGIN = 0.3
-#: A band sample within this many grey levels of the bare belt's colour in every channel is
-#: belt, not wall (what tells them apart when the face has the belt's hue: a grey object).
-#: The belt's own spread under the ring light, as the ROI's foreground_delta (RoiParams).
-BELT_DELTA = 14.0
+#: The default settings of the band's colour test (the ``band_*`` fields of PoseParams: the
+#: reasons for each).
+DEFAULT_POSE = PoseParams()
 #: Interior points whose median colour is the face's colour, at this share of the semi-axes.
 FACE_SAMPLE_SCALE = 0.5
 #: Interior sample count.
@@ -169,18 +158,23 @@ def solution_band_points(solutions: Sequence[tuple[NDArray[np.float64], NDArray[
     (normal_cam (3,), centre_cam (3,)): P = len(depths) x WALL_RIM_POINTS, depth by depth,
     the rim at each depth (in face radii) along the normal."""
     bases = [_basis(n) for n, _ in solutions]
-    # (3, solutions) each: normal, centre, u, v.
-    normal, centre, u, v = np.array(
+    # (solutions, 3) each: normal, centre, u, v.
+    vectors = np.array(
         [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
          [np.asarray(c, np.float64).tolist() for _, c in solutions],
-         [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
+         [b[0] for b in bases], [b[1] for b in bases]], np.float64).reshape(4, -1, 3)
     ct, st = unit_circle(WALL_RIM_POINTS)
-    rim = centre[:, :, None] + ct * u[:, :, None]
-    rim += st * v[:, :, None]
-    # (3, solutions, depths, rim points).
-    band = rim[:, :, None, :] + (np.asarray(depths, np.float64).reshape(1, 1, -1, 1)
-                                 * normal[:, :, None, None])
-    return band.reshape(3, len(solutions), -1)
+    # The rims at each depth in one compiled pass (kernels.band_points: the same arithmetic
+    # as the array form centre + ct u + st v + depth normal).
+    return kernels.band_points(vectors, ct, st, _depths(depths))
+
+
+@functools.lru_cache(maxsize=16)
+def _depths(depths: tuple[float, ...]) -> NDArray[np.float64]:
+    """``depths`` as a float64 array (cached: a few tuples, asked for many times a frame)."""
+    out = np.asarray(depths, np.float64)
+    out.setflags(write=False)
+    return out
 
 
 def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],
@@ -211,24 +205,26 @@ def _terms(e: Ellipse) -> tuple[float, float, float, float, float, float]:
 def wall_evidence(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
                   ellipse: Ellipse, intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
                   face: NDArray[np.float64] | None = None,
-                  belt: NDArray[np.float64] | None = None) -> WallEvidence:
+                  belt: NDArray[np.float64] | None = None,
+                  params: PoseParams = DEFAULT_POSE) -> WallEvidence:
     """Wall evidence of one unit-radius solution in an (H, W, 3) RGB or (H, W) gray image.
 
     ``face`` is the face's colour if already known (see :func:`face_colour`); ``belt`` the
     bare belt's colour (one value per channel; :attr:`~stackpick_sim.vision.roi.Roi.belt`):
-    a sample within BELT_DELTA of it is belt. On a gray image, or a grey object's, every
-    sample has the face's "hue", so only the brightness floor and the belt's colour tell
-    belt from wall. The test itself is :func:`band_evidences`' (one copy for every caller).
+    a sample within ``params.band_belt_delta`` of it is belt. On a gray image, or a grey
+    object's, every sample has the face's "hue", so only the brightness floor and the belt's
+    colour tell belt from wall. The test itself is :func:`band_evidences`' (one copy for
+    every caller).
     """
     colour = face_colour(ellipse, image) if face is None else face
     return wall_evidences([(normal_cam, centre_cam)], ellipse, intrinsics, image,
-                          np.asarray(colour, np.float64), belt)[0]
+                          np.asarray(colour, np.float64), belt, params)[0]
 
 
 def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
                    ellipse: Ellipse, intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
-                   face: NDArray[np.float64], belt: NDArray[np.float64] | None = None
-                   ) -> list[WallEvidence]:
+                   face: NDArray[np.float64], belt: NDArray[np.float64] | None = None,
+                   params: PoseParams = DEFAULT_POSE) -> list[WallEvidence]:
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
     ``belt`` the bare belt's (or None)."""
@@ -237,19 +233,19 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     colours = np.broadcast_to(face.reshape(1, -1), (n_sol, face.size))
     return band_evidences(pu.reshape(n_sol, -1), pv.reshape(n_sol, -1),
                           keep.reshape(n_sol, -1), image, colours,
-                          [tan_tilt(n, c) for n, c in solutions], belt)
+                          [tan_tilt(n, c) for n, c in solutions], belt, params)
 
 
 def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
                    image: NDArray[np.uint8], colours: NDArray[np.float64],
-                   tans: Sequence[float], belt: NDArray[np.float64] | None = None
-                   ) -> list[WallEvidence]:
+                   tans: Sequence[float], belt: NDArray[np.float64] | None = None,
+                   params: PoseParams = DEFAULT_POSE) -> list[WallEvidence]:
     """Per solution, the :func:`wall_evidence` test on band pixels already predicted: row s
     of the (S, P) pixels ``pu``, ``pv`` and of ``keep`` (which lie outside the face) is
     solution s's band, ``colours`` (S, C) its face's colour in the (H, W, C) or (H, W)
     ``image`` and ``tans`` (S,) its :func:`tan_tilt`; ``belt`` the bare belt's colour (C,)
-    or None. Band pixels off the image are not samples. One array pass for every solution,
-    of one face or of several."""
+    or None; ``params``: the test's ``band_*`` settings. Band pixels off the image are not
+    samples. One array pass for every solution, of one face or of several."""
     # One compiled pass (kernels.band_hits: the same tests and sums as the array form).
     def rows(a: NDArray) -> NDArray:  # C order and writable: the compiled argument types
         return np.require(a, requirements=("C", "W"))
@@ -259,10 +255,11 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
     counts, hits = kernels.band_hits(
         rows(pu), rows(pv), rows(keep), rows(pixels),
         rows(np.broadcast_to(np.asarray(colours, np.float64), (keep.shape[0], c))),
-        np.asarray(tans, np.float64) + WALL_BRIGHTNESS_MARGIN,
+        np.asarray(tans, np.float64) + params.band_brightness_margin,
         np.zeros(c) if belt is None else rows(np.broadcast_to(
             np.asarray(belt, np.float64).reshape(-1), (c,))),
-        belt is not None, CHROMA_TOLERANCE, MIN_RELATIVE_BRIGHTNESS, BELT_DELTA)
+        belt is not None, params.band_chroma_tolerance, params.band_min_brightness,
+        params.band_belt_delta)
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 

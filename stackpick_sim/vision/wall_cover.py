@@ -15,7 +15,9 @@ hit needs a second whole face right beside this face's rim, on the side a wall w
 Given each face's radius (from its colour), the test also asks that the cover be physically
 possible: a face hides a wall point only if it lies nearer the camera there. A band point
 counts as covered only where the other face's plane (the nearer of its two pose solutions,
-scaled by its radius) is in front of the point, within COVER_DEPTH_TOLERANCE_M. A face seen
+scaled by its radius) is in front of the point, within ``cover_depth_tolerance_m``
+(settings: the ``cover_*`` fields of :class:`~stackpick_sim.config.vision_params.TopParams`).
+A face seen
 nearly square on next to a lower, farther face (its wrong solution's band falling on that
 face) is then not under it.
 """
@@ -28,32 +30,19 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.wall import WALL_DEPTH_FRACTIONS, solution_band_points, solution_bands
 
-#: A face is under another when at least this share of one solution's predicted wall band
-#: lies inside the other face. Placeholder chosen on rendered paper-scene frames.
-MIN_COVERED_SHARE = 0.15
+#: The top rule's default settings (the ``cover_*`` fields).
+DEFAULT_TOP = TopParams()
 #: Depths along the axis (face radii) of the band checked for cover: the colour test's
 #: (WALL_DEPTH_FRACTIONS, first: the rest test reads its bands from these) and 0.8, which
 #: stays on the wall of the paper scene's squattest cylinder (height / radius = 0.86).
 #: Deeper than the colour test's band: an object resting on a wall often covers only its
 #: far part.
 COVER_DEPTH_FRACTIONS: tuple[float, ...] = (*WALL_DEPTH_FRACTIONS, 0.8)
-#: Band points must lie this far (px) inside the other ellipse: its blurred outline and the
-#: fit error are not evidence.
-COVER_MARGIN_PX = 1.0
-#: A band point counts as covered by another face only where that face's plane lies nearer the
-#: camera than the point, or farther by at most this (m): a face's depth error (~1 mm) plus a
-#: 1-2 deg tilt error moving its far rim ~1 mm, on each of the two faces (as resting.
-#: CONTACT_GAP_M). A real cover has the covering object's body between its face and the wall,
-#: so its face lies well in front.
-COVER_DEPTH_TOLERANCE_M = 0.003
-#: A solution's band needs this many points outside its face for its cover share to count
-#: (fewer give 0). Above the colour test's MIN_BAND_SAMPLES: a cover share over a few points
-#: of a thin band is noise, and can put a top face under a lower one.
-MIN_COVER_SAMPLES = 8
 
 
 #: Bands kept by :func:`face_bands` for one run of the top rule: per (face, intrinsics), its
@@ -99,25 +88,27 @@ def _bands_of(faces: list[Ellipse], intrinsics: CameraIntrinsics
 
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                    radii: Sequence[float | None] | None = None, *,
-                   cache: BandCache | None = None) -> NDArray[np.float64]:
+                   cache: BandCache | None = None, params: TopParams = DEFAULT_TOP
+                   ) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
     its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
     pixel frame of ``intrinsics``; every band and pair in one array pass.
 
-    Solutions whose band shows fewer than MIN_COVER_SAMPLES points give 0. With ``radii``
-    (each face's radius, m, or None if unknown; parallel to ``faces``), a band point inside
-    face j counts only where face j lies in front of it (see COVER_DEPTH_TOLERANCE_M) when
-    both radii are known. ``cache``: :func:`face_bands`'.
+    Solutions whose band shows fewer than ``params.cover_min_samples`` points give 0. With
+    ``radii`` (each face's radius, m, or None if unknown; parallel to ``faces``), a band point
+    inside face j counts only where face j lies in front of it (within
+    ``params.cover_depth_tolerance_m``) when both radii are known; a point counts inside
+    ``params.cover_margin_px`` from the outline. ``cache``: :func:`face_bands`'.
     """
     n = len(faces)
     pu, pv, keep = face_bands(faces, intrinsics, cache)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
-    rows = []
+    rows, margin = [], params.cover_margin_px
     for f in faces:
         t = math.radians(f.angle_deg)
-        rows.append((f.cx, f.cy, math.cos(t), math.sin(t), max(f.a - COVER_MARGIN_PX, 1e-6),
-                     max(f.b - COVER_MARGIN_PX, 1e-6)))
+        rows.append((f.cx, f.cy, math.cos(t), math.sin(t), max(f.a - margin, 1e-6),
+                     max(f.b - margin, 1e-6)))
     cx, cy, c, s, a, b = np.array(rows, np.float64).T[:, None, :, None]
     du, dv = pu[:, None, :] - cx, pv[:, None, :] - cy
     x = (c * du + s * dv) / a
@@ -126,10 +117,10 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     if radii is not None:
         sols = [(s.normal_cam, s.centre_cam) for f in faces
                 for s in unit_circle_poses(f, intrinsics)]
-        covered &= _in_front(sols, pu, pv, radii, intrinsics)
+        covered &= _in_front(sols, pu, pv, radii, intrinsics, params.cover_depth_tolerance_m)
     inside = np.count_nonzero(covered, axis=2)
     # Each solution's shares (0 for too few band points), the larger of each face's two.
-    each = np.where((samples >= MIN_COVER_SAMPLES)[:, None],
+    each = np.where((samples >= params.cover_min_samples)[:, None],
                     inside / np.maximum(samples, 1)[:, None], 0.0)
     share = each.reshape(n, 2, n).max(axis=1)
     np.fill_diagonal(share, 0.0)
@@ -138,10 +129,10 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
 
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
               pu: NDArray[np.float64], pv: NDArray[np.float64], radii: Sequence[float | None],
-              intrinsics: CameraIntrinsics) -> NDArray[np.bool_]:
+              intrinsics: CameraIntrinsics, tolerance_m: float) -> NDArray[np.bool_]:
     """(S, n, P): whether face j's plane (the nearer of its two solutions, scaled by its
     radius) lies in front of solution s's band point p (scaled by its face's radius), within
-    COVER_DEPTH_TOLERANCE_M; True where either radius is unknown. ``solutions``: two unit
+    ``tolerance_m``; True where either radius is unknown. ``solutions``: two unit
     solutions per face, face by face; ``pu``, ``pv``: (S, P) band pixels."""
     known = np.array([r is not None for r in radii])
     scale = np.array([0.0 if r is None else float(r) for r in radii])
@@ -158,7 +149,7 @@ def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]
         depth = offsets[:, None, None] / along
     depth[~(depth > 0.0)] = np.inf  # a plane the ray meets behind the camera, or never
     plane = np.minimum(depth[0::2], depth[1::2])  # (n, S, P): face j's nearer solution
-    front = plane.transpose(1, 0, 2) <= wall[:, None, :] + COVER_DEPTH_TOLERANCE_M
+    front = plane.transpose(1, 0, 2) <= wall[:, None, :] + tolerance_m
     both = known.repeat(2)[:, None, None] & known[None, :, None]
     return front | ~both
 
@@ -172,18 +163,23 @@ def covered_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics) -
 
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                   radius_of: Callable[[Ellipse], float | None] | None = None, *,
-                  cache: BandCache | None = None) -> list[bool]:
+                  cache: BandCache | None = None, params: TopParams = DEFAULT_TOP
+                  ) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
     solution), the face with the larger covered share is the one under. With ``radius_of``
     (a face's radius, m, or None if unknown), a cover must also be possible in depth (see
-    COVER_DEPTH_TOLERANCE_M); that is checked only when the shares alone find one.
+    :func:`covered_shares`); that is checked only when the shares alone find one.
     ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
+    ``params``: the ``cover_*`` settings (a face is under another from a covered share of
+    ``cover_min_share``).
     """
     cache = {} if cache is None else cache
-    share = covered_shares(faces, intrinsics, cache=cache)
-    if radius_of is not None and np.any(share >= MIN_COVERED_SHARE):
-        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache)
-    under = np.any((share >= MIN_COVERED_SHARE) & (share > share.T), axis=1)
+    least = params.cover_min_share
+    share = covered_shares(faces, intrinsics, cache=cache, params=params)
+    if radius_of is not None and np.any(share >= least):
+        share = covered_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache,
+                               params=params)
+    under = np.any((share >= least) & (share > share.T), axis=1)
     return [bool(u) for u in under]

@@ -105,7 +105,8 @@ def baseline_runner(detector: EllipseDetector, vision: VisionCfg | None = None
                      else radius_by_colour(rgb, radii, cfg.kind_colours))
         choice = select_top(ellipses, grad, frame.intrinsics, radius_of, image=rgb,
                             height_of=cfg.height_of(), belt=belt,
-                            markings=marking_test(cfg, rgb, grad))
+                            markings=marking_test(cfg, rgb, grad), params=cfg.top,
+                            pose_params=cfg.pose)
         pose = None
         top = None
         if choice.index is not None:

@@ -1,0 +1,203 @@
+"""The top rule's (with its wall cover and marking tests'), the fits', the edge support's and
+the tracked outline search's settings: reached from a scene's ``[vision]`` (``[episode]``)
+table and ``--set``, checked on load, and acting where they should."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stackpick_sim.config.loader import load_scene
+from stackpick_sim.config.vision_params import OutlineTrackingParams
+from stackpick_sim.episodes.detectors import scene_detector_config
+from stackpick_sim.exceptions import ConfigError
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
+from stackpick_sim.vision.detector import DetectorConfig, detect
+from stackpick_sim.vision.markings import two_surfaces
+from stackpick_sim.vision.moving_edges import track_outline
+from stackpick_sim.vision.occlusion import select_top, select_unobstructed
+from stackpick_sim.vision.params import (
+    EdgeParams,
+    FitParams,
+    MarkingParams,
+    PoseParams,
+    TopParams,
+)
+from stackpick_sim.vision.pose import circle_poses
+from stackpick_sim.vision.synthetic import draw_ellipses
+from stackpick_sim.vision.wall import band_points, wall_evidence
+from stackpick_sim.vision.wall_cover import covered_share, under_another
+
+SHAPE = (240, 320)
+K = CameraIntrinsics.from_fovy(45.0, 320, 240)
+#: A lower face (semi-minor axis 34 px) partly under a top face (38 px, drawn last).
+FACES = [Ellipse(cx=200, cy=110, a=40, b=34, angle_deg=-10),
+         Ellipse(cx=150, cy=120, a=45, b=38, angle_deg=20)]
+
+
+@pytest.fixture(scope="module")
+def image() -> np.ndarray:
+    return draw_ellipses(SHAPE, FACES, noise_sigma=1.5, rng=np.random.default_rng(4))
+
+
+def test_rule_settings_reach_the_detector_from_a_scene_file(tmp_path: Path) -> None:
+    path = tmp_path / "strict.toml"
+    path.write_text("[vision.top]\nmin_support = 0.95\ndepth_tie_m = 0.02\n"
+                    "[vision.fits]\nmin_axis_px = 8.0\n"
+                    "[vision.edges]\nsupport_noise_multiple = 3.0\n")
+    config = scene_detector_config(load_scene(str(path)), K, (0.2, 0.3))
+    assert config.top == TopParams(min_support=0.95, depth_tie_m=0.02)
+    assert config.fits == FitParams(min_axis_px=8.0)
+    assert config.edges == EdgeParams(support_noise_multiple=3.0)
+
+
+def test_rule_settings_reach_the_detector_from_set() -> None:
+    cfg = load_scene("paper", ["vision.top.min_gap_px=12", "vision.top.rim_band_px=4.0",
+                               "vision.fits.max_axis_diagonals=0.5",
+                               "vision.edges.support_min_contrast=1.0"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.top.min_gap_px == 12 and config.top.rim_band_px == 4.0
+    assert config.fits.max_axis_diagonals == 0.5 and config.edges.support_min_contrast == 1.0
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("vision.top.min_support=1.2", "vision.top.min_support = 1.2 is out of range; allowed: 0 "
+                                   "to 1"),
+    ("vision.top.depth_tie_m=-0.01", "vision.top.depth_tie_m = -0.01 is out of range; allowed: "
+                                     "0 to 1 m"),
+    ("vision.top.min_gap_px=0", "vision.top.min_gap_px = 0 is out of range; allowed: 1 to "
+                                "1000 px"),
+    ("vision.fits.min_axis_px=0", "vision.fits.min_axis_px = 0.0 is out of range; allowed: 1 "
+                                  "to 1000 px"),
+    ("vision.edges.support_noise_multiple=200", "vision.edges.support_noise_multiple = 200.0 "
+                                                "is out of range; allowed: 0 to 100"),
+])
+def test_out_of_range_rule_settings_give_one_line_errors(override: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as err:
+        load_scene("paper", [override])
+    assert "\n" not in str(err.value)
+
+
+def test_the_least_axis_drops_thinner_faces(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    assert sorted(round(e.ellipse.cx) for e in detect(image, config).ellipses) == [150, 200]
+    # Only the top face's semi-minor axis (38 px) reaches 36 px: the lower face (34 px) is
+    # fitted nowhere, by no stage.
+    thick = detect(image, replace(config, fits=FitParams(min_axis_px=36.0)))
+    assert [round(e.ellipse.cx) for e in thick.ellipses] == [150]
+    assert thick.top == 0
+    assert not detect(image, replace(config, fits=FitParams(min_axis_px=50.0))).ellipses
+
+
+def test_the_support_threshold_sets_what_counts_as_an_outline(image: np.ndarray) -> None:
+    config = DetectorConfig(intrinsics=K)
+    assert detect(image, config).top is not None
+    # Contrast of 100 times the noise level shows nowhere: no outline is supported.
+    blind = detect(image, replace(config, edges=EdgeParams(support_noise_multiple=100.0)))
+    assert blind.top is None
+
+
+def _with_gap(face: Ellipse, share: float) -> np.ndarray:
+    """An edge map of ``face``'s outline (one pixel wide) with ``share`` of it missing."""
+    edges = np.zeros(SHAPE, np.uint8)
+    t = np.linspace(0.0, 2.0 * np.pi, 2000, endpoint=False)[: int(2000 * (1.0 - share))]
+    c, s = np.cos(np.radians(face.angle_deg)), np.sin(np.radians(face.angle_deg))
+    x, y = face.a * np.cos(t), face.b * np.sin(t)
+    u, v = np.rint(face.cx + c * x - s * y).astype(int), np.rint(face.cy + s * x + c * y)
+    edges[v.astype(int), u] = 1
+    return edges
+
+
+def test_the_least_support_decides_whether_a_cut_face_is_top() -> None:
+    face = FACES[1]
+    edges = _with_gap(face, 0.15)  # a 15% gap with nothing at its ends
+    assert select_top([face], edges).index is None  # support ~0.85 < 0.9
+    assert select_top([face], edges, params=TopParams(min_support=0.8)).index == 0
+    assert select_top([face], _with_gap(face, 0.05)).index == 0  # a 5% gap passes
+
+
+def test_the_unobstructed_fallback_follows_its_least_support() -> None:
+    face = FACES[1]
+    edges = _with_gap(face, 0.15)  # nothing crossing it, support ~0.85
+    assert select_unobstructed(select_top([face], edges).evidence) == 0
+    strict = TopParams(unobstructed_min_support=0.9)
+    assert select_unobstructed(select_top([face], edges, params=strict).evidence) is None
+
+
+def test_the_wall_cover_follows_its_least_share() -> None:
+    tilted = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(35.0, 0.0), 0.035, K)
+    sol = circle_poses(tilted, K, 1.0)[0]
+    centre = band_points(sol.normal_cam, sol.centre_cam, tilted, K).mean(axis=0)
+    # A frontal face over the middle of the tilted face's predicted wall band.
+    over = Ellipse(cx=float(centre[0]), cy=float(centre[1]), a=25.0, b=25.0, angle_deg=0.0)
+    share = covered_share(tilted, over, K)
+    assert under_another([tilted, over], K) == [True, False]
+    higher = TopParams(cover_min_share=min(1.0, share + 0.05))
+    assert under_another([tilted, over], K, params=higher) == [False, False]
+
+
+def test_the_two_surface_test_follows_its_brightness_range() -> None:
+    # A tilted face (orange) inside the fit round it and its wall, the wall at 0.55 of the
+    # face's brightness in the same hue.
+    face = Ellipse(cx=160, cy=110, a=36, b=24, angle_deg=0)
+    silhouette = Ellipse(cx=160, cy=120, a=37, b=34, angle_deg=0)
+    orange = np.array([0.85, 0.6, 0.25])
+    image = np.full((*SHAPE, 3), 30.0)
+    image[silhouette.mask(SHAPE)] = 255.0 * 0.55 * orange
+    image[face.mask(SHAPE)] = 255.0 * orange
+    rgb = np.clip(np.round(image), 0, 255).astype(np.uint8)
+    assert two_surfaces(silhouette, face, rgb, 2.5)
+    wide = MarkingParams(surface_brightness_range=(0.5, 2.0))
+    assert not two_surfaces(silhouette, face, rgb, 2.5, wide)
+
+
+def test_marking_settings_reach_the_detector_and_are_checked() -> None:
+    cfg = load_scene("paper", ["vision.markings.crossing_min_support=0.8",
+                               "vision.markings.surface_brightness_range=[0.6, 1.5]"])
+    config = scene_detector_config(cfg, K, (0.2, 0.3))
+    assert config.markings == MarkingParams(crossing_min_support=0.8,
+                                            surface_brightness_range=(0.6, 1.5))
+    with pytest.raises(ConfigError, match=r"vision\.markings\.surface_brightness_range = "
+                                          r"\[1\.5, 0\.6\] must be \[low, high\]") as err:
+        load_scene("paper", ["vision.markings.surface_brightness_range=[1.5, 0.6]"])
+    assert "\n" not in str(err.value)
+
+
+def test_outline_tracking_settings_reach_the_search() -> None:
+    cfg = load_scene("paper", ["episode.outline.min_step=200", "episode.outline.search_px=4"])
+    params = cfg.episode.outline
+    assert params == OutlineTrackingParams(min_step=200.0, search_px=4.0)
+    face = FACES[1]
+    image = draw_ellipses(SHAPE, [face], noise_sigma=1.0, rng=np.random.default_rng(5))
+    gray = np.asarray(image, np.float32)
+    predicted = replace(face, cx=face.cx + 2.0)
+    assert track_outline(gray, predicted) is not None
+    # No grey-level step along the normals reaches 200 levels/px: no outline.
+    assert track_outline(gray, predicted, params=params) is None
+    with pytest.raises(ConfigError, match=r"episode\.outline\.min_inlier_share = 1\.5 is out "
+                                          r"of range; allowed: 0 to 1") as err:
+        load_scene("paper", ["episode.outline.min_inlier_share=1.5"])
+    assert "\n" not in str(err.value)
+
+
+def test_the_wall_band_test_follows_its_brightness_margin() -> None:
+    # A face tilted 20 deg over a "wall" as bright as the face itself: a wall of a face
+    # tilted 20 deg is at most tan(20 deg) + margin = 0.66 as bright, unless the margin
+    # allows more.
+    face = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(20.0, 0.0), 0.035, K)
+    sol = circle_poses(face, K, 1.0)[0]
+    band = band_points(sol.normal_cam, sol.centre_cam, face, K)
+    image = np.full((*SHAPE, 3), 30, np.uint8)
+    orange = np.array([217, 153, 64], np.uint8)
+    for u, v in np.rint(band).astype(int):
+        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = orange
+    image[face.mask(SHAPE)] = orange
+    colour = orange.astype(np.float64)
+    strict = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour)
+    loose = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour,
+                          params=PoseParams(band_brightness_margin=2.0))
+    assert strict.samples == loose.samples > 0
+    assert strict.share < 0.2 < 0.8 < loose.share
