@@ -95,6 +95,15 @@ def test_a_tape_roll_is_picked_on_its_ring(seed: int) -> None:
     cfg = load_scene("realistic", TAPES)
     rec = run_episode(generate_scene(cfg, seed))
     assert rec.success, f"{rec.failure}: {rec.failure_detail}"
+    # The record tells where the lip met the face against what the controller believed.
+    tape = cfg.object_types["tape"]
+    assert rec.target_kind == "tape" and rec.believed_kinds == ["tape"]
+    assert rec.believed_radius_m == pytest.approx(tape.radius)
+    assert rec.aim_offset_mm == pytest.approx(1e3 * aim_offset([face_profile(tape)], LIP, CFG),
+                                              abs=0.01)
+    assert rec.lip_offset_mm is not None and rec.aim_miss_mm is not None
+    assert 1e3 * (tape.hole_radius + LIP) < rec.lip_offset_mm < 1e3 * (tape.radius - LIP)
+    assert rec.aim_miss_mm < 3.0
 
 
 def test_a_cup_aimed_at_a_tape_rolls_centre_does_not_seal(monkeypatch: pytest.MonkeyPatch
@@ -102,3 +111,14 @@ def test_a_cup_aimed_at_a_tape_rolls_centre_does_not_seal(monkeypatch: pytest.Mo
     monkeypatch.setattr(pick, "aimed", lambda state, offset, side: state)
     rec = run_episode(generate_scene(load_scene("realistic", TAPES), 70000))
     assert rec.failure == "missed_grasp" and "over a hole" in rec.failure_detail
+    # The record shows the cause: no aim off the centre, the lip landing over the hole.
+    assert rec.aim_offset_mm == 0.0 and rec.believed_kinds == ["tape"]
+    assert rec.lip_offset_mm is not None and rec.lip_offset_mm < 1e3 * (0.0127 + LIP)
+
+
+def test_the_kinds_a_radius_is_taken_for() -> None:
+    cfg = load_scene("realistic")
+    point = PickPoint(cfg, LIP)
+    assert point.kinds(0.0251) == ["printed_small"]
+    assert point.kinds(0.049) == ["tape"]
+    assert point.kinds(None) == [] and point.kinds(0.0) == []

@@ -144,13 +144,13 @@ def test_along_select_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellips
     points, grads = edge_points(edge_image(image))
     n = points.shape[0]
     starts = np.arange(len(probes) + 1, dtype=np.int64) * n
-    u, v, gu, gv = (np.tile(c, len(probes)) for c in (*points.T, *grads.T))
+    at = np.tile(np.arange(n, dtype=np.int64), len(probes))  # every pixel for each probe
+    u, v, gu, gv = (np.ascontiguousarray(c) for c in (*points.T, *grads.T))
     forms = np.array([_form(e) for e in probes])
-    pixels = np.tile(points, (len(probes), 1)).astype(np.float32)
     for tol in (1.2, 2.5):
         expected = np.concatenate([_along_mask(e, *points.T, *grads.T, tol) for e in probes])
-        sel, _, _ = kernels.along_select(forms, starts, np.ones(len(probes), np.bool_), u, v,
-                                         gu, gv, pixels, 4.0 * tol * tol,
+        sel, _, _ = kernels.along_select(forms, starts, np.ones(len(probes), np.bool_), at, u,
+                                         v, gu, gv, points, 4.0 * tol * tol,
                                          MIN_NORMAL_COS * MIN_NORMAL_COS)
         np.testing.assert_array_equal(sel, expected.nonzero()[0])
 

@@ -450,14 +450,18 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
-    pixels = rng.integers(0, 100, (n, 2)).astype(np.float32)
+    pixels = rng.integers(0, 100, (n, 2)).astype(np.float64)
     active = np.array([True, False, True, True])
     passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
-    sel, bounds, pts = kernels.along_select(forms, starts, active, u, v, gu, gv, pixels, 16.0,
+    # The pairs given through a pair -> pixel index (here a permutation of the pixels).
+    at = rng.permutation(n).astype(np.int64)
+    back = np.argsort(at)
+    sel, bounds, pts = kernels.along_select(forms, starts, active, at, u[back], v[back],
+                                            gu[back], gv[back], pixels[back], 16.0,
                                             0.87 * 0.87)
     assert np.array_equal(sel, passed.nonzero()[0])
-    assert np.array_equal(pts, pixels[sel])
+    assert np.array_equal(pts, pixels[sel].astype(np.float32))
     owner = np.arange(4).repeat(counts)[sel]
     assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
     assert bounds[2] == bounds[1] and sel.size > 0
@@ -550,3 +554,186 @@ def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
                 int(np.count_nonzero(d[n:] < 4.0)))
         got = kernels.pair_lies(points, n, cx, cy, a, b, c, s, 4.0)
         assert got == want and 0 < got[1] + got[2] < m
+
+
+def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
+                          gx: NDArray[np.int16], gy: NDArray[np.int16],
+                          offsets: NDArray[np.float64], threshold: float, innermost: bool
+                          ) -> NDArray[np.float64]:
+    """The contrast refit's round as array expressions (np.convolve's windowed mean)."""
+    h, w = gx.shape
+    q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]
+    u = np.clip(np.rint(q[..., 0]).astype(np.int64), 0, w - 1)
+    v = np.clip(np.rint(q[..., 1]).astype(np.int64), 0, h - 1)
+    g = gx[v, u] * normals[:, None, 0] + gy[v, u] * normals[:, None, 1]
+    k = 5
+    padded = np.concatenate([g[-(k // 2):], g, g[: k // 2]], axis=0)
+    smooth = np.stack([np.convolve(padded[:, j], np.ones(k) / k, mode="valid")
+                       for j in range(offsets.size)], axis=1)
+    mag = np.abs(smooth) / 8.0
+    best = np.argmax(mag, axis=1)
+    if innermost:
+        padded_mag = np.pad(mag, ((0, 0), (1, 1)))
+        peak = (mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:]) & (mag >= threshold)
+        best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
+    ok = mag[np.arange(best.size), best] >= threshold
+    return q[np.flatnonzero(ok), best[ok]]
+
+
+@pytest.mark.parametrize("innermost", [False, True])
+def test_contrast_peaks_match_the_array_form(rng: np.random.Generator,
+                                             innermost: bool) -> None:
+    from stackpick_sim.geometry import Ellipse
+    from stackpick_sim.vision.contrast import outline
+
+    # Smooth gradients with steps (ties and local peaks), outlines partly off the image.
+    base = cv2.GaussianBlur(rng.integers(0, 256, (60, 80)).astype(np.uint8), (5, 5), 1.5)
+    base[20:45, 25:60] //= 2
+    gx, gy = cv2.spatialGradient(base)
+    for cx, cy, a, b, angle in [(40.0, 32.0, 17.0, 11.0, 20.0), (70.0, 50.0, 20.0, 14.0, 100.0),
+                                (40.5, 30.2, 9.3, 8.8, 0.0)]:
+        pts, normals = outline(Ellipse(cx=cx, cy=cy, a=a, b=b, angle_deg=angle))
+        offsets = np.arange(-6 if innermost else -3, 4, dtype=np.float64)
+        for threshold in (0.5, 3.0, 8.0):
+            want = _contrast_peaks_numpy(pts, normals, gx, gy, offsets, threshold, innermost)
+            got = kernels.contrast_peaks(
+                np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+                np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+                gx, gy, offsets, 5, 8.0, threshold, innermost)
+            assert np.array_equal(got, want)
+            assert 0 < got.shape[0] or threshold == 8.0
+
+
+def test_band_points_match_the_array_form(rng: np.random.Generator) -> None:
+    vectors = rng.normal(size=(4, 3, 3))
+    t = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    ct, st = np.cos(t), np.sin(t)
+    depths = np.array([0.2, 0.4, 0.6])
+    normal, centre, u, v = vectors.transpose(0, 2, 1)
+    rim = centre[:, :, None] + ct * u[:, :, None]
+    rim += st * v[:, :, None]
+    want = (rim[:, :, None, :] + depths.reshape(1, 1, -1, 1) * normal[:, :, None, None]
+            ).reshape(3, 3, -1)
+    assert np.array_equal(kernels.band_points(vectors, ct, st, depths), want)
+
+
+def _circle_solutions_python(q: list[float], evals: list[float], evecs: list[list[float]],
+                             ellipse: tuple[float, float, float, float, float],
+                             camera: tuple[float, float, float, float]
+                             ) -> list[list[float]]:
+    """The two unit-radius circle poses on Python floats ((normal, centre) each, flat)."""
+    fx, fy, cx, cy = camera
+    q00, q01, q02, q11, q12, q22 = q
+    l_lo, l_mid, l_hi = evals
+    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs
+    if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:
+        q00, q01, q02, q11, q12, q22 = -q00, -q01, -q02, -q11, -q12, -q22
+        l3, l2, l1 = -l_hi, -l_mid, -l_lo
+        e3, e1 = [v02, v12, v22], [v00, v10, v20]
+    else:
+        l3, l2, l1 = l_lo, l_mid, l_hi
+        e3, e1 = [v00, v10, v20], [v02, v12, v22]
+    g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
+    h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
+
+    def form(x: tuple[float, float, float]) -> float:
+        return (q00 * x[0] * x[0] + q11 * x[1] * x[1] + q22 * x[2] * x[2]
+                + 2.0 * (q01 * x[0] * x[1] + q02 * x[0] * x[2] + q12 * x[1] * x[2]))
+
+    ex, ey, a, b, angle = ellipse
+    t = math.radians(angle)
+    ct, st = math.cos(t), math.sin(t)
+    a2, b2 = a ** 2, b ** 2
+    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
+    out = []
+    for sign in (1.0, -1.0):
+        n = [sign * g * e1[i] + h * e3[i] for i in range(3)]
+        n = n if n[2] > 0 else [-n[0], -n[1], -n[2]]
+        m0, m1 = n[0] / fx, n[1] / fy
+        m2 = -cx / fx * n[0] - cy / fy * n[1] + n[2]
+        cm = ex * m0 + ey * m1
+        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
+        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
+        p2 = -cm - m2
+        ray = ((p0 / p2 - cx) / fx, (p1 / p2 - cy) / fy, 1.0)
+        along = n[0] * ray[0] + n[1] * ray[1] + n[2]
+        x0 = (ray[0] / along, ray[1] / along, 1.0 / along)
+        norm = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        k0, k1, k2 = n[0] / norm, n[1] / norm, n[2] / norm
+        u0, u1, u2 = (0.0, k2, -k1) if abs(k0) < 0.9 else (-k2, 0.0, k0)
+        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        s2 = -form(x0) / form((u0 / un, u1 / un, u2 / un))
+        scale = 1.0 / math.sqrt(max(s2, 1e-300))
+        out.append([*n, x0[0] * scale, x0[1] * scale, x0[2] * scale])
+    return out
+
+
+def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -> None:
+    from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+    from stackpick_sim.vision.pose import _conic_terms
+
+    k = CameraIntrinsics(fx=277.1, fy=277.1, cx=160.0, cy=120.0, width=320, height=240)
+    camera = (k.fx, k.fy, k.cx, k.cy)
+    for _ in range(300):
+        a = float(rng.uniform(8.0, 80.0))
+        e = Ellipse(cx=float(rng.uniform(0, 320)), cy=float(rng.uniform(0, 240)), a=a,
+                    b=a * float(rng.uniform(0.3, 1.0)), angle_deg=float(rng.uniform(0, 180)))
+        (m00, m01, d0), (m11, d1, f) = _conic_terms(e)
+        r0, r1 = m00 * k.cx + m01 * k.cy + d0, m01 * k.cx + m11 * k.cy + d1
+        q = [k.fx * k.fx * m00, k.fx * k.fy * m01, k.fx * r0, k.fy * k.fy * m11, k.fy * r1,
+             k.cx * r0 + k.cy * r1 + (d0 * k.cx + d1 * k.cy + f)]
+        w, v = np.linalg.eigh(np.array([[q[0], q[1], q[2]], [q[1], q[3], q[4]],
+                                        [q[2], q[4], q[5]]]))
+        t = math.radians(e.angle_deg)
+        got, ok = kernels.circle_solutions(
+            np.array(q), w, v, np.array([e.cx, e.cy, math.cos(t), math.sin(t), e.a ** 2,
+                                         e.b ** 2]), np.array(camera))
+        want = _circle_solutions_python(q, w.tolist(), v.tolist(),
+                                        (e.cx, e.cy, e.a, e.b, e.angle_deg), camera)
+        assert ok
+        assert got.reshape(2, 6).tolist() == want
+    # A degenerate form (equal eigenvalues) divides by zero: no poses.
+    assert not kernels.circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6),
+                                        np.ones(4))[1]
+
+
+def test_stairs_removed_match_the_whole_image_passes(rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.edges import STAIR_LUTS, neighbour_codes
+
+    for k in range(6):
+        image = cv2.GaussianBlur(rng.integers(0, 256, (50, 70)).astype(np.uint8), (5, 5),
+                                 1.0 + k * 0.3)
+        canny = cv2.Canny(image, 20, 60)
+        canny[0, :] = canny[-1, :] = canny[:, 0] = canny[:, -1] = 255  # the borders too
+        b = (canny > 0).astype(np.uint8)
+        for lut in STAIR_LUTS:
+            b = b - np.minimum(b, lut[neighbour_codes(b)])
+        got = kernels.stairs_removed(canny, *STAIR_LUTS)
+        assert np.array_equal(got, b)
+        assert np.count_nonzero(got) < np.count_nonzero(canny)  # some stairs were removed
+
+
+def test_edge_pixels_match_the_array_form(rng: np.random.Generator) -> None:
+    gx, gy = _gradients(rng)
+    gx[5, :] = gy[5, :] = 0  # zero gradients: the 1e-9 floor
+    edges = (rng.random((60, 80)) < 0.1).astype(np.uint8)
+    edges[5, ::3] = 1
+    at = np.flatnonzero(edges)
+    u, v = (at % 80).astype(np.float64), (at // 80).astype(np.float64)
+    fx, fy = gx.ravel()[at].astype(np.float64), gy.ravel()[at].astype(np.float64)
+    norm = np.maximum(np.hypot(fx, fy), 1e-9)
+    pts, g = kernels.edge_pixels(edges, gx, gy)
+    assert np.array_equal(pts, np.stack([u, v]))
+    assert np.array_equal(g, np.stack([fx / norm, fy / norm]))
+
+
+def test_row_keys_match_the_array_form(rng: np.random.Generator) -> None:
+    at = np.flatnonzero(rng.random((40, 70)) < 0.2)
+    for order in (np.arange(at.size), rng.permutation(at.size)):  # np.nonzero's order, shuffled
+        u, v = (at % 70).astype(np.float64)[order], (at // 70).astype(np.float64)[order]
+        width = int(u.max(initial=0.0)) + 2
+        want = v * width + u
+        keys, got_width, ascending = kernels.row_keys(u, v)
+        assert np.array_equal(keys, want) and got_width == width
+        assert ascending == bool(np.all(want[1:] >= want[:-1]))
+    assert kernels.row_keys(np.zeros(0), np.zeros(0))[1:] == (2, True)

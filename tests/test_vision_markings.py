@@ -146,7 +146,7 @@ def test_of_two_crossing_faces_with_markings_the_one_whose_outline_runs_on_is_ab
     assert found.marked == {0, 1}
 
 
-@pytest.mark.parametrize("seed", [70005, 70006])
+@pytest.mark.parametrize("seed", [70081, 70087])
 def test_realistic_frames_whose_top_face_only_arc_pairs_fit(seed: int) -> None:
     # Rendered realistic frames whose top lid the merge never fits whole (its artwork or
     # rings cut the outline into arcs): found with the marked arc-pair faces, missed without.

@@ -439,6 +439,8 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "servo_tilt_tol_deg": (0.01, 30.0, "degrees"),
     "descend_speed": (0.01, 2.0, "m/s"),
     "overtravel": (1e-4, 0.1, "m"),
+    "face_height_agreement": (1e-4, 0.02, "m"),
+    "normal_vote_height_tol": (1e-4, 0.1, "m"),
     "grasp_dwell": (0.0, 2.0, "s"),
     "lift_height": (0.005, 0.5, "m"),
     "lift_speed": (0.01, 2.0, "m/s"),
@@ -503,6 +505,26 @@ class EpisodeCfg:
     by as much as the track's lowest monocular face height lies below the predicted one, at
     most the tallest object's height: :func:`stackpick_sim.episodes.pick.descent_floor`);
     0.0001 to 0.1 m (a suction cup's compliance is millimetres to centimetres)."""
+    face_height_agreement: float = 0.001
+    """The tracked face's height is the lowest of its monocular heights on which
+    ``face_height_views`` of them agree within this, m
+    (:func:`stackpick_sim.episodes.target.agreed_low_height`). A monocular height errs one
+    way, too high: a fit that takes in the face's side wall, seen obliquely from the
+    approaching wrist camera, is larger than the face, so read as nearer (5-20 mm too high on
+    small printed lids, where the look pose's heights agree within 0.3 mm). 0.0001 to
+    0.02 m."""
+    face_height_views: int = 3
+    """... and this many heights agree on it (1: the lowest height; more keeps a single fit
+    that reads too far off the height); 1 to 20. Fewer heights so far: the median of the
+    latest ones."""
+    normal_vote_height_tol: float = 0.003
+    """A view's pose votes on the tracked face's normal only while its monocular height lies
+    within this of the face height (``face_height_agreement``), m: a fit that reads the face
+    too high takes in its side wall, whose outline tilts both normal solutions off the
+    face's (by 20 deg and more on small printed lids seen from the approaching camera,
+    against the bellows' 20 deg). A placeholder, three times ``face_height_agreement``:
+    the right fits' heights scatter by a few tenths of a millimetre, the wall's read 4-20 mm
+    too high. 0.0001 to 0.1 m."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""
@@ -551,6 +573,8 @@ class EpisodeCfg:
                  "an integer 0-3")
         _require(2 <= self.track_frames <= 30, "episode.track_frames", self.track_frames,
                  "2 to 30 frames")
+        _require(1 <= self.face_height_views <= 20, "episode.face_height_views",
+                 self.face_height_views, "an integer 1-20")
         for key, (lo, hi, unit) in EPISODE_RANGES.items():
             _within(f"episode.{key}", getattr(self, key), lo, hi, unit)
         _within("episode.lift_retreat", self.lift_retreat, 0, 0.3, "m")

@@ -503,7 +503,9 @@ class MarkingParams(Section):
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
         "surface_chroma_tolerance": (0.0, 2.0, ""),
         "surface_brightness_range": (0.01, 100.0, ""),
-        "crossing_min_support": (0.0, 1.0, ""), "min_part_samples": (1, 64, "samples")}
+        "crossing_min_support": (0.0, 1.0, ""), "min_part_samples": (1, 64, "samples"),
+        "max_off_rim_share": (0.0, 1.0, ""), "ring_hole_scale": (0.0, 1.0, ""),
+        "ring_hole_share": (0.0, 1.0, "")}
 
     surface_chroma_tolerance: float = 0.12
     """Two parts of a face's rim band (inside and outside an inner whole face) are two
@@ -526,6 +528,29 @@ class MarkingParams(Section):
     """Fewest rim band or outline samples either part needs for the two-surface and the
     crossing tests to decide (fewer: no verdict), of 64 rim band and 32-plus outline
     samples."""
+    max_off_rim_share: float = 0.2
+    """Share [0, 1] of a whole face with markings' rim band (its ellipse at 0.94 of its
+    semi-axes) that may be off the band's median colour (chromaticity farther than
+    ``surface_chroma_tolerance``, or brightness outside ``surface_brightness_range`` of it)
+    for it to stay a candidate for the top. A face's rim band is its own surface all round:
+    a printed lid's stripe and lettering cross at most 16 % of it, a can end's tinplate rim
+    and a tape roll's ring none (on rendered realistic-scene frames). More is another
+    surface: a lower face whose fit the top object's outline completes has the top object
+    across its band, and a fit round a face and its wall runs over the wall or the belt
+    (20-50 % on those frames)."""
+    ring_hole_scale: float = 0.45
+    """Share [0, 1] of a face's semi-axes within which its interior edges are a hole's (a
+    roll's ring face round its core, :mod:`~stackpick_sim.vision.rings`): a tape roll's core
+    is about a quarter of its radius (25.4 mm in 100 mm), and the hole's outline and the
+    core's wall seen through it lie within 0.4 of the face's semi-axes on rendered
+    realistic-scene frames (edge blur included); printed artwork and a can end's rings
+    spread to the rim. Capped per face at the smallest kind's radius over the face's: an
+    object lying on the face reads nearer, so no smaller."""
+    ring_hole_share: float = 0.95
+    """Share [0, 1] of a whole face's interior edge pixels that must lie within
+    ``ring_hole_scale`` for it to be judged a ring face round its hole: nearly all (a few
+    stray edges of noise or the worn belt's texture aside); on rendered realistic-scene
+    frames a tape roll's face has all of them there, printed lids and can ends under half."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

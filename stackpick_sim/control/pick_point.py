@@ -79,19 +79,29 @@ class PickPoint:
     """The aim of a scene's pick: :func:`aim_offset` for the kinds of the tracked radius."""
 
     def __init__(self, cfg: SceneConfig, lip: float) -> None:
-        kinds = [cfg.object_types[name] for name in dict.fromkeys(cfg.objects.types)]
-        self._kinds = [(k.radius, face_profile(k)) for k in kinds]
+        names = list(dict.fromkeys(cfg.objects.types))
+        self._kinds = [(name, cfg.object_types[name].radius,
+                        face_profile(cfg.object_types[name])) for name in names]
         self._lip = lip
         self._suction = cfg.suction
         self._cache: dict[float, float] = {}
 
+    def kinds(self, radius: float | None) -> list[str]:
+        """Names of the scene's object kinds (``object_types``) the controller takes a face of
+        ``radius`` m to be: those whose radius is nearest it (empty when unknown)."""
+        if radius is None or radius <= 0.0 or not self._kinds:
+            return []
+        nearest = min(abs(r - radius) for _, r, _ in self._kinds)
+        return [name for name, r, _ in self._kinds if abs(r - radius) <= nearest + RADIUS_MATCH]
+
     def offset(self, radius: float | None) -> float:
         """Aim distance from the centre (m) of a face of ``radius`` m (None: unknown, 0)."""
-        if radius is None or radius <= 0.0 or not self._kinds:
+        kinds = self.kinds(radius)
+        if not kinds:
             return 0.0
+        assert radius is not None
         if radius not in self._cache:
-            nearest = min(abs(r - radius) for r, _ in self._kinds)
-            profiles = [p for r, p in self._kinds if abs(r - radius) <= nearest + RADIUS_MATCH]
+            profiles = [p for name, _, p in self._kinds if name in kinds]
             self._cache[radius] = aim_offset(profiles, self._lip, self._suction)
         return self._cache[radius]
 

@@ -20,14 +20,23 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stackpick_sim.episodes.outcome import axis_turn_deg, face_in_view, match_object, view_pose
-from stackpick_sim.episodes.record import PoseErrors
+from stackpick_sim.episodes.outcome import (
+    AimBelief,
+    axis_turn_deg,
+    distance_to_axis,
+    face_in_view,
+    lip_on_face,
+    match_object,
+    view_pose,
+)
+from stackpick_sim.episodes.record import EpisodeRecord, PoseErrors
 from stackpick_sim.episodes.verdict import judge
 from stackpick_sim.geometry import project_circle, tilt_angles
 from stackpick_sim.pipeline import FaceCandidate, TargetState
 from stackpick_sim.sim.camera import WristCamera
 from stackpick_sim.sim.cell import Cell
 from stackpick_sim.sim.ground_truth import FrameTruth, frame_truth, top_face
+from stackpick_sim.sim.robot import TOOL_SITE
 
 if TYPE_CHECKING:
     from stackpick_sim.episodes.episode import Episode
@@ -55,6 +64,21 @@ def audit_scope() -> Iterator[None]:
         yield
     finally:
         _depth[0] -= 1
+
+
+def buried_target(rec: EpisodeRecord) -> None:
+    """A cup that met no sealing face on its way to a target that was not a top object at
+    detection (one lying under another, or no object at the detected face): the pick went
+    for the wrong object, whatever the cup then touched. ``missed_grasp`` becomes
+    ``wrong_object``, the detail naming the target and keeping the contact's."""
+    if rec.failure != "missed_grasp" or not rec.top_objects:
+        return
+    if rec.target_object in rec.top_objects:
+        return
+    target = rec.target_object or "no object"
+    rec.failure = "wrong_object"
+    rec.failure_detail = (f"the track was on {target}, not a true top object "
+                          f"{rec.top_objects}; {rec.failure_detail}")
 
 
 class CellTruth:
@@ -129,6 +153,9 @@ class Audit:
             return
         rec.top_objects = truth.top_objects
         rec.target_object = match_object(truth, cand.pixel)
+        with audit_scope():
+            rec.target_kind = next((o.type_name for o in cell.objects
+                                    if o.name == rec.target_object), None)
         if rec.target_object is not None and cand.normal_cam is not None:
             t_obj = next(o for o in truth.objects if o.name == rec.target_object)
             rec.detection = PoseErrors(
@@ -136,8 +163,9 @@ class Audit:
                            *tilt_angles(cand.normal_cam)),
                 actual=(*t_obj.face_center_px, t_obj.theta_x_deg, t_obj.theta_y_deg))
 
-    def on_contact(self, state: TargetState) -> None:
-        """The cup touched: the estimate ``state`` vs. the target's true face (Table 2)."""
+    def on_contact(self, state: TargetState, aim: AimBelief) -> None:
+        """The cup touched: the estimate ``state`` vs. the target's true face (Table 2), and
+        where the cup met it against what the controller believed (``aim``)."""
         rec, cell = self.ep.record, self.ep.scene.cell
         if rec.target_object is None:
             return
@@ -149,6 +177,27 @@ class Audit:
         rec.pick_estimate = PoseErrors(estimated=estimated, actual=actual)
         rec.prediction_error_px = rec.pick_estimate.center_error_px
         rec.prediction_error_mm = 1e3 * float(np.linalg.norm(state.centre - centre_w))
+        self.on_lip(aim)
+
+    def on_lip(self, aim: AimBelief) -> None:
+        """Where the cup's axis meets the target's true face now (the lip at contact, or the
+        end of a descent that met nothing) against the controller's ``aim``."""
+        rec, cell = self.ep.record, self.ep.scene.cell
+        rec.believed_radius_m = aim.radius
+        rec.believed_kinds = list(aim.kinds)
+        rec.aim_offset_mm = round(1e3 * aim.offset, 3)
+        if rec.target_object is None:
+            return
+        site = cell.model.site(TOOL_SITE).id
+        cup_pos = cell.data.site_xpos[site].copy()
+        cup_axis = cell.data.site_xmat[site].reshape(3, 3)[:, 2].copy()
+        with audit_scope():
+            obj = next(o for o in cell.objects if o.name == rec.target_object)
+            centre, normal = top_face(cell, obj, cup_pos)
+        lip = lip_on_face(cup_pos, cup_axis, centre, normal)
+        if lip is not None:
+            rec.lip_offset_mm, rec.lip_height_mm = (round(1e3 * v, 3) for v in lip)
+        rec.aim_miss_mm = round(1e3 * distance_to_axis(aim.point, cup_pos, cup_axis), 3)
 
     def on_finish(self, done: bool, grasped: list[str]) -> None:
         """Judge the outcome (``done``: verify passed; ``grasped``: objects at the cup when the
@@ -157,6 +206,7 @@ class Audit:
         with audit_scope():
             if done:
                 judge(self.ep, self._start_z, grasped)
+            buried_target(rec)
             if rec.failure is None or rec.target_object not in self._start_axes:
                 return
             # A pile that collapsed under its own weight on the running belt is a different

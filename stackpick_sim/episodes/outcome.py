@@ -6,6 +6,8 @@ bookkeeping and the record use them (the controller sees only detections).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
@@ -74,6 +76,44 @@ def no_seal(cell: Cell, touched: list[ObjectInfo]) -> str | None:
             return None
         leaks.append(f"{obj.name}: {leak}")
     return "; ".join(leaks)
+
+
+@dataclass(frozen=True, kw_only=True)
+class AimBelief:
+    """What the controller believed when the cup reached the face: the record's side of the
+    aim (the audit compares it with the truth)."""
+
+    radius: float | None
+    """The tracked face's radius, m (None: unknown)."""
+    kinds: tuple[str, ...]
+    """The object kinds taken for the face (``object_types`` names)."""
+    offset: float
+    """Distance of the aim point from the tracked face centre, m."""
+    point: FloatArray
+    """(3,) the aim point, world, m."""
+
+
+def lip_on_face(cup_pos: FloatArray, cup_axis: FloatArray, centre: FloatArray,
+                normal: FloatArray) -> tuple[float, float] | None:
+    """(offset, height) m of the lip on a face: the distance from the face ``centre`` (3,)
+    at which the cup axis (``cup_axis`` (3,) unit, through ``cup_pos`` (3,), world) meets
+    the face plane, and ``cup_pos``'s height above that plane along the outward unit
+    ``normal`` (3,); None when the axis runs parallel to the plane."""
+    along = float(cup_axis @ normal)
+    if abs(along) < 1e-9:
+        return None
+    height = float((cup_pos - centre) @ normal)
+    hit = cup_pos - cup_axis * (height / along)
+    offset = hit - centre
+    offset -= normal * float(offset @ normal)
+    return float(np.linalg.norm(offset)), height
+
+
+def distance_to_axis(point: FloatArray, cup_pos: FloatArray, cup_axis: FloatArray) -> float:
+    """Distance (m) of ``point`` (3,) from the line through ``cup_pos`` along unit
+    ``cup_axis`` (3,), world."""
+    rel = np.asarray(point, dtype=float) - cup_pos
+    return float(np.linalg.norm(rel - cup_axis * float(rel @ cup_axis)))
 
 
 def unstable(cell: Cell) -> str | None:

@@ -30,7 +30,7 @@ from stackpick_sim.control.reach import (
     tool_pose_on_axis,
 )
 from stackpick_sim.episodes.arm import ServoErrors, approach_pose, pose_error
-from stackpick_sim.episodes.outcome import no_seal, touching
+from stackpick_sim.episodes.outcome import AimBelief, no_seal, touching
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.pipeline import ControlGoal, TargetState
@@ -179,6 +179,14 @@ class ArmPhases:
             return state
         return aimed(state, self._pick_point.offset(self.ep.estimator.radius), self._aim_side)
 
+    def _belief(self, state: TargetState) -> AimBelief:
+        """What the controller believes of the tracked face ``state`` and its aim (record)."""
+        radius = self.ep.estimator.radius
+        point = self._pick_point
+        aim = self._aim(state).centre
+        return AimBelief(radius=radius, kinds=tuple(point.kinds(radius) if point else ()),
+                         offset=float(np.linalg.norm(aim - state.centre)), point=aim)
+
     def _take_aim_side(self) -> None:
         """The aim's rules for this cell's cup, and the camera's side of the tool axis now,
         world (3,): on a level face the aim goes to the other side."""
@@ -298,7 +306,8 @@ class ArmPhases:
         touched = touching(ep.scene.cell, ep.lips)
         if touched:
             cell = ep.scene.cell
-            ep.audit.on_contact(ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data)))
+            state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
+            ep.audit.on_contact(state, self._belief(state))
             leak = no_seal(cell, touched)
             if leak is not None:  # the vacuum leaks: no lift (sim/suction.py)
                 self.fail("missed_grasp", f"no seal: {leak}")
@@ -317,6 +326,8 @@ class ArmPhases:
         self._last_lateral = err.lateral
         self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
         if descent_missed(err.depth, self._standoff, floor, self._at_floor):
+            cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
+            ep.audit.on_lip(self._belief(ep.estimator.state(t, cam)))
             self.fail("missed_grasp", "the descent passed the predicted face without contact")
             return None
         return err

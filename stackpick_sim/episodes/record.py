@@ -31,8 +31,10 @@ ERROR_REASON = "error"
 RUNNER_FAILURES: tuple[str, ...] = (ERROR_REASON,)
 
 #: Version of the record layout; every record in ``results.jsonl`` carries it. A field added
-#: later comes with a default, so that older records still read.
-SCHEMA_VERSION = 1
+#: later comes with a default, so that older records still read. Version 2 added the cup's
+#: aim at contact (``target_kind``, ``believed_radius_m``, ``believed_kinds``,
+#: ``aim_offset_mm``, ``lip_offset_mm``, ``aim_miss_mm``, ``lip_height_mm``).
+SCHEMA_VERSION = 2
 
 #: The picked object must rest in the cup at least this far above its start, m.
 MIN_LIFT_M = 0.05
@@ -107,6 +109,27 @@ class EpisodeRecord:
     """|predicted - actual| face centre at the pick moment, projected into the look view, px."""
     prediction_error_mm: float | None = None
     """|predicted - actual| face centre at the pick moment, 3-D, mm."""
+    target_kind: str | None = None
+    """The target object's kind (its ``object_types`` name), truth."""
+    believed_radius_m: float | None = None
+    """The face radius the controller took the tracked face to have when the cup reached it
+    (the estimator's), m."""
+    believed_kinds: list[str] = field(default_factory=list)
+    """The object kinds the cup's aim took the tracked face to be (those whose radius is
+    nearest ``believed_radius_m``)."""
+    aim_offset_mm: float | None = None
+    """How far from the tracked face centre the controller aimed the cup (0 on a disc, the
+    ring's middle on a tape roll), mm."""
+    lip_offset_mm: float | None = None
+    """Where the cup axis met the target's true face plane, from its true centre, when the
+    lip reached the face (or, after a descent that met nothing, at its end), mm: what the
+    seal sees (:mod:`stackpick_sim.sim.suction`)."""
+    aim_miss_mm: float | None = None
+    """Distance from the controller's aim point to the cup axis at that moment, mm: how far
+    the tool was off its own aim."""
+    lip_height_mm: float | None = None
+    """Height of the lip's centre above the target's true face plane at that moment, mm
+    (about 0 at contact; at the end of a descent that met nothing, where the face was)."""
     servo_tilt_share: float | None = None
     """Share of the face's tilt the tool axis took at the servo standoff (1: along the face
     normal; less when the arm could not reach it there; the descent turns it to

@@ -25,7 +25,7 @@ mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (im
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,9 +60,10 @@ ORACLE_PIXEL_STD = 0.05
 #: peaks), which an exact detector reports and a 0.05 px R would gate out. Added to R.
 #: Measured in simulation, a placeholder for a real pile.
 FACE_WOBBLE_STD = 3e-4
-#: The face height is the median of this many latest detections' heights: a pile settles
-#: under the running belt (measured on the paper scene: a top face sinks 0.5 mm in 0.5 s), so old
-#: heights go stale; the median outvotes single bad depths. Placeholder.
+#: Until enough heights agree (``episode.face_height_views``), the face height is the median
+#: of this many latest detections' heights: a pile settles under the running belt (measured
+#: on the paper scene: a top face sinks 0.5 mm in 0.5 s), so old heights go stale; the median
+#: outvotes single bad depths. Placeholder.
 FACE_Z_WINDOW = 9
 #: Lower bound of the belt speed jitter the filter assumes, m/s: the object can also creep
 #: on the belt or settle in its pile, which the configured jitter does not cover.
@@ -129,6 +130,55 @@ NORMAL_AGREEMENT_DEG = 10.0
 VOTE_SIGHT_DEG = 5.0
 
 
+@dataclass(frozen=True, kw_only=True)
+class NormalView:
+    """One view's pose of the tracked face, for the vote on its normal."""
+
+    normals: FloatArray
+    """(2, 3) the two unit normal solutions, world."""
+    chosen: int | None
+    """Which of them the detector picked (None: it gave no pose)."""
+    height: float
+    """The view's monocular face height, world z, m."""
+    sight: FloatArray
+    """(3,) unit line of sight to the face, world."""
+
+
+def normal_voters(views: list[NormalView], face_z: float, tol: float) -> list[NormalView]:
+    """The views that vote on the normal: those whose height lies within ``tol`` m of
+    ``face_z`` m (none: the nearest one), of each line of sight (within VOTE_SIGHT_DEG) the
+    first."""
+    if not views:
+        return []
+    off = np.array([abs(v.height - face_z) for v in views])
+    agreeing = [v for v, d in zip(views, off, strict=True) if d <= tol]
+    cos_min = math.cos(math.radians(VOTE_SIGHT_DEG))
+    voters: list[NormalView] = []
+    for v in agreeing or [views[int(np.argmin(off))]]:
+        if all(float(v.sight @ u.sight) <= cos_min for u in voters):
+            voters.append(v)
+    return voters
+
+
+def agreed_low_height(heights: list[float], agreement: float, views: int) -> float | None:
+    """The lowest height (m) on which ``views`` of ``heights`` (m) agree, or None.
+
+    The median of the first run of ``views`` sorted heights that spans at most
+    ``agreement`` m, from the lowest up. A monocular height's large errors are one-sided
+    (too high, see ``episode.face_height_agreement``), so the lowest agreeing group is the
+    face; a single fit that reads too low has no others agreeing with it.
+    """
+    if len(heights) < views:
+        return None
+    z = np.sort(np.asarray(heights, dtype=float))
+    spans = z[views - 1:] - z[: len(z) - views + 1]
+    ok = np.flatnonzero(spans <= agreement)
+    if ok.size == 0:
+        return None
+    first = int(ok[0])
+    return float(np.median(z[first:first + views]))
+
+
 class TargetEstimator:
     """Fuses the tracked face's detections; :meth:`state` predicts it at any time."""
 
@@ -156,9 +206,12 @@ class TargetEstimator:
         """Image frame: the camera pose whose image the filter's pixels are in."""
         self._first: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
         self._normals: list[FloatArray] = []
-        self._normal_views: list[tuple[FloatArray, int | None]] = []
-        self._sights: list[FloatArray] = []
+        self._normal_views: list[NormalView] = []
+        """Every view's pose solutions, for the normal's vote (:meth:`_add_normals`)."""
         self._zs: list[float] = []
+        self._height_agreement = cfg.episode.face_height_agreement
+        self._height_views = cfg.episode.face_height_views
+        self._vote_height_tol = cfg.episode.normal_vote_height_tol
         self._normal = np.array([0.0, 0.0, -1.0])
         self.correct_centres = not oracle
         self.radius: float | None = None
@@ -190,8 +243,12 @@ class TargetEstimator:
 
     @property
     def face_z(self) -> float:
-        """Height of the face centre, world z, m (median of the last detections' heights)."""
-        return float(np.median(self._zs[-FACE_Z_WINDOW:])) if self._zs else 0.0
+        """Height of the face centre, world z, m: :func:`agreed_low_height` of the track's
+        monocular heights (the median of the latest ones while too few agree)."""
+        if not self._zs:
+            return 0.0
+        low = agreed_low_height(self._zs, self._height_agreement, self._height_views)
+        return float(np.median(self._zs[-FACE_Z_WINDOW:])) if low is None else low
 
     @property
     def lowest_face_z(self) -> float:
@@ -203,8 +260,8 @@ class TargetEstimator:
         approaches; a neighbour's rim) is larger, so read as nearer: too high. Measured on
         paper scenes: the look pose's heights within 0.3 mm while the approach's and
         servo's are 10-18 mm too high; a look-pose outline that takes in the wall, 20 mm
-        too high. So the face is expected at or above this bound, whatever the median
-        of the latest heights (:attr:`face_z`) says.
+        too high. So the face is expected at or above this bound, whatever height the
+        heights agree on (:attr:`face_z`).
         """
         return min(self._zs) if self._zs else 0.0
 
@@ -453,28 +510,41 @@ class TargetEstimator:
 
     def _add_pose(self, obs: Observation, cand: Candidate) -> None:
         r_wc, p_wc = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        height = None
         if cand.centre_cam is not None:
             # A monocular pose is known up to scale: put the face at this track's radius.
             scale = self.radius / cand.radius if self.radius and cand.radius > 0 else 1.0
-            self._zs.append(float((r_wc @ (cand.centre_cam * scale) + p_wc)[2]))
+            height = float((r_wc @ (cand.centre_cam * scale) + p_wc)[2])
+            self._zs.append(height)
         if not self.correct_centres or cand.ellipse is None or not self.radius:
             if cand.normal_cam is not None:  # exact normals (oracle): largest agreeing group
                 self._add_normal(r_wc @ cand.normal_cam)
             return
-        e = cand.ellipse
+        self._vote(obs.world_T_cam, cand, cand.ellipse, height)
+
+    def _vote(self, world_T_cam: FloatArray, cand: Candidate, e: Ellipse,
+              height: float | None) -> None:
+        """Add the view ``world_T_cam`` of fit ``e`` to the normal's vote
+        (:meth:`_add_normals`); ``height``: the detector's pose's face height (m), or None:
+        the fit's own at the track's radius."""
+        assert self.radius is not None
+        r_wc, p_wc = world_T_cam[:3, :3], world_T_cam[:3, 3]
         sight = r_wc @ np.linalg.solve(self.k.K, np.array([e.cx, e.cy, 1.0]))
-        sight /= float(np.linalg.norm(sight))
-        if any(float(sight @ s) > math.cos(math.radians(VOTE_SIGHT_DEG)) for s in self._sights):
-            return  # a line of sight already voted: it cannot tell the two solutions apart
         try:
-            sols = [np.asarray(sol.normal_cam) for sol in circle_poses(e, self.k, self.radius)]
+            poses = circle_poses(e, self.k, self.radius)
         except (ValueError, np.linalg.LinAlgError):
             return
-        self._sights.append(sight)
+        sols = [np.asarray(sol.normal_cam) for sol in poses]
+        if height is None:  # both solutions' heights, nearly one
+            height = float(np.mean([(r_wc @ np.asarray(sol.centre_cam) + p_wc)[2]
+                                    for sol in poses]))
         chosen = None
         if cand.normal_cam is not None:
             chosen = int(np.argmax([float(n @ cand.normal_cam) for n in sols]))
-        self._add_normals(np.array([r_wc @ n for n in sols]), chosen)
+        normals = np.array([r_wc @ n for n in sols])
+        self._add_normals(NormalView(
+            normals=normals / np.linalg.norm(normals, axis=1, keepdims=True), chosen=chosen,
+            height=height, sight=sight / float(np.linalg.norm(sight))))
 
     def _add_normal(self, n: FloatArray) -> None:
         self._normals.append(n / float(np.linalg.norm(n)))
@@ -484,26 +554,31 @@ class TargetEstimator:
         mean = normals[agree[best]].sum(axis=0)
         self._normal = mean / float(np.linalg.norm(mean))
 
-    def _add_normals(self, normals: FloatArray, chosen: int | None) -> None:
-        """Add one view's two world normal solutions, ``chosen`` the detector's pick among
-        them (or None); update the consensus :attr:`normal`.
+    def _add_normals(self, view: NormalView) -> None:
+        """Add one view's two world normal solutions; update the consensus :attr:`normal`.
 
         A face's pose from one view is two-fold ambiguous. The right normal is the same
         from every line of sight; the wrong one turns with it. So, over views from lines of
         sight at least VOTE_SIGHT_DEG apart, the normal is the solution the most views
         share (within NORMAL_AGREEMENT_DEG), ties going to the one the detector picked most
         often (its wall-colour test), then to the earliest; the mean of each view's nearest
-        agreeing solution.
+        agreeing solution. Only views whose height lies within
+        ``episode.normal_vote_height_tol`` of the face height (:attr:`face_z`) vote (when
+        none does, the one nearest it): a fit that reads the face too high takes in its side
+        wall, and its outline's shape, tilted by the wall, gives both normal solutions off
+        the face's. Of the views along one line of sight the first of them votes.
         """
-        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-        self._normal_views.append((normals, chosen))
+        self._normal_views.append(view)
+        voters = [(v.normals, v.chosen) for v in normal_voters(
+            self._normal_views, self.face_z, self._vote_height_tol)]
+        normals = view.normals
         cos_min = np.cos(np.radians(NORMAL_AGREEMENT_DEG))
         best_key: tuple[int, int] | None = None
         best_mean = normals[0]
-        for cand in np.concatenate([v for v, _ in self._normal_views]):
+        for cand in np.concatenate([v for v, _ in voters]):
             support = picked = 0
             total = np.zeros(3)
-            for views, pick in self._normal_views:
+            for views, pick in voters:
                 c = views @ cand
                 j = int(np.argmax(c))
                 if c[j] >= cos_min:

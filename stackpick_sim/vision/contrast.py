@@ -249,34 +249,21 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     inward.
     """
     current = ellipse
-    h, w = image.gx.shape
     reach = params.contrast_reach_px
     inward = params.contrast_inner_reach_px if innermost else reach
     offsets = np.arange(-inward, reach + 1, dtype=np.float64)
+    threshold = contrast_threshold(image)
     for _ in range(params.contrast_rounds):
         pts, normals = outline(current)
-        q = pts[:, None, :] + offsets[None, :, None] * normals[:, None, :]  # (n, k, 2)
-        u = np.clip(np.rint(q[..., 0]).astype(np.int64), 0, w - 1)
-        v = np.clip(np.rint(q[..., 1]).astype(np.int64), 0, h - 1)
-        g = image.gx[v, u] * normals[:, None, 0] + image.gy[v, u] * normals[:, None, 1]
-        k = WINDOW_SAMPLES
-        padded = np.concatenate([g[-(k // 2):], g, g[: k // 2]], axis=0)
-        kernel = np.ones(k) / k
-        smooth = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
-                           for j in range(offsets.size)], axis=1)
-        mag = np.abs(smooth) / SOBEL_GAIN
-        best = np.argmax(mag, axis=1)
-        if innermost:
-            # Local peaks (not below either neighbour across the outline) that pass.
-            padded_mag = np.pad(mag, ((0, 0), (1, 1)))
-            peak = ((mag >= padded_mag[:, :-2]) & (mag >= padded_mag[:, 2:])
-                    & (mag >= contrast_threshold(image)))
-            best = np.where(peak.any(axis=1), np.argmax(peak, axis=1), best)
-        strength = mag[np.arange(best.size), best]
-        ok = strength >= contrast_threshold(image)
-        if np.count_nonzero(ok) < params.contrast_min_share * ok.size:
+        # The offsets' gradients, their windowed means and each sample's pick, in one
+        # compiled pass (kernels.contrast_peaks: the same values as the array form).
+        found = kernels.contrast_peaks(
+            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+            np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+            image.gx, image.gy, offsets, WINDOW_SAMPLES, SOBEL_GAIN, threshold, innermost)
+        if found.shape[0] < params.contrast_min_share * pts.shape[0]:
             return None
-        fit = fit_ellipse(q[np.flatnonzero(ok), best[ok]])
+        fit = fit_ellipse(found)
         if fit is None:
             return None
         current = fit

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import EdgeParams
 from stackpick_sim.exceptions import ImageError
+from stackpick_sim.vision import kernels
 
 #: The default settings (see EdgeParams: the reasons for each).
 DEFAULT = EdgeParams()
@@ -213,16 +214,10 @@ def remove_stairs(edges: NDArray[np.uint8]) -> NDArray[np.uint8]:
     Zhang-Suen's two sub-iterations) delete exactly those corners, keeping connectivity.
     OpenCV's ``ximgproc.thinning`` leaves them in place and costs 10x more here.
     """
-    # 0/1: on uint8, a binary threshold at 0 is (x > 0) in one call.
-    b = (cast("NDArray[np.uint8]", cv2.threshold(edges, 0, 1, cv2.THRESH_BINARY)[1])
-         if edges.dtype == np.uint8 else (edges > 0).astype(np.uint8))
-    # Both passes in the same buffers (fresh ones cost page faults on these sizes).
-    codes, removable = np.empty_like(b), np.empty_like(b)
-    for lut in STAIR_LUTS:
-        cv2.LUT(neighbour_codes(b, codes), lut, removable)
-        # A saturating subtraction: a removable code off the edge pixels leaves 0 at 0.
-        cv2.subtract(b, removable, b)
-    return b
+    # Both passes over the edge pixels alone, in one compiled call (kernels.stairs_removed:
+    # the same pixels as the whole-image passes of neighbour_codes and the tables).
+    b = edges if edges.dtype == np.uint8 else (edges > 0).astype(np.uint8)
+    return kernels.stairs_removed(np.ascontiguousarray(b), *STAIR_LUTS)
 
 
 @dataclass(frozen=True, kw_only=True)

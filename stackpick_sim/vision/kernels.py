@@ -382,32 +382,35 @@ def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, 
 
 @_compiled
 def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
-                 active: NDArray[np.bool_], u: NDArray[np.float64], v: NDArray[np.float64],
-                 gu: NDArray[np.float64], gv: NDArray[np.float64], pixels: NDArray[np.float32],
-                 dist_sq: float, cos_sq: float
+                 active: NDArray[np.bool_], at: NDArray[np.int64], u: NDArray[np.float64],
+                 v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                 points: NDArray[np.float64], dist_sq: float, cos_sq: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
-    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test: their indices
-    (ascending), where each ellipse's run of them starts and ends ((E + 1,) bounds), and
-    their rows of the (K, 2) ``pixels`` (the fits' input); see
+    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
+    ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
+    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels'
+    rows of the (N, 2) ``points`` as float32 (the fits' input); see
     :func:`~stackpick_sim.vision.refine.refine_all`."""
     n_e = forms.shape[0]
-    sel = np.empty(u.shape[0], np.int64)
+    sel = np.empty(at.shape[0], np.int64)
     bounds = np.zeros(n_e + 1, np.int64)
     count = 0
     for e in range(n_e):
         if active[e]:
             cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
             for k in range(starts[e], starts[e + 1]):
-                if _along_one(cx, cy, fa, fh, fb, u[k], v[k], gu[k], gv[k], dist_sq, cos_sq):
+                m = at[k]
+                if _along_one(cx, cy, fa, fh, fb, u[m], v[m], gu[m], gv[m], dist_sq, cos_sq):
                     sel[count] = k
                     count += 1
         bounds[e + 1] = count
     out = np.empty((count, 2), np.float32)
     for j in range(count):
-        out[j, 0] = pixels[sel[j], 0]
-        out[j, 1] = pixels[sel[j], 1]
+        m = at[sel[j]]
+        out[j, 0] = np.float32(points[m, 0])
+        out[j, 1] = np.float32(points[m, 1])
     return sel[:count], bounds, out
 
 
@@ -834,6 +837,221 @@ def face_median(image: NDArray[np.uint8], cx: float, cy: float, sa: float, sb: f
 
 
 @_compiled
+def band_points(vectors: NDArray[np.float64], ct: NDArray[np.float64],
+                st: NDArray[np.float64], depths: NDArray[np.float64]
+                ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """(3, S, D x P) camera-frame points of the wall bands of S solutions, ``vectors`` (4, S,
+    3) their normals, centres and rim bases u, v: at depth d (of D) and rim point p (of P,
+    at (``ct[p]``, ``st[p]``)), centre + ct u + st v + depth normal, depth by depth; see
+    :func:`~stackpick_sim.vision.wall.solution_band_points` (the same arithmetic)."""
+    n_s, n_p, n_d = vectors.shape[1], ct.shape[0], depths.shape[0]
+    out = np.empty((3, n_s, n_d * n_p))
+    for c in range(3):
+        for s in range(n_s):
+            normal, centre = vectors[0, s, c], vectors[1, s, c]
+            u, v = vectors[2, s, c], vectors[3, s, c]
+            for p in range(n_p):
+                rim = (centre + ct[p] * u) + st[p] * v
+                for d in range(n_d):
+                    out[c, s, d * n_p + p] = rim + depths[d] * normal
+    return out
+
+
+@_compiled
+def _quadric(q: NDArray[np.float64], x0: float, x1: float, x2: float
+             ) -> float:  # pragma: no cover - compiled
+    """x^T Q x of the symmetric 3x3 form given by its entries ``q`` (Q00, Q01, Q02, Q11,
+    Q12, Q22), summed as :func:`~stackpick_sim.vision.pose.unit_circle_poses` does."""
+    return (q[0] * x0 * x0 + q[3] * x1 * x1 + q[5] * x2 * x2
+            + 2.0 * (q[1] * x0 * x1 + q[2] * x0 * x2 + q[4] * x1 * x2))
+
+
+@_compiled
+def _basis_first(n0: float, n1: float, n2: float
+                 ) -> tuple[float, float, float, bool]:  # pragma: no cover - compiled
+    """The first vector of :func:`~stackpick_sim.vision.wall.plane_basis` of the normal
+    (n0, n1, n2), in its arithmetic, and False where that divides by zero."""
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if norm == 0.0:
+        return 0.0, 0.0, 0.0, False
+    b0, b1, b2 = n0 / norm, n1 / norm, n2 / norm
+    if abs(b0) < 0.9:
+        u0, u1, u2 = 0.0, b2, -b1
+    else:
+        u0, u1, u2 = -b2, 0.0, b0
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    if un == 0.0:
+        return 0.0, 0.0, 0.0, False
+    return u0 / un, u1 / un, u2 / un, True
+
+
+@_compiled
+def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
+                     evecs: NDArray[np.float64], terms: NDArray[np.float64],
+                     camera: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.float64], bool]:  # pragma: no cover - compiled
+    """The two unit-radius circle poses of an ellipse from its cone ``q`` (the six entries
+    of K^T C K, as :func:`_quadric` reads them) and that form's ascending ``evals`` (3,) and
+    ``evecs`` (3, 3, eigenvectors in columns): (2, 2, 3) rows (normal, centre) per solution,
+    in the order and with the arithmetic of :func:`~stackpick_sim.vision.pose.
+    unit_circle_poses`. ``terms``: the ellipse's centre, the cosine and sine of its angle
+    and its squared axes (cx, cy, c, s, a^2, b^2); ``camera``: fx, fy, cx, cy. False (and
+    no poses) where that arithmetic divides by zero."""
+    out = np.zeros((2, 2, 3))
+    fx, fy, kcx, kcy = camera[0], camera[1], camera[2], camera[3]
+    form = q.copy()
+    if (evals[0] > 0) + (evals[1] > 0) + (evals[2] > 0) == 1:  # one positive: negate
+        for i in range(6):
+            form[i] = -q[i]
+        l3, l2, l1 = -evals[2], -evals[1], -evals[0]
+        j3, j1 = 2, 0
+    else:
+        l3, l2, l1 = evals[0], evals[1], evals[2]
+        j3, j1 = 0, 2
+    if l1 - l3 == 0.0:
+        return out, False
+    g = (l1 - l2) / (l1 - l3)
+    g = math.sqrt(g if g > 0.0 else 0.0)
+    h = (l2 - l3) / (l1 - l3)
+    h = math.sqrt(h if h > 0.0 else 0.0)
+    ex, ey, ct, st, a2, b2 = terms[0], terms[1], terms[2], terms[3], terms[4], terms[5]
+    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
+    for k in range(2):
+        sign = 1.0 if k == 0 else -1.0
+        n0 = sign * g * evecs[0, j1] + h * evecs[0, j3]
+        n1 = sign * g * evecs[1, j1] + h * evecs[1, j3]
+        n2 = sign * g * evecs[2, j1] + h * evecs[2, j3]
+        if not n2 > 0:
+            n0, n1, n2 = -n0, -n1, -n2
+        m0, m1 = n0 / fx, n1 / fy
+        m2 = -kcx / fx * n0 - kcy / fy * n1 + n2
+        cm = ex * m0 + ey * m1
+        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
+        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
+        p2 = -cm - m2
+        if p2 == 0.0:
+            return out, False
+        r0, r1 = (p0 / p2 - kcx) / fx, (p1 / p2 - kcy) / fy
+        along = n0 * r0 + n1 * r1 + n2
+        if along == 0.0:
+            return out, False
+        x0, x1, x2 = r0 / along, r1 / along, 1.0 / along
+        u0, u1, u2, ok = _basis_first(n0, n1, n2)
+        across = _quadric(form, u0, u1, u2)
+        if not ok or across == 0.0:
+            return out, False
+        s2 = -_quadric(form, x0, x1, x2) / across
+        scale = 1.0 / math.sqrt(1e-300 if 1e-300 > s2 else s2)
+        out[k, 0, 0], out[k, 0, 1], out[k, 0, 2] = n0, n1, n2
+        out[k, 1, 0], out[k, 1, 1], out[k, 1, 2] = x0 * scale, x1 * scale, x2 * scale
+    return out, True
+
+
+@_compiled
+def _stair_pass(padded: NDArray[np.uint8], at: NDArray[np.int64], n: int,
+                lut: NDArray[np.uint8], gone: NDArray[np.int64]) -> int:  # pragma: no cover
+    """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat
+    indices, ascending) of the 0/1 map ``padded`` (a zero border of one pixel round the
+    image): every pixel's 8-neighbour code (bit j: ring neighbour j clockwise from
+    north-west) read before any is cleared, then those whose ``lut`` entry is 1 cleared;
+    returns how many edge pixels are left, compacted at the front of ``at`` (``gone``:
+    scratch of at least ``n``)."""
+    w = padded.shape[1]
+    flat = padded.ravel()
+    removed = 0
+    for k in range(n):
+        i = at[k]
+        code = (flat[i - w - 1] | flat[i - w] << 1 | flat[i - w + 1] << 2 | flat[i + 1] << 3
+                | flat[i + w + 1] << 4 | flat[i + w] << 5 | flat[i + w - 1] << 6
+                | flat[i - 1] << 7)
+        gone[removed] = k  # branch-free, as the appends of stairs_removed
+        removed += lut[code]
+    for j in range(removed):
+        flat[at[gone[j]]] = 0
+    kept = 0
+    for k in range(n):
+        at[kept] = at[k]
+        kept += flat[at[k]]
+    return kept
+
+
+@_compiled
+def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                   second: NDArray[np.uint8]) -> NDArray[np.uint8]:  # pragma: no cover
+    """The 0/1 map of the nonzero pixels of ``edges`` (H, W) less the stair corners of two
+    table-driven passes (``first``, then ``second``: 256-entry tables of the removable
+    8-neighbour codes, bit i the ring neighbour i clockwise from north-west, off the image
+    0), each pass reading every code before it clears any; see
+    :func:`~stackpick_sim.vision.edges.remove_stairs` (the same pixels)."""
+    h, w = edges.shape
+    padded = np.zeros((h + 2, w + 2), np.uint8)
+    n = 0
+    for r in range(h):
+        for c in range(w):
+            on = int(edges[r, c] != 0)
+            padded[r + 1, c + 1] = on
+            n += on
+    # Branch-free appends (on dense edge maps branches would mispredict): one spare slot.
+    at = np.empty(n + 1, np.int64)
+    flat = padded.ravel()
+    k = 0
+    for i in range(w + 3, (h + 1) * (w + 2) - 1):
+        at[k] = i
+        k += flat[i]
+    gone = np.empty(n, np.int64)
+    n = _stair_pass(padded, at, n, first, gone)
+    _stair_pass(padded, at, n, second, gone)
+    return np.ascontiguousarray(padded[1:-1, 1:-1])
+
+
+@_compiled
+def edge_pixels(edges: NDArray[np.uint8], gx: NDArray[np.int16], gy: NDArray[np.int16]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """The nonzero pixels of ``edges`` (H, W) in row-major order as (2, M) rows u, v and
+    their unit gradients (gx, gy) / max(hypot, 1e-9) as (2, M) rows; see
+    :func:`~stackpick_sim.vision.refine.edge_points` (the same values)."""
+    h, w = edges.shape
+    src = edges.ravel()
+    fx, fy = gx.ravel(), gy.ravel()
+    n = 0
+    for i in range(h * w):
+        if src[i]:
+            n += 1
+    pts, g = np.empty((2, n)), np.empty((2, n))
+    k = 0
+    for i in range(h * w):
+        if src[i]:
+            pts[0, k], pts[1, k] = i % w, i // w
+            x, y = np.float64(fx[i]), np.float64(fy[i])
+            norm = max(np.hypot(x, y), 1e-9)
+            g[0, k], g[1, k] = x / norm, y / norm
+            k += 1
+    return pts, g
+
+
+@_compiled
+def row_keys(u: NDArray[np.float64], v: NDArray[np.float64]
+             ) -> tuple[NDArray[np.float64], int, bool]:  # pragma: no cover - compiled
+    """Row-major keys v W + u of pixels (u, v) (integer values >= 0, (N,) columns) for W two
+    past the largest u (0 without pixels), W, and whether the keys ascend; see
+    :func:`~stackpick_sim.vision.occlusion._row_major` (the same values)."""
+    n = u.shape[0]
+    top = 0.0
+    for i in range(n):
+        if u[i] > top:
+            top = u[i]
+    width = int(top) + 2
+    scale = float(width)
+    keys = np.empty(n)
+    ascending = True
+    for i in range(n):
+        keys[i] = v[i] * scale + u[i]
+        if i > 0 and not keys[i] >= keys[i - 1]:
+            ascending = False
+    return keys, width, ascending
+
+
+@_compiled
 def project_outside(band: NDArray[np.float64], terms: NDArray[np.float64], fx: float,
                     fy: float, kcx: float, kcy: float, margin_px: float
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -900,6 +1118,66 @@ def junction_cuts(pixels: NDArray[np.int32], starts: NDArray[np.int64],
     return cut
 
 
+@_compiled
+def _contrast_pick(mag: NDArray[np.float64], threshold: float, innermost: bool
+                   ) -> int:  # pragma: no cover - compiled
+    """:func:`contrast_peaks`' pick among one sample's offsets ``mag``: the strongest (the
+    first of equals), or with ``innermost`` the first local peak (not below either
+    neighbour, 0 beyond the ends) reaching ``threshold`` when there is one."""
+    k = mag.shape[0]
+    best = 0
+    for j in range(1, k):
+        if mag[j] > mag[best]:
+            best = j
+    if innermost:
+        for j in range(k):
+            left = mag[j - 1] if j > 0 else 0.0
+            right = mag[j + 1] if j + 1 < k else 0.0
+            if mag[j] >= left and mag[j] >= right and mag[j] >= threshold:
+                return j
+    return best
+
+
+@_compiled
+def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray[np.float64],
+                   nv: NDArray[np.float64], gx: NDArray[np.int16], gy: NDArray[np.int16],
+                   offsets: NDArray[np.float64], window: int, gain: float, threshold: float,
+                   innermost: bool) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The contrast refit's points: at each outline sample (pu, pv) with unit normal (nu, nv),
+    the signed normal gradient read at the pixel nearest each of the ``offsets`` along the
+    normal (clamped into the image), its mean over the ``window`` (odd) samples centred on the
+    sample (wrapping round the outline; summed in order, as ``np.convolve``), as an absolute
+    value over ``gain``; the offset of the strongest (the first of equals), or with
+    ``innermost`` of the first local peak reaching ``threshold`` when there is one. Returns
+    the (K, 2) positions of the samples whose chosen offset reaches ``threshold``, in sample
+    order; see :func:`~stackpick_sim.vision.contrast.refit_on_contrast`."""
+    h, w = gx.shape
+    n, k = pu.shape[0], offsets.shape[0]
+    g = np.empty((n, k))
+    for i in range(n):
+        for j in range(k):
+            u = min(max(np.int64(np.rint(pu[i] + offsets[j] * nu[i])), 0), w - 1)
+            v = min(max(np.int64(np.rint(pv[i] + offsets[j] * nv[i])), 0), h - 1)
+            g[i, j] = gx[v, u] * nu[i] + gy[v, u] * nv[i]
+    weight = 1.0 / window
+    half = window // 2
+    mag = np.empty(k)
+    out = np.empty((n, 2))
+    count = 0
+    for i in range(n):
+        for j in range(k):
+            total = 0.0
+            for t in range(window):
+                total += g[(i + t - half) % n, j] * weight
+            mag[j] = abs(total) / gain
+        best = _contrast_pick(mag, threshold, innermost)
+        if mag[best] >= threshold:
+            out[count, 0] = pu[i] + offsets[best] * nu[i]
+            out[count, 1] = pv[i] + offsets[best] * nv[i]
+            count += 1
+    return out[:count]
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -923,14 +1201,23 @@ def warm_up() -> None:
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)
-    along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_), col,
-                 col, col, col, np.zeros((1, 2), np.float32), 1.0, 1.0)
+    along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
+                 np.zeros(1, np.int64), col, col, col, col, np.zeros((1, 2)), 1.0, 1.0)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
+    contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
+    fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
+    fixed.setflags(write=False)
+    band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
+    circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6), np.ones(4))
+    table = np.zeros(256, np.uint8)
+    stairs_removed(np.zeros((4, 4), np.uint8), table, table)
+    edge_pixels(np.zeros((4, 4), np.uint8), img, img)
+    row_keys(col, col)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)

@@ -55,9 +55,23 @@ lid's artwork edges; both show whole with markings, and only the two outlines' r
 each other tell which lies on which (the paper's rule of the occluding contour running
 through).
 
-The tests read only ellipses, their evidence, the faces' colours and, for crossing faces, the
-edge contrast along their outlines (a few hundred pixels each): no image pass (cheap). Their
-settings: :class:`~stackpick_sim.config.vision_params.MarkingParams`.
+A roll's ring face (a tape roll round its core) fails on its hole's outline, too few interior
+edges for ``min_edge_share``; a whole face whose interior edges nearly all lie in a small
+concentric ellipse is judged the same way (:mod:`~stackpick_sim.vision.rings`), the hole's
+fit being its marking.
+
+A face judged so is a candidate only if its rim band is its own surface: off the band's
+median colour (another hue, or another brightness) along at most ``max_off_rim_share`` of it
+(:func:`off_rim_share`). Failure classes: *a lower face whose outline the top object's
+outline completes* (a lower lid's fit runs on along the upper lid's outline where its own is
+hidden, shows whole, and the upper lid, fitted only in part, lies across its rim band) and *a
+fit round a face and its wall* with no whole inner face to read it by (it runs over the
+wall's darker band or the belt).
+
+The tests read only ellipses, their evidence, the faces' colours, for crossing faces the
+edge contrast along their outlines (a few hundred pixels each) and, for ring faces, the edge
+pixels inside them: no image pass (cheap). Their settings:
+:class:`~stackpick_sim.config.vision_params.MarkingParams`.
 """
 
 from __future__ import annotations
@@ -75,6 +89,7 @@ from stackpick_sim.config.vision_params import MarkingParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.rings import hole_only
 from stackpick_sim.vision.wall import column_median
 
 if TYPE_CHECKING:  # the top rule (occlusion) calls this module
@@ -105,7 +120,8 @@ class MarkingTest:
     ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
     (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
     the test of a whole face crossing another (:func:`_crosses_over`; None: no such test);
-    ``params``: those two tests' settings."""
+    ``params``: those tests' settings and those of the ring and rim band tests
+    (:func:`ring_round_hole`, :func:`off_rim_share`)."""
 
     radii: tuple[float, ...]
     rim_radius_of: Callable[[Ellipse], float | None] | None
@@ -139,22 +155,41 @@ def whole_with_edges_inside(ev: OcclusionEvidence) -> bool:
 
 
 def find_markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
-                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None
-                  ) -> Markings:
+                  test: MarkingTest, radius_of: Callable[[Ellipse], float | None] | None,
+                  edge_points: NDArray[np.float64] | None = None) -> Markings:
     """The markings and marked faces among ``ellipses`` (see the module docstring), given
     their top-rule ``evidence``, the ``test``'s settings and, when known, each ellipse's radius
-    by its colour (``radius_of``)."""
+    by its colour (``radius_of``). With the edge map's pixels ``edge_points`` ((M, 2) u, v),
+    ring faces round their hole are judged too (:func:`ring_round_hole`)."""
     markings: set[int] = set()
     marked: set[int] = set()
     for f, ev in enumerate(evidence):
-        if (whole_with_edges_inside(ev)
-                and ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px):
+        if whole_with_edges_inside(ev) and (
+                ev.interior_edge_px >= test.min_edge_share * ev.perimeter_px
+                or ring_round_hole(ellipses[f], test, edge_points)):
             own, loose, blocked = _judge(f, ellipses, evidence, test, radius_of)
             markings.update(own)
-            if not blocked:
+            if not blocked and not _rim_of_two_surfaces(ellipses[f], test):
                 marked.add(f)
                 markings.update(loose)
     return Markings(markings=frozenset(markings), marked=frozenset(marked - markings))
+
+
+def ring_round_hole(face: Ellipse, test: MarkingTest,
+                    edge_points: NDArray[np.float64] | None) -> bool:
+    """Whether ``face``'s interior edges (among ``edge_points``; False without them) are a
+    hole's: at least ``ring_hole_share`` of them inside its concentric ellipse at
+    ``ring_hole_scale`` of its semi-axes (``test.params``), or at the smallest kind's radius
+    over the face's (read from its rim band's colour, else the largest radius) if that is
+    less: an object lying on the face reads nearer, so no smaller (:func:`~stackpick_sim.
+    vision.rings.hole_only`)."""
+    if edge_points is None:
+        return False
+    rim = None if test.rim_radius_of is None else test.rim_radius_of(face)
+    scale = min(test.params.ring_hole_scale,
+                min(test.radii) / (max(test.radii) if rim is None else rim))
+    return _kept(test, ("ring", face), lambda: hole_only(
+        face, edge_points, test.margin_px, scale, test.params.ring_hole_share))
 
 
 def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
@@ -216,6 +251,38 @@ def _round_another_surface(face: Ellipse, inner: Ellipse, evidence: OcclusionEvi
     image = test.image
     return _kept(test, ("two_surfaces", face, inner),
                  lambda: two_surfaces(face, inner, image, test.margin_px, test.params))
+
+
+def _rim_of_two_surfaces(face: Ellipse, test: MarkingTest) -> bool:
+    """Whether more than ``max_off_rim_share`` (``test.params``) of ``face``'s rim band
+    (:func:`rim_band`) is off its median colour (:func:`off_rim_share`; False without the
+    ``image``): the face's fit runs round another surface, or another object lies across
+    its rim."""
+    if test.image is None:
+        return False
+    image = test.image
+    return _kept(test, ("off_rim", face), lambda: (off_rim_share(face, image, test.params)
+                                                   > test.params.max_off_rim_share))
+
+
+def off_rim_share(face: Ellipse, image: NDArray[np.uint8],
+                  params: MarkingParams = DEFAULT) -> float:
+    """Share [0, 1] of ``face``'s rim band samples (:func:`rim_band`) in the (H, W, 3) RGB
+    ``image`` whose colour is off the band's median colour: chromaticity farther than
+    ``params.surface_chroma_tolerance`` (L1) from it, or brightness (channel sum) outside
+    ``params.surface_brightness_range`` of it."""
+    h, w = image.shape[:2]
+    pix = np.rint(rim_band(face)).astype(np.int64)
+    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
+    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
+    sums = np.maximum(colours.sum(axis=1), 1e-9)
+    median = column_median(colours)
+    median_sum = max(float(median.sum()), 1e-9)
+    chroma = np.abs(colours / sums[:, None] - median / median_sum).sum(axis=1)
+    lo, hi = params.surface_brightness_range
+    ratio = sums / median_sum
+    off = (chroma > params.surface_chroma_tolerance) | (ratio < lo) | (ratio > hi)
+    return float(np.count_nonzero(off)) / len(off)
 
 
 def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool]) -> bool:

@@ -245,9 +245,12 @@ def _row_major(edge_points: NDArray[np.float64]
     """The edge pixels (M, 2) (integer u, v >= 0) in row-major order (sorted only when they
     are not: np.nonzero's order already is), their ascending keys v W + u, and W (past the
     largest u), as :func:`_interior_counts` takes them."""
-    width = int(edge_points[:, 0].max(initial=0.0)) + 2
-    keys = edge_points[:, 1] * width + edge_points[:, 0]
-    if keys.size > 1 and not bool(np.all(keys[1:] >= keys[:-1])):
+    # The width, the keys and their order in one compiled pass (kernels.row_keys: the same
+    # values as the array form).
+    keys, width, ascending = kernels.row_keys(
+        np.ascontiguousarray(edge_points[:, 0], np.float64),
+        np.ascontiguousarray(edge_points[:, 1], np.float64))
+    if not ascending:
         order = np.argsort(keys, kind="stable")
         edge_points, keys = edge_points[order], keys[order]
     return edge_points, keys, width
@@ -476,7 +479,7 @@ def _markings(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence]
     across it."""
     if test is None:
         return frozenset(), frozenset()
-    found = find_markings(ellipses, evidence, test, radius_of)
+    found = find_markings(ellipses, evidence, test, radius_of, edge_points)
     order = sorted(found.marked)
     if not order:
         return found.markings, found.marked

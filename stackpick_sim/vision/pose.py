@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import PoseParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidences
 
 #: The default settings (see PoseParams: the reasons for each).
@@ -101,8 +102,9 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                       ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
-    # Three-vectors and 3x3 forms on Python floats (numpy's matmul, inv and array
-    # construction cost more than the arithmetic on this size); numpy for the eigenvectors.
+    # The cone's form on Python floats (numpy's matmul and array construction cost more
+    # than the arithmetic on this size), numpy for the eigenvectors, then both solutions in
+    # one compiled pass (kernels.circle_solutions: the same arithmetic on floats).
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
     # q = K^T C K for K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] and the conic C (symmetric).
     (m00, m01, d0), (m11, d1, f) = _conic_terms(ellipse)
@@ -111,54 +113,19 @@ def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
     q11, q12 = fy * fy * m11, fy * r1
     q22 = cx * r0 + cy * r1 + (d0 * cx + d1 * cy + f)
     evals, evecs = _eigh([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-    l_lo, l_mid, l_hi = evals
-    (v00, _, v02), (v10, _, v12), (v20, _, v22) = evecs
-    if (l_lo > 0) + (l_mid > 0) + (l_hi > 0) == 1:  # one positive: negate the form
-        q00, q01, q02, q11, q12, q22 = -q00, -q01, -q02, -q11, -q12, -q22
-        l3, l2, l1 = -l_hi, -l_mid, -l_lo
-        e3, e1 = [v02, v12, v22], [v00, v10, v20]
-    else:
-        l3, l2, l1 = l_lo, l_mid, l_hi
-        e3, e1 = [v00, v10, v20], [v02, v12, v22]
-    # Now l3 < 0 < l2 <= l1.
-    g = math.sqrt(max(0.0, (l1 - l2) / (l1 - l3)))
-    h = math.sqrt(max(0.0, (l2 - l3) / (l1 - l3)))
-
-    def form(x: tuple[float, float, float]) -> float:
-        """x^T q x."""
-        return (q00 * x[0] * x[0] + q11 * x[1] * x[1] + q22 * x[2] * x[2]
-                + 2.0 * (q01 * x[0] * x[1] + q02 * x[0] * x[2] + q12 * x[1] * x[2]))
-
     # The conic's inverse, written out: for C = [[M, -M c], [-c^T M, c^T M c - 1]] (c the
-    # ellipse centre), C^-1 = [[M^-1 - c c^T, -c], [-c^T, -1]], M^-1 = R diag(a^2, b^2) R^T.
+    # ellipse centre), C^-1 = [[M^-1 - c c^T, -c], [-c^T, -1]], M^-1 = R diag(a^2, b^2) R^T:
+    # the kernel takes the centre, the angle's cosine and sine and the squared axes.
     t = math.radians(ellipse.angle_deg)
-    ct, st = math.cos(t), math.sin(t)
-    a2, b2 = ellipse.a ** 2, ellipse.b ** 2
-    w00, w01, w11 = ct * ct * a2 + st * st * b2, ct * st * (a2 - b2), st * st * a2 + ct * ct * b2
-    ex, ey = ellipse.cx, ellipse.cy
-    out = []
-    for sign in (1.0, -1.0):
-        n = [sign * g * e1[i] + h * e3[i] for i in range(3)]
-        n = n if n[2] > 0 else [-n[0], -n[1], -n[2]]
-        # The pole of the plane's vanishing line, C^-1 K^-T n.
-        m0, m1 = n[0] / fx, n[1] / fy
-        m2 = -cx / fx * n[0] - cy / fy * n[1] + n[2]
-        cm = ex * m0 + ey * m1
-        p0 = w00 * m0 + w01 * m1 - ex * cm - ex * m2
-        p1 = w01 * m0 + w11 * m1 - ey * cm - ey * m2
-        p2 = -cm - m2
-        ray = ((p0 / p2 - cx) / fx, (p1 / p2 - cy) / fy, 1.0)
-        along = n[0] * ray[0] + n[1] * ray[1] + n[2]
-        x0 = (ray[0] / along, ray[1] / along, 1.0 / along)  # centre on the plane n . X = 1
-        u0, u1, u2 = _basis_u(n[0], n[1], n[2])
-        s2 = -form(x0) / form((u0, u1, u2))
-        scale = 1.0 / math.sqrt(max(s2, 1e-300))
-        normal = np.array(n)
-        centre = np.array([x0[0] * scale, x0[1] * scale, x0[2] * scale])
-        normal.setflags(write=False)
-        centre.setflags(write=False)
-        out.append(CirclePose(normal_cam=normal, centre_cam=centre))
-    return out[0], out[1]
+    solutions, ok = kernels.circle_solutions(
+        np.array([q00, q01, q02, q11, q12, q22]), evals, evecs,
+        np.array([ellipse.cx, ellipse.cy, math.cos(t), math.sin(t), ellipse.a ** 2,
+                  ellipse.b ** 2]), np.array([fx, fy, cx, cy]))
+    if not ok:
+        raise ZeroDivisionError("float division by zero")
+    solutions.setflags(write=False)
+    return (CirclePose(normal_cam=solutions[0, 0], centre_cam=solutions[0, 1]),
+            CirclePose(normal_cam=solutions[1, 0], centre_cam=solutions[1, 1]))
 
 
 #: numpy's own eigh kernel (the gufunc np.linalg.eigh calls; None where numpy keeps it
@@ -169,17 +136,17 @@ _EIGH_LO = getattr(getattr(np.linalg, "_umath_linalg", None), "eigh_lo", None)
 _EIGH_DIRECT_MAX = 1e100
 
 
-def _eigh(rows: list[list[float]]) -> tuple[list[float], list[list[float]]]:
-    """``np.linalg.eigh`` of the symmetric 3x3 matrix ``rows`` (the same values), as lists:
-    its kernel called directly on moderate finite entries (no floating-point warning can
-    arise there), ``np.linalg.eigh`` otherwise and wherever the result is not finite."""
+def _eigh(rows: list[list[float]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``np.linalg.eigh`` of the symmetric 3x3 matrix ``rows`` (the same values): its kernel
+    called directly on moderate finite entries (no floating-point warning can arise there),
+    ``np.linalg.eigh`` otherwise and wherever the result is not finite."""
     if _EIGH_LO is not None and all(abs(x) <= _EIGH_DIRECT_MAX for row in rows for x in row):
         w, v = _EIGH_LO(np.array(rows), signature="d->dd")
-        evals, evecs = w.tolist(), v.tolist()
-        if all(map(math.isfinite, evals)) and all(math.isfinite(x) for r in evecs for x in r):
-            return evals, evecs
+        # Entries within 1e100: a finite sum is finite entries.
+        if math.isfinite(float(w.sum()) + float(v.sum())):
+            return w, v
     w, v = np.linalg.eigh(np.array(rows))
-    return w.tolist(), v.tolist()
+    return w, v
 
 
 def _conic_terms(ellipse: Ellipse) -> tuple[tuple[float, float, float],
@@ -194,16 +161,6 @@ def _conic_terms(ellipse: Ellipse) -> tuple[tuple[float, float, float],
     d1 = -(m01 * ellipse.cx + m11 * ellipse.cy)
     f = -(d0 * ellipse.cx + d1 * ellipse.cy) - 1.0
     return (m00, m01, d0), (m11, d1, f)
-
-
-def _basis_u(n0: float, n1: float, n2: float) -> tuple[float, float, float]:
-    """The first vector of :func:`~stackpick_sim.vision.wall.plane_basis` of the normal
-    (n0, n1, n2), as floats (the same arithmetic, without the arrays)."""
-    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
-    u0, u1, u2 = (0.0, n2, -n1) if abs(n0) < 0.9 else (-n2, 0.0, n0)
-    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    return u0 / un, u1 / un, u2 / un
 
 
 def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,

@@ -113,20 +113,10 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(M, 2) edge pixels (u, v) in row-major order and their (M, 2) unit gradient
     directions (each with contiguous columns)."""
-    edges = np.asarray(image.edges)
-    w = edges.shape[1]
-    # flatnonzero of a bool map: np.nonzero's row-major order at a fifth of findNonZero's
-    # cost.
-    at = np.flatnonzero(edges.view(np.bool_))  # 0/1 bytes are valid bools
-    pts = np.empty((2, at.shape[0]))
-    np.floor_divide(at, w, out=pts[1], casting="unsafe")
-    np.remainder(at, w, out=pts[0], casting="unsafe")
-    gx = image.gx.ravel()[at].astype(np.float64)
-    gy = image.gy.ravel()[at].astype(np.float64)
-    norm = np.maximum(np.hypot(gx, gy), 1e-9)
-    g = np.empty((2, at.shape[0]))
-    np.divide(gx, norm, out=g[0])
-    np.divide(gy, norm, out=g[1])
+    # One compiled pass over the edge map (kernels.edge_pixels: np.flatnonzero's order and
+    # the same unit gradients as the array form).
+    pts, g = kernels.edge_pixels(np.ascontiguousarray(image.edges, np.uint8), image.gx,
+                                 image.gy)
     return pts.T, g.T
 
 
@@ -217,23 +207,27 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     n = len(current)
     a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
     reach = a + params.tolerances_px[0] + 1
-    pu, pv = points[:, 0], points[:, 1]
-    pe, pm = kernels.box_pairs(np.ascontiguousarray(pu), np.ascontiguousarray(pv), cx, cy,
-                               reach)
+    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv).
+    u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+    gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
+    pe, pm = kernels.box_pairs(u, v, cx, cy, reach)
     # The pairs run ellipse by ellipse: per ellipse, a range of them.
     starts = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
-    # Pair columns, contiguous: pixel (u, v) and unit gradient (gu, gv).
-    u, v, gu, gv = pu[pm], pv[pm], grads[:, 0][pm], grads[:, 1][pm]
-    # The fits' input, built once: pixel coordinates are exact in float32.
-    pair_points = points[pm].astype(np.float32)
+    pixels_in = np.ascontiguousarray(points, np.float64)
     active = np.ones(n, np.bool_)
     previous: dict[int, bytes] = {}
+    # Each fit's quadratic form, a row rewritten before the round after its refit.
+    forms = np.array([_form(e) for e in current], np.float64)
+    refitted: list[int] = []
     for tol in params.tolerances_px:
+        for e in refitted:
+            forms[e] = _form(current[e])
+        refitted = []
         # The pairs along each active fit, and their pixels, in one compiled pass.
-        forms = np.array([_form(e) for e in current], np.float64)
-        sel, at, pixels = kernels.along_select(forms, starts, active, u, v, gu, gv,
-                                               pair_points, 4.0 * tol * tol,
+        # (Pixel coordinates are exact in float32, the fits' input.)
+        sel, at, pixels = kernels.along_select(forms, starts, active, pm, u, v, gu, gv,
+                                               pixels_in, 4.0 * tol * tol,
                                                params.min_normal_cos * params.min_normal_cos)
         bounds = at.tolist()
         for e in active.nonzero()[0].tolist():
@@ -247,6 +241,7 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
                 active[e] = False
                 continue
             current[e] = fit
+            refitted.append(e)
         if not active.any():
             break
     return current

@@ -25,6 +25,7 @@ unit-radius solutions are used throughout.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -157,18 +158,23 @@ def solution_band_points(solutions: Sequence[tuple[NDArray[np.float64], NDArray[
     (normal_cam (3,), centre_cam (3,)): P = len(depths) x WALL_RIM_POINTS, depth by depth,
     the rim at each depth (in face radii) along the normal."""
     bases = [_basis(n) for n, _ in solutions]
-    # (3, solutions) each: normal, centre, u, v.
-    normal, centre, u, v = np.array(
+    # (solutions, 3) each: normal, centre, u, v.
+    vectors = np.array(
         [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
          [np.asarray(c, np.float64).tolist() for _, c in solutions],
-         [b[0] for b in bases], [b[1] for b in bases]], np.float64).transpose(0, 2, 1)
+         [b[0] for b in bases], [b[1] for b in bases]], np.float64).reshape(4, -1, 3)
     ct, st = unit_circle(WALL_RIM_POINTS)
-    rim = centre[:, :, None] + ct * u[:, :, None]
-    rim += st * v[:, :, None]
-    # (3, solutions, depths, rim points).
-    band = rim[:, :, None, :] + (np.asarray(depths, np.float64).reshape(1, 1, -1, 1)
-                                 * normal[:, :, None, None])
-    return band.reshape(3, len(solutions), -1)
+    # The rims at each depth in one compiled pass (kernels.band_points: the same arithmetic
+    # as the array form centre + ct u + st v + depth normal).
+    return kernels.band_points(vectors, ct, st, _depths(depths))
+
+
+@functools.lru_cache(maxsize=16)
+def _depths(depths: tuple[float, ...]) -> NDArray[np.float64]:
+    """``depths`` as a float64 array (cached: a few tuples, asked for many times a frame)."""
+    out = np.asarray(depths, np.float64)
+    out.setflags(write=False)
+    return out
 
 
 def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],
