@@ -737,3 +737,21 @@ def test_row_keys_match_the_array_form(rng: np.random.Generator) -> None:
         assert np.array_equal(keys, want) and got_width == width
         assert ascending == bool(np.all(want[1:] >= want[:-1]))
     assert kernels.row_keys(np.zeros(0), np.zeros(0))[1:] == (2, True)
+
+
+def test_outline_columns_match_the_array_form(rng: np.random.Generator) -> None:
+    for n in (16, 101, 640):
+        t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+        ct, st = np.cos(t), np.sin(t)
+        cx, cy, a, b, th = rng.uniform(0, 320), rng.uniform(0, 240), 60.0, 4.5, 1.234
+        c, s = math.cos(th), math.sin(th)
+        x, y = a * ct, b * st
+        pu, pv = cx + c * x, cy + s * x
+        pu -= s * y
+        pv += c * y
+        nx, ny = b * ct, a * st
+        norm = np.hypot(nx, ny)
+        nx, ny = nx / norm, ny / norm
+        got = kernels.outline_columns(cx, cy, a, b, c, s, ct, st)
+        for column, want in zip(got, (pu, pv, c * nx - s * ny, s * nx + c * ny), strict=True):
+            np.testing.assert_array_equal(column, want)

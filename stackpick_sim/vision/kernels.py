@@ -1178,6 +1178,31 @@ def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray
     return out[:count]
 
 
+@_compiled
+def outline_columns(cx: float, cy: float, a: float, b: float, c: float, s: float,
+                    ct: NDArray[np.float64], st: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                               NDArray[np.float64]]:  # pragma: no cover - compiled
+    """The points (u, v) and unit outward normals (nu, nv), (n,) each, of the ellipse of
+    centre (cx, cy), semi-axes a, b and angle cosine c, sine s at the unit-circle samples
+    (ct, st): ``u = (cx + c a ct) - s b st``, ``v = (cy + s a ct) + c b st``, the normal
+    the gradient (b ct, a st) over its ``hypot``, turned by the angle."""
+    n = ct.shape[0]
+    pu, pv = np.empty(n), np.empty(n)
+    nu, nv = np.empty(n), np.empty(n)
+    for i in range(n):
+        x, y = a * ct[i], b * st[i]
+        pu[i] = (cx + c * x) - s * y
+        pv[i] = (cy + s * x) + c * y
+        gx, gy = b * ct[i], a * st[i]
+        norm = math.hypot(gx, gy)
+        gx /= norm
+        gy /= norm
+        nu[i] = c * gx - s * gy
+        nv[i] = s * gx + c * gy
+    return pu, pv, nu, nv
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1218,6 +1243,7 @@ def warm_up() -> None:
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)
+    outline_columns(0.0, 0.0, 1.0, 1.0, 1.0, 0.0, fixed, fixed)
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)

@@ -296,19 +296,7 @@ def _outline_columns(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.
     four (n,) columns: points u, v and unit outward normals nu, nv."""
     n = max(16, math.ceil(perimeter_px(ellipse)))
     th = math.radians(ellipse.angle_deg)
-    c, s = math.cos(th), math.sin(th)
     ct, st = unit_circle(n)
-    x, y = ellipse.a * ct, ellipse.b * st
-    pu = ellipse.cx + c * x
-    pu -= s * y
-    pv = ellipse.cy + s * x
-    pv += c * y
-    nx, ny = ellipse.b * ct, ellipse.a * st  # gradient of the implicit form, scaled by a*b
-    norm = np.hypot(nx, ny)
-    nx /= norm
-    ny /= norm
-    nu = c * nx
-    nu -= s * ny
-    nv = s * nx
-    nv += c * ny
-    return pu, pv, nu, nv
+    # One compiled pass (kernels.outline_columns: the same arithmetic as the array form).
+    return kernels.outline_columns(ellipse.cx, ellipse.cy, ellipse.a, ellipse.b,
+                                   math.cos(th), math.sin(th), ct, st)
