@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from two_faces import FACES, SHAPE, K, two_face_image
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.vision_params import OutlineTrackingParams
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, project_circle
+from stackpick_sim.geometry import Ellipse, normal_from_tilt, project_circle
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.markings import two_surfaces
 from stackpick_sim.vision.moving_edges import track_outline
@@ -31,16 +32,10 @@ from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import band_points, wall_evidence
 from stackpick_sim.vision.wall_cover import covered_share, under_another
 
-SHAPE = (240, 320)
-K = CameraIntrinsics.from_fovy(45.0, 320, 240)
-#: A lower face (semi-minor axis 34 px) partly under a top face (38 px, drawn last).
-FACES = [Ellipse(cx=200, cy=110, a=40, b=34, angle_deg=-10),
-         Ellipse(cx=150, cy=120, a=45, b=38, angle_deg=20)]
-
 
 @pytest.fixture(scope="module")
 def image() -> np.ndarray:
-    return draw_ellipses(SHAPE, FACES, noise_sigma=1.5, rng=np.random.default_rng(4))
+    return two_face_image()
 
 
 def test_rule_settings_reach_the_detector_from_a_scene_file(tmp_path: Path) -> None:

@@ -8,13 +8,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from two_faces import SHAPE, K, two_face_image
 
 from stackpick_sim.cli import detect_cmd
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.vision_params import SKIPPABLE_STAGES
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.runs.sweep import grid, parse_param
 from stackpick_sim.vision.detector import REQUIRED_STAGES, STAGES, DetectorConfig, detect
 from stackpick_sim.vision.edges import edge_image
@@ -33,18 +33,11 @@ from stackpick_sim.vision.params import (
 from stackpick_sim.vision.roi import find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import Stage, StageError, State
-from stackpick_sim.vision.synthetic import draw_ellipses
-
-SHAPE = (240, 320)
-K = CameraIntrinsics.from_fovy(45.0, 320, 240)
-#: A lower face partly under a top face (drawn last).
-FACES = [Ellipse(cx=200, cy=110, a=40, b=34, angle_deg=-10),
-         Ellipse(cx=150, cy=120, a=45, b=38, angle_deg=20)]
 
 
 @pytest.fixture(scope="module")
 def image() -> np.ndarray:
-    return draw_ellipses(SHAPE, FACES, noise_sigma=1.5, rng=np.random.default_rng(4))
+    return two_face_image()
 
 
 def _key(det: object) -> list[tuple[float, ...]]:
