@@ -145,11 +145,26 @@ def rests_on(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     belt's colour for the wall test (:func:`~stackpick_sim.vision.wall.band_evidences`);
     ``params``: the contact settings (``rest_*``); ``pose_params``: the wall band test's and
     the band choice's (as the pose's)."""
-    under = [False] * len(faces)
     bodies = _bodies(faces, intrinsics, radius_of, height_of)
     if bodies is None:
-        return under
-    near, apart = _touching_pairs(bodies, params.rest_contact_gap_m)
+        return [False] * len(faces)
+    return _rests(faces, bodies, _coarse_separations(bodies), intrinsics, image,
+                  (colour_of, cache, belt), (params, pose_params))
+
+
+def _rests(faces: Sequence[Ellipse], bodies: _Bodies,
+           coarse: tuple[list[tuple[int, int]], NDArray[np.float64]],
+           intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
+           seen: tuple[Callable[[Ellipse], NDArray[np.float64]] | None,
+                       BandCache | None, NDArray[np.float64] | None],
+           settings: tuple[TopParams, PoseParams]) -> list[bool]:
+    """:func:`rests_on` given the faces' ``bodies`` and their :func:`_coarse_separations`
+    ``coarse``; ``seen``: its ``colour_of``, ``cache`` and ``belt``; ``settings``: its
+    ``params`` and ``pose_params``."""
+    colour_of, cache, belt = seen
+    params, pose_params = settings
+    under = [False] * len(faces)
+    near, apart = _touching_pairs(*coarse, params.rest_contact_gap_m)
     if not near:
         return under
     picks = _solution_picks(faces, bodies, sorted({p for pq in near for p in pq}),
@@ -205,18 +220,15 @@ def _pair_verdict(pair: tuple[Ellipse, Ellipse], intrinsics: CameraIntrinsics,
     when they come nearer without a rest (undecided). ``seen``: :func:`rests_on`'s
     ``colour_of``, ``cache`` and ``belt``; ``settings``: its ``params`` and
     ``pose_params``."""
-    colour_of, cache, belt = seen
-    params, pose_params = settings
-    found = rests_on(pair, intrinsics, radius_of, height_of, image, colour_of=colour_of,
-                     cache=cache, belt=belt, params=params, pose_params=pose_params)
-    if any(found):
-        return found.index(True)
+    params = settings[0]
     bodies = _bodies(pair, intrinsics, radius_of, height_of)
     if bodies is None:
         return -1
-    sep = _separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights,
-                       np.array([(j, 2 + k) for j in (0, 1) for k in (0, 1)], np.int64),
-                       *_direction_set(coarse=True)).max(axis=1)
+    coarse = _coarse_separations(bodies)
+    found = _rests(pair, bodies, coarse, intrinsics, image, seen, settings)
+    if any(found):
+        return found.index(True)
+    sep = coarse[1]
     near = (sep <= params.rest_kind_margin_m) & (sep >= -params.rest_max_penetration_m)
     return None if bool(near.any()) else -1
 
@@ -297,20 +309,28 @@ def _known_kinds(faces: Sequence[Ellipse], radius_of: Callable[[Ellipse], float 
     return kinds
 
 
-def _touching_pairs(bodies: _Bodies, gap_m: float
-                    ) -> tuple[list[tuple[int, int]], dict[tuple[int, int], list[list[bool]]]]:
-    """The cost gate, before the wall bands choose the solutions: the pairs (p, q), p < q,
-    of ``bodies.kinds`` that may touch, and for each, whether each combination of their
-    solutions ([j][k]: p's j, q's k) is apart along one of the coarse directions by more
-    than ``gap_m`` (pairs apart whichever their solutions do not touch; on rendered
-    paper-scene frames about half the calls have no other pair)."""
+def _coarse_separations(bodies: _Bodies
+                        ) -> tuple[list[tuple[int, int]], NDArray[np.float64]]:
+    """The pairs (p, q), p < q, of ``bodies.kinds``, and (P, 2, 2) their separations (m)
+    along the coarse directions for each combination of their solutions ([j][k]: p's j,
+    q's k): a lower bound of the true separation."""
     n = len(bodies.kinds)
     face_pairs = [(p, q) for p in range(n) for q in range(p + 1, n)]
     combos = np.array([(2 * p + j, 2 * q + k) for p, q in face_pairs for j in (0, 1)
                        for k in (0, 1)], np.int64)
-    apart = (_separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights, combos,
-                          *_direction_set(coarse=True)).max(axis=1)
-             > gap_m).reshape(-1, 2, 2).tolist()
+    sep = _separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights, combos,
+                       *_direction_set(coarse=True)).max(axis=1)
+    return face_pairs, sep.reshape(-1, 2, 2)
+
+
+def _touching_pairs(face_pairs: list[tuple[int, int]], sep: NDArray[np.float64], gap_m: float
+                    ) -> tuple[list[tuple[int, int]], dict[tuple[int, int], list[list[bool]]]]:
+    """The cost gate, before the wall bands choose the solutions: of ``face_pairs`` and
+    their :func:`_coarse_separations` ``sep``, the pairs that may touch, and for each pair,
+    whether each combination of their solutions is apart by more than ``gap_m`` (pairs
+    apart whichever their solutions do not touch; on rendered paper-scene frames about half
+    the calls have no other pair)."""
+    apart = (sep > gap_m).tolist()
     gaps = dict(zip(face_pairs, apart, strict=True))
     return [pq for pq in face_pairs if not all(gaps[pq][0] + gaps[pq][1])], gaps
 
