@@ -26,6 +26,7 @@ from stackpick_sim.episodes.pick import (
     descent_floor,
     descent_missed,
     floor_time,
+    larger_kind_drop,
     lift_position,
 )
 from stackpick_sim.episodes.sensing import Candidate, Observation
@@ -487,6 +488,27 @@ def test_the_descent_goes_on_to_the_lowest_height_the_track_measured() -> None:
     # ... never up again once deeper, and never short of the overtravel.
     assert descent_floor(overtravel, 0.18, 0.18, tallest, -0.02) == pytest.approx(-0.02)
     assert descent_floor(overtravel, 0.17, 0.18, tallest) == pytest.approx(-overtravel)
+
+
+def test_a_face_taken_for_a_smaller_kind_is_searched_for_where_the_larger_kind_lies() -> None:
+    # Realistic piles: printed lids of 25 and 35 mm, cans of 30 mm, tape rolls of 50 mm.
+    radii = [0.025, 0.035, 0.030, 0.05]
+    # A can read as a 25 mm lid 0.1 m from the camera lies 0.1 * (30 / 25 - 1) = 20 mm lower.
+    assert larger_kind_drop(0.025, radii, 0.1) == pytest.approx(0.020)
+    assert larger_kind_drop(0.030, radii, 0.1) == pytest.approx(0.1 * (35 / 30 - 1))
+    # No larger kind in the pile (the largest, or a pile of one kind): nowhere lower.
+    assert larger_kind_drop(0.05, radii, 0.1) == 0.0
+    assert larger_kind_drop(0.025, [0.025], 0.1) == 0.0
+    assert larger_kind_drop(None, radii, 0.1) == 0.0
+    # The descent goes on that far (at most the tallest kind) ...
+    overtravel, tallest = 0.006, 0.03
+    assert descent_floor(overtravel, 0.2067, 0.2067, tallest, scale_drop=0.020) == \
+        pytest.approx(-0.026)
+    assert descent_floor(overtravel, 0.2067, 0.2067, tallest, scale_drop=0.05) == \
+        pytest.approx(-0.036)
+    # ... and no farther than the heights say when they reach lower.
+    assert descent_floor(overtravel, 0.194, 0.18, tallest, scale_drop=0.005) == \
+        pytest.approx(-0.020)
 
 
 def _enlarged(obs: Observation, scale: float) -> Observation:

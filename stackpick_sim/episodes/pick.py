@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.control.pick_point import PickPoint, aimed
+from stackpick_sim.control.pick_point import RADIUS_MATCH, PickPoint, aimed
 from stackpick_sim.control.reach import (
     GRASP_JOINT_MARGIN,
     GRASP_SELF_CLEARANCE,
@@ -94,19 +94,34 @@ def floor_time(at_floor: float, depth_error: float, standoff: float, floor: floa
     return at_floor
 
 
+def larger_kind_drop(radius: float | None, radii: list[float], depth: float) -> float:
+    """How much farther (m) a face read as ``radius`` m at ``depth`` m from the camera lies
+    were it of the next larger of the pile's kinds (``radii``, m); 0 when none is larger.
+
+    A monocular pose is known up to scale: an outline of the same size in the image is a
+    face of radius ``R`` at depth ``d`` or one of radius ``R'`` at ``d R' / R``. A face
+    taken for a smaller kind than it is (a can's 30 mm lid for a 25 mm printed lid) is
+    farther than the track believes, so lower: the cup reaches the believed height above it.
+    """
+    if radius is None or radius <= 0.0:
+        return 0.0
+    larger = [r for r in radii if r > radius + RADIUS_MATCH]
+    return max(0.0, depth) * (min(larger) / radius - 1.0) if larger else 0.0
+
+
 def descent_floor(overtravel: float, face_z: float, lowest_face_z: float, tallest: float,
-                  previous: float = 0.0) -> float:
+                  previous: float = 0.0, scale_drop: float = 0.0) -> float:
     """Deepest standoff (m, negative: past the predicted face) a descent is commanded to.
 
     ``overtravel`` m past the predicted face (at height ``face_z``, world z, m), and further
-    by as much as the track's lowest monocular height ``lowest_face_z`` m lies below it, by
-    at most ``tallest`` m (the tallest object kind: lower down is another layer of the
-    pile); never above ``previous``, the floor of an earlier tick (m). A monocular height
-    errs one way, too high (see
-    :attr:`~stackpick_sim.episodes.target.TargetEstimator.lowest_face_z`), so a face not
-    met by then is missed; a face met above the floor ends the descent at contact.
+    by as much as the track's lowest monocular height ``lowest_face_z`` m lies below it, or
+    by ``scale_drop`` m (:func:`larger_kind_drop`) if more, by at most ``tallest`` m (the
+    tallest object kind: lower down is another layer of the pile); never above
+    ``previous``, the floor of an earlier tick (m). A monocular height errs one way, too
+    high (see :attr:`~stackpick_sim.episodes.target.TargetEstimator.lowest_face_z`), so a
+    face not met by then is missed; a face met above the floor ends the descent at contact.
     """
-    below = min(max(face_z - lowest_face_z, 0.0), tallest)
+    below = min(max(face_z - lowest_face_z, scale_drop, 0.0), tallest)
     return min(previous, -overtravel - below)
 
 
@@ -333,11 +348,16 @@ class ArmPhases:
         return err
 
     def _descent_floor(self, overtravel: float) -> float:
-        """This tick's :func:`descent_floor` (m), remembered for the next."""
-        est = self.ep.estimator
-        tallest = max(t.height for t in self.ep.scene.cell.cfg.object_types.values())
+        """This tick's :func:`descent_floor` (m), remembered for the next: the deepest of the
+        ticks', the first one's camera the farthest from the face."""
+        ep = self.ep
+        est = ep.estimator
+        cfg = ep.scene.cell.cfg
+        tallest = max(t.height for t in cfg.object_types.values())
+        radii = [cfg.object_types[name].radius for name in cfg.objects.types]
+        depth = float(ep.arm.eih.world_T_cam(ep.scene.cell.data)[2, 3]) - est.face_z
         self._floor = descent_floor(overtravel, est.face_z, est.lowest_face_z, tallest,
-                                    self._floor)
+                                    self._floor, larger_kind_drop(est.radius, radii, depth))
         return self._floor
 
     def _grasp(self, t: float, dt: float, obs: list[Observation]) -> Command:
