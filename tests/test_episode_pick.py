@@ -18,6 +18,7 @@ from stackpick_sim.control.reach import (
     descent_tilt_share,
     tilted_axis,
 )
+from stackpick_sim.episodes import pick
 from stackpick_sim.episodes.arm import ArmController
 from stackpick_sim.episodes.episode import run_episode
 from stackpick_sim.episodes.hypotheses import RadiusHypotheses
@@ -616,6 +617,26 @@ def test_a_face_read_too_high_by_the_approach_views_is_still_picked() -> None:
     # trusted that height would stop 7 mm above the face (missed_grasp).
     rec = run_episode(generate_scene(load_scene("paper", []), 653))
     assert rec.success, f"{rec.failure}: {rec.failure_detail}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("search", [True, False])
+def test_a_can_read_as_a_smaller_lid_is_met_below_its_believed_height(
+        search: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Realistic scene, seed 70043, our detector: a can's 30 mm lid tracked as a 25 mm printed
+    # lid, so 18 mm higher than it is (a monocular pose is known up to scale). The descent
+    # goes on as deep as a can would lie and meets the lid; stopping at the believed height
+    # plus the overtravel it ends above it.
+    if not search:
+        monkeypatch.setattr(pick, "larger_kind_drop", lambda radius, radii, depth: 0.0)
+    rec = run_episode(generate_scene(load_scene("realistic", []), 70043))
+    assert rec.target_kind == "can" and rec.believed_kinds == ["printed_small"]
+    if search:
+        assert rec.success, f"{rec.failure}: {rec.failure_detail}"
+    else:
+        assert rec.failure == "missed_grasp" and "passed the predicted face" in \
+            rec.failure_detail
+        assert rec.lip_height_mm is not None and rec.lip_height_mm > 5.0
 
 
 def test_a_second_detection_off_the_face_does_not_start_the_track() -> None:
