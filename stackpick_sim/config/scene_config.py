@@ -502,9 +502,10 @@ class EpisodeCfg:
     tool speed near a part)."""
     overtravel: float = 0.006
     """How far past the predicted face the descent goes before calling a miss, m (further
-    by as much as the track's lowest monocular face height lies below the predicted one, at
-    most the tallest object's height: :func:`stackpick_sim.episodes.pick.descent_floor`);
-    0.0001 to 0.1 m (a suction cup's compliance is millimetres to centimetres)."""
+    by as much as the track's lowest monocular face height lies below the predicted one, or
+    the face would lie were it the pile's next larger kind, at most the tallest object's
+    height: :func:`stackpick_sim.episodes.pick.descent_floor`); 0.0001 to 0.1 m (a suction
+    cup's compliance is millimetres to centimetres)."""
     face_height_agreement: float = 0.001
     """The tracked face's height is the lowest of its monocular heights on which
     ``face_height_views`` of them agree within this, m
