@@ -29,6 +29,7 @@ from stackpick_sim.episodes.pick import (
     floor_time,
     larger_kind_drop,
     lift_position,
+    sight_shift,
 )
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import (
@@ -510,6 +511,17 @@ def test_a_face_taken_for_a_smaller_kind_is_searched_for_where_the_larger_kind_l
     # ... and no farther than the heights say when they reach lower.
     assert descent_floor(overtravel, 0.194, 0.18, tallest, scale_drop=0.005) == \
         pytest.approx(-0.020)
+
+
+def test_below_the_predicted_face_the_goal_goes_down_the_line_of_sight() -> None:
+    # A camera 60 mm to the side of the tool axis, 250 mm above the face: a face 20 mm lower
+    # on that line of sight lies 20 * 60 / 250 = 4.8 mm farther out, not under the tool.
+    sight = np.array([-0.06, 0.0, -0.25])
+    assert sight_shift(sight, 0.02) == pytest.approx([-0.0048, 0.0, -0.02])
+    # Straight down the line of a camera over the face; nothing above the face.
+    assert sight_shift(np.array([0.0, 0.0, -0.3]), 0.02) == pytest.approx([0.0, 0.0, -0.02])
+    assert sight_shift(sight, 0.0) == pytest.approx(np.zeros(3))
+    assert sight_shift(np.array([0.1, 0.0, 0.0]), 0.02) == pytest.approx(np.zeros(3))
 
 
 def _enlarged(obs: Observation, scale: float) -> Observation:

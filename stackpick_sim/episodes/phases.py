@@ -72,6 +72,12 @@ class PhaseLogic(ArmPhases):
         self._pick_point = None
         """Set when the approach starts (:meth:`_take_aim_side`)."""
         self._aim_side = np.zeros(3)
+        self._sight = np.array([0.0, 0.0, -1.0])
+        """Line of sight from the camera to the face when the descent began, world (3,) m
+        (:func:`~stackpick_sim.episodes.pick.sight_shift`)."""
+        self._below = 0.0
+        self._search_from = 0.0
+        """How far down the line of sight the grasp holds the face, m."""
         self._redetections = 0
         self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))
         self._retargets = 0

@@ -109,6 +109,22 @@ def larger_kind_drop(radius: float | None, radii: list[float], depth: float) -> 
     return max(0.0, depth) * (min(larger) / radius - 1.0) if larger else 0.0
 
 
+def sight_shift(sight: FloatArray, drop: float) -> FloatArray:
+    """(3,) offset, world m, ``drop`` m down the line of sight ``sight`` (3,: from the camera
+    to the face, world; any length).
+
+    A monocular pose is known up to scale along its line of sight: a face read too high
+    (too near: an outline that takes in its wall, a kind mistaken for a smaller one) lies
+    farther along the same line. Below the predicted face the descent's goal slides down
+    the line of sight of the views that placed it (carried on with the face by the belt),
+    not the tool's own axis, which leaves that line by the camera's offset.
+    """
+    ray = np.asarray(sight, dtype=float)
+    if drop <= 0.0 or ray[2] > -1e-6:
+        return np.zeros(3)
+    return np.asarray(ray * (drop / -ray[2]))
+
+
 def descent_floor(overtravel: float, face_z: float, lowest_face_z: float, tallest: float,
                   previous: float = 0.0, scale_drop: float = 0.0) -> float:
     """Deepest standoff (m, negative: past the predicted face) a descent is commanded to.
@@ -176,6 +192,9 @@ class ArmPhases:
     _cycle_end: float | None
     _pick_point: PickPoint | None
     _aim_side: NDArray[np.float64]
+    _sight: NDArray[np.float64]
+    _below: float
+    _search_from: float
     phase: str
 
     def fail(self, reason: str, detail: str) -> None:
@@ -276,11 +295,19 @@ class ArmPhases:
             self._enter("servo", t)
         return None
 
-    def _servo_step(self, t: float, dt: float, standoff: float,
-                    rate: float) -> Generator[ControlGoal, FloatArray | None, ServoErrors]:
+    def _servo_step(self, t: float, dt: float, standoff: float, rate: float,
+                    below: float = 0.0, below_rate: float = 0.0
+                    ) -> Generator[ControlGoal, FloatArray | None, ServoErrors]:
+        """One servo tick to ``standoff`` m from the face (changing at ``rate`` m/s), the face
+        taken ``below`` m lower on the line of sight (:func:`sight_shift`; growing at
+        ``below_rate`` m/s)."""
         ep = self.ep
         cam = ep.arm.eih.world_T_cam(ep.scene.cell.data)
         target = self._commanded(ep.estimator.state(t, cam), standoff)
+        if below > 0.0:
+            shift = sight_shift(self._sight, below)
+            target = replace(target, centre=target.centre + shift,
+                             velocity=target.velocity + shift / below * below_rate)
         qdot = yield from self._command(ControlGoal(phase=self.phase, target=target, lead=None,
                                                     standoff=standoff, standoff_rate=rate,
                                                     dt=dt))
@@ -312,6 +339,8 @@ class ArmPhases:
         self._settled = self._settled + 1 if ok else 0
         if self._settled >= SERVO_SETTLE_TICKS:
             self._standoff = cfg.standoff
+            cam = self.ep.arm.eih.world_T_cam(self.ep.scene.cell.data)
+            self._sight = self._commanded(self.ep.estimator.state(t, cam), 0.0).centre - cam[:3, 3]
             self._enter("descend", t)
         return err
 
@@ -328,16 +357,25 @@ class ArmPhases:
                 self.fail("missed_grasp", f"no seal: {leak}")
                 return None
             ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
-            self._standoff = max(self._standoff, 0.0) - GRASP_PRELOAD
+            # Pressed on past the predicted face (above it: to it); met further down the
+            # line of sight, past the contact.
+            self._below = max(0.0, self._search_from - self._standoff)
+            pressed = self._standoff + self._below if self._below > 0.0 else max(
+                self._standoff, 0.0)
+            self._standoff = pressed - GRASP_PRELOAD
             self._enter("grasp", t)
-            return (yield from self._servo_step(t, dt, self._standoff, 0.0))
+            return (yield from self._servo_step(t, dt, self._standoff, 0.0, self._below))
         floor = self._descent_floor(cfg.overtravel)
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
         aligned = self._last_lateral < DESCENT_HOLD_LATERAL + DESCENT_HOLD_SLOPE * self._standoff
         speed = cfg.descend_speed if aligned and self._standoff > floor else 0.0
         self._standoff = max(self._standoff - speed * dt, floor)
-        err = yield from self._servo_step(t, dt, self._standoff, -speed)
+        # Past the heights the track measured the goal goes on down the line of sight.
+        below = max(0.0, self._search_from - self._standoff)
+        err = yield from self._servo_step(t, dt, self._standoff + below,
+                                          0.0 if below > 0.0 else -speed, below,
+                                          speed if below > 0.0 else 0.0)
         self._last_lateral = err.lateral
         self._at_floor = floor_time(self._at_floor, err.depth, self._standoff, floor, dt)
         if descent_missed(err.depth, self._standoff, floor, self._at_floor):
@@ -349,20 +387,25 @@ class ArmPhases:
 
     def _descent_floor(self, overtravel: float) -> float:
         """This tick's :func:`descent_floor` (m), remembered for the next: the deepest of the
-        ticks', the first one's camera the farthest from the face."""
+        ticks', the first one's camera the farthest from the face. Also the floor the
+        track's heights alone set (``_search_from``): below it the descent searches for a
+        face read at the wrong scale, down the line of sight (:func:`sight_shift`)."""
         ep = self.ep
         est = ep.estimator
         cfg = ep.scene.cell.cfg
         tallest = max(t.height for t in cfg.object_types.values())
         radii = [cfg.object_types[name].radius for name in cfg.objects.types]
         depth = float(ep.arm.eih.world_T_cam(ep.scene.cell.data)[2, 3]) - est.face_z
+        self._search_from = descent_floor(overtravel, est.face_z, est.lowest_face_z, tallest,
+                                          self._search_from)
         self._floor = descent_floor(overtravel, est.face_z, est.lowest_face_z, tallest,
-                                    self._floor, larger_kind_drop(est.radius, radii, depth))
+                                    min(self._floor, self._search_from),
+                                    larger_kind_drop(est.radius, radii, depth))
         return self._floor
 
     def _grasp(self, t: float, dt: float, obs: list[Observation]) -> Command:
         cfg = self.ep.scene.cell.cfg.episode
-        err = yield from self._servo_step(t, dt, self._standoff, 0.0)
+        err = yield from self._servo_step(t, dt, self._standoff, 0.0, self._below)
         if t - self.phase_start >= cfg.grasp_dwell:
             self._grasped = [o.name for o in touching(self.ep.scene.cell, self.ep.lips)]
             self._lift_from = self.ep.arm.command_world_T_tool()
