@@ -214,12 +214,15 @@ class ArmPhases:
         return aimed(state, self._pick_point.offset(self.ep.estimator.radius), self._aim_side)
 
     def _belief(self, state: TargetState) -> AimBelief:
-        """What the controller believes of the tracked face ``state`` and its aim (record)."""
+        """What the controller believes of the tracked face ``state`` and its aim (record):
+        past the track's heights, the aim point taken down the line of sight."""
         radius = self.ep.estimator.radius
         point = self._pick_point
         aim = self._aim(state).centre
+        below = max(0.0, self._search_from - self._standoff)
         return AimBelief(radius=radius, kinds=tuple(point.kinds(radius) if point else ()),
-                         offset=float(np.linalg.norm(aim - state.centre)), point=aim)
+                         offset=float(np.linalg.norm(aim - state.centre)),
+                         point=aim + sight_shift(self._sight, below))
 
     def _take_aim_side(self) -> None:
         """The aim's rules for this cell's cup, and the camera's side of the tool axis now,
