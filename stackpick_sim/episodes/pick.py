@@ -34,6 +34,7 @@ from stackpick_sim.episodes.outcome import AimBelief, no_seal, touching
 from stackpick_sim.episodes.sensing import Observation
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.pipeline import ControlGoal, TargetState
+from stackpick_sim.sim.cell import ObjectInfo
 from stackpick_sim.sim.robot import CUP_BODY
 from stackpick_sim.sim.suction import lip_radius
 
@@ -352,22 +353,7 @@ class ArmPhases:
         cfg = ep.scene.cell.cfg.episode
         touched = touching(ep.scene.cell, ep.lips)
         if touched:
-            cell = ep.scene.cell
-            state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
-            ep.audit.on_contact(state, self._belief(state))
-            leak = no_seal(cell, touched)
-            if leak is not None:  # the vacuum leaks: no lift (sim/suction.py)
-                self.fail("missed_grasp", f"no seal: {leak}")
-                return None
-            ep.scene.cell.data.ctrl[ep.scene.cell.suction_actuator_id] = 1.0
-            # Pressed on past the predicted face (above it: to it); met further down the
-            # line of sight, past the contact.
-            self._below = max(0.0, self._search_from - self._standoff)
-            pressed = self._standoff + self._below if self._below > 0.0 else max(
-                self._standoff, 0.0)
-            self._standoff = pressed - GRASP_PRELOAD
-            self._enter("grasp", t)
-            return (yield from self._servo_step(t, dt, self._standoff, 0.0, self._below))
+            return (yield from self._contact(t, dt, touched))
         floor = self._descent_floor(cfg.overtravel)
         # The descent waits while the tool is off the face's axis (e.g. the wrist swinging
         # through its J5 = 0 singularity): going on would bring the cup down beside the face.
@@ -387,6 +373,26 @@ class ArmPhases:
             self.fail("missed_grasp", "the descent passed the predicted face without contact")
             return None
         return err
+
+    def _contact(self, t: float, dt: float, touched: list[ObjectInfo]) -> Command:
+        """The lip reached ``touched``: a leak ends the pick, a seal starts the grasp."""
+        ep = self.ep
+        cell = ep.scene.cell
+        state = ep.estimator.state(t, ep.arm.eih.world_T_cam(cell.data))
+        ep.audit.on_contact(state, self._belief(state))
+        leak = no_seal(cell, touched)
+        if leak is not None:  # the vacuum leaks: no lift (sim/suction.py)
+            self.fail("missed_grasp", f"no seal: {leak}")
+            return None
+        cell.data.ctrl[cell.suction_actuator_id] = 1.0
+        # Pressed on past the predicted face (above it: to it); met further down the line
+        # of sight, past the contact.
+        self._below = max(0.0, self._search_from - self._standoff)
+        pressed = (self._standoff + self._below if self._below > 0.0
+                   else max(self._standoff, 0.0))
+        self._standoff = pressed - GRASP_PRELOAD
+        self._enter("grasp", t)
+        return (yield from self._servo_step(t, dt, self._standoff, 0.0, self._below))
 
     def _descent_floor(self, overtravel: float) -> float:
         """This tick's :func:`descent_floor` (m), remembered for the next: the deepest of the
