@@ -5,7 +5,9 @@ look/detect/track phases). The tool approaches along a *commanded* axis: the fac
 or, where the arm cannot reach that at the servo standoff, a share of its tilt that grows
 during the descent to the full normal, or to the share the arm can take where the face will
 be at the grasp (:mod:`stackpick_sim.control.reach`). The descent is
-blind (the face leaves the view) and pauses while the tool is off the face's axis; the lift
+blind (the face leaves the view) and pauses while the tool is off the face's axis; past the
+heights the track measured it searches on, down the line of sight, for a face read at the
+wrong scale (:func:`larger_kind_drop`, :func:`sight_shift`); the lift
 turns the tool upright as it rises and pulls it ``episode.lift_retreat`` towards the robot's
 base (a grasp at the edge of the reach, on a fast belt, cannot rise straight up).
 """
