@@ -1,0 +1,106 @@
+"""The top rule's compiled kernels: the arc-pair screen rejects only pairs the exact fit rejects,
+its fit is OpenCV's, and the inside test gives Ellipse.inside's flags."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels_top, regroup
+from stackpick_sim.vision.fitting import fit_ellipse
+from stackpick_sim.vision.regroup import DEFAULT_SECTIONS, arc_pair_ellipses
+
+SHAPE = (240, 320)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(11)
+
+
+def _arcs(rng: np.random.Generator, faces: int, per_face: int) -> list[NDArray[np.int32]]:
+    """Noisy integer arcs (N, 2) int32 of a few random ellipses, several per ellipse."""
+    arcs = []
+    for _ in range(faces):
+        cx, cy = rng.uniform(60, 260), rng.uniform(50, 190)
+        a = rng.uniform(12, 70)
+        b, th = a * rng.uniform(0.4, 1.0), rng.uniform(0, math.pi)
+        for _ in range(per_face):
+            t = rng.uniform(0, 2 * math.pi) + np.linspace(0, rng.uniform(0.3, 1.6),
+                                                          int(rng.integers(8, 70)))
+            x = cx + a * np.cos(t) * math.cos(th) - b * np.sin(t) * math.sin(th)
+            y = cy + a * np.cos(t) * math.sin(th) + b * np.sin(t) * math.cos(th)
+            noisy = np.stack([x, y], 1) + rng.normal(0, rng.uniform(0.0, 0.4), (t.size, 2))
+            arcs.append(np.rint(noisy).astype(np.int32))
+    return arcs
+
+
+def _table(arcs: list[NDArray[np.int32]]
+           ) -> tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64]]:
+    pixels = np.ascontiguousarray(np.concatenate(arcs), np.int32)
+    starts = np.zeros(len(arcs) + 1, np.int64)
+    np.cumsum([c.shape[0] for c in arcs], out=starts[1:])
+    pairs = np.array([(i, j) for i in range(len(arcs)) for j in range(i + 1, len(arcs))],
+                     np.int64)
+    return pixels, starts, pairs
+
+
+def test_direct_fit_is_opencvs_ellipse_where_it_decides(rng: np.random.Generator) -> None:
+    arcs = _arcs(rng, 12, 4)
+    pixels, starts, pairs = _table(arcs)
+    decided = 0
+    for i, j in pairs.tolist():
+        ranges = np.array([starts[i], starts[i + 1], starts[j], starts[j + 1]], np.int64)
+        cu, cv, major, minor, angle, ok = kernels_top.direct_fit(pixels, ranges)
+        if not ok:
+            continue
+        exact = fit_ellipse(np.concatenate([arcs[i], arcs[j]]))
+        assert exact is not None
+        decided += 1
+        # OpenCV's results are float32: the same ellipse to that rounding.
+        assert cu == pytest.approx(exact.cx, rel=1e-6) and cv == pytest.approx(exact.cy, rel=1e-6)
+        assert major == pytest.approx(exact.a, rel=1e-6)
+        assert minor == pytest.approx(exact.b, rel=1e-6)
+        turn = (math.degrees(angle) - exact.angle_deg + 90.0) % 180.0 - 90.0
+        assert abs(math.radians(turn)) * exact.a < 1e-3
+    assert decided > 0.5 * len(pairs)
+
+
+def test_screen_rejects_only_pairs_the_exact_checks_reject(rng: np.random.Generator) -> None:
+    arcs = _arcs(rng, 10, 5)
+    pixels, starts, pairs = _table(arcs)
+    merge = DEFAULT_SECTIONS.merging
+    for axis_range in ((8.0, 60.0), None):
+        lo, hi = (0.0, math.inf) if axis_range is None else axis_range
+        screen = kernels_top.pair_screen(pixels, starts, pairs, lo, hi, merge.tolerance_px,
+                                         merge.max_residual_px, merge.absorb_fraction)
+        exact = [regroup._pair_fit(np.concatenate([arcs[i], arcs[j]]), arcs[i].shape[0], SHAPE,
+                                   axis_range, DEFAULT_SECTIONS) is not None
+                 for i, j in pairs.tolist()]
+        assert not any(ok and not kept for ok, kept in zip(exact, screen, strict=True))
+        # Not vacuous: pairs pass, and most failing ones are screened out.
+        assert sum(exact) > 10
+        assert np.count_nonzero(~screen) > 0.5 * (len(exact) - sum(exact))
+
+
+def test_arc_pair_ellipses_are_the_same_without_the_screen(rng: np.random.Generator,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    arcs = _arcs(rng, 6, 5)
+    every = list(range(len(arcs)))
+    screened = arc_pair_ellipses(arcs, every, SHAPE, (8.0, 80.0))
+    monkeypatch.setattr(regroup, "_screened", lambda chains, arcs, pairs, *_: [True] * len(pairs))
+    assert screened and screened == arc_pair_ellipses(arcs, every, SHAPE, (8.0, 80.0))
+
+
+def test_inside_gives_the_ellipse_flags(rng: np.random.Generator) -> None:
+    points = rng.uniform(0, 200, (4000, 2))
+    for _ in range(50):
+        e = Ellipse(cx=rng.uniform(50, 150), cy=rng.uniform(50, 150), a=rng.uniform(2, 80),
+                    b=rng.uniform(1, 40), angle_deg=rng.uniform(0, 180))
+        for margin in (0.0, 1.5, -1.5, 100.0):
+            assert np.array_equal(kernels_top.inside(e, points, margin), e.inside(points, margin))
