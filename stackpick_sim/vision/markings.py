@@ -235,6 +235,8 @@ def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
     own lying on it: one that passes the rule, or a whole face with markings whose outline
     runs on across it (:func:`_crosses_over`)."""
+    if math.hypot(other.cx - face.cx, other.cy - face.cy) >= other.a + face.a:
+        return False  # too far apart to reach into it (_reaches_into's first test)
     if not evidence.occluded:
         return _reaches_into(other, face, test.margin_px)
     # Its verdict hangs on the evidence only through whether ``other`` is a whole face.
