@@ -104,3 +104,18 @@ def test_inside_gives_the_ellipse_flags(rng: np.random.Generator) -> None:
                     b=rng.uniform(1, 40), angle_deg=rng.uniform(0, 180))
         for margin in (0.0, 1.5, -1.5, 100.0):
             assert np.array_equal(kernels_top.inside(e, points, margin), e.inside(points, margin))
+
+
+def test_bands_inside_matches_the_broadcast_form(rng: np.random.Generator) -> None:
+    pu, pv = rng.uniform(0, 320, (12, 300)), rng.uniform(0, 240, (12, 300))
+    keep = rng.random((12, 300)) < 0.7
+    faces = np.column_stack([rng.uniform(50, 250, 6), rng.uniform(50, 200, 6),
+                             *(lambda t: (np.cos(t), np.sin(t)))(rng.uniform(0, np.pi, 6)),
+                             rng.uniform(5, 90, 6), rng.uniform(3, 60, 6)])
+    cx, cy, c, s, a, b = faces.T[:, None, :, None]
+    du, dv = pu[:, None, :] - cx, pv[:, None, :] - cy
+    x = (c * du + s * dv) / a
+    y = (-s * du + c * dv) / b
+    expected = (x * x + y * y < 1.0) & keep[:, None, :]
+    got = kernels_top.bands_inside(pu, pv, keep, np.ascontiguousarray(faces))
+    assert expected.any() and np.array_equal(got, expected)

@@ -1,5 +1,6 @@
 """Compiled loops of the top rule (numba; see :mod:`~stackpick_sim.vision.kernels` for how
-kernels are compiled and cached): the screen of its arc pairs and its inside tests.
+kernels are compiled and cached): the screen of its arc pairs and its inside tests (of
+markings and of the wall bands' cover).
 
 :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses` fits an ellipse to each pair of arcs
 with OpenCV's direct fit and keeps it only when both arcs lie on it (the merge's residual and
@@ -325,6 +326,28 @@ def inside_mask(points: NDArray[np.float64], cx: float, cy: float, c: float, s: 
     return out
 
 
+@_compiled
+def bands_inside(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
+                 faces: NDArray[np.float64]) -> NDArray[np.bool_]:  # pragma: no cover
+    """(S, n, P): whether band point p of row s (pixels ``pu``, ``pv`` (S, P), kept where
+    ``keep``) lies inside face j, of rows (cx, cy, cos, sin, shrunk a, shrunk b) (n, 6), by
+    :meth:`~stackpick_sim.geometry.Ellipse.inside`'s arithmetic (the broadcast form of
+    :func:`~stackpick_sim.vision.wall_cover.solution_shares`, without its temporaries)."""
+    n_rows, n_pts = pu.shape
+    out = np.zeros((n_rows, faces.shape[0], n_pts), np.bool_)
+    for j in range(faces.shape[0]):
+        cx, cy, c, s, a, b = (faces[j, 0], faces[j, 1], faces[j, 2], faces[j, 3], faces[j, 4],
+                              faces[j, 5])
+        for r in range(n_rows):
+            for k in range(n_pts):
+                if keep[r, k]:
+                    du, dv = pu[r, k] - cx, pv[r, k] - cy
+                    x = (c * du + s * dv) / a
+                    y = (-s * du + c * dv) / b
+                    out[r, j, k] = x * x + y * y < 1.0
+    return out
+
+
 def inside(ellipse: Ellipse, points: NDArray[np.float64], margin_px: float = 0.0
            ) -> NDArray[np.bool_]:
     """``ellipse.inside(points, margin_px)`` (the same flags) in one compiled pass, for the
@@ -342,3 +365,5 @@ def warm_up() -> None:
     pair_screen(pixels, np.array([0, 3, 6], np.int64), np.array([[0, 1]], np.int64), 0.0,
                 math.inf, 1.0, 1.0, 0.5)
     inside_mask(np.zeros((1, 2)), 0.0, 0.0, 1.0, 0.0, 1.0, 1.0)
+    bands_inside(np.zeros((1, 1)), np.zeros((1, 1)), np.ones((1, 1), np.bool_),
+                 np.ones((1, 6)))
