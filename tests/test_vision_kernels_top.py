@@ -12,7 +12,9 @@ from numpy.typing import NDArray
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels_top, regroup
 from stackpick_sim.vision.fitting import fit_ellipse
+from stackpick_sim.vision.markings import rim_band
 from stackpick_sim.vision.regroup import DEFAULT_SECTIONS, arc_pair_ellipses
+from stackpick_sim.vision.wall import column_median
 
 SHAPE = (240, 320)
 
@@ -119,3 +121,29 @@ def test_bands_inside_matches_the_broadcast_form(rng: np.random.Generator) -> No
     expected = (x * x + y * y < 1.0) & keep[:, None, :]
     got = kernels_top.bands_inside(pu, pv, keep, np.ascontiguousarray(faces))
     assert expected.any() and np.array_equal(got, expected)
+
+
+def test_two_part_medians_match_the_array_form(rng: np.random.Generator) -> None:
+    image = rng.integers(0, 256, (120, 160, 3)).astype(np.uint8)
+    both_seen = 0
+    for _ in range(200):
+        face = Ellipse(cx=rng.uniform(0, 160), cy=rng.uniform(0, 120), a=rng.uniform(8, 60),
+                       b=rng.uniform(4, 40), angle_deg=rng.uniform(0, 180))
+        inner = Ellipse(cx=face.cx + rng.normal(0, 10), cy=face.cy + rng.normal(0, 10),
+                        a=face.a * rng.uniform(0.3, 1.2), b=face.b * rng.uniform(0.3, 1.2),
+                        angle_deg=rng.uniform(0, 180))
+        band, margin = rim_band(face), 1.5
+        within, beyond = inner.inside(band, margin), ~inner.inside(band, -margin)
+        t = math.radians(inner.angle_deg)
+        both, own, other = kernels_top.two_part_medians(
+            band, image, inner.cx, inner.cy, math.cos(t), math.sin(t),
+            np.array([max(inner.a - margin, 1e-6), max(inner.b - margin, 1e-6)]),
+            np.array([max(inner.a + margin, 1e-6), max(inner.b + margin, 1e-6)]), 4)
+        assert both == (min(int(within.sum()), int(beyond.sum())) >= 4)
+        if both:
+            both_seen += 1
+            pix = np.clip(np.rint(band).astype(np.int64), 0, [159, 119])
+            colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
+            assert np.array_equal(own, column_median(colours[within]))
+            assert np.array_equal(other, column_median(colours[beyond]))
+    assert both_seen > 20

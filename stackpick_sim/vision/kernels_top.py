@@ -1,6 +1,6 @@
 """Compiled loops of the top rule (numba; see :mod:`~stackpick_sim.vision.kernels` for how
-kernels are compiled and cached): the screen of its arc pairs and its inside tests (of
-markings and of the wall bands' cover).
+kernels are compiled and cached): the screen of its arc pairs, its inside tests (of
+markings and of the wall bands' cover) and the two-surface test's colours.
 
 :func:`~stackpick_sim.vision.regroup.arc_pair_ellipses` fits an ellipse to each pair of arcs
 with OpenCV's direct fit and keeps it only when both arcs lie on it (the merge's residual and
@@ -348,6 +348,59 @@ def bands_inside(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray
     return out
 
 
+@_compiled
+def _channel_medians(colours: NDArray[np.float64], take: NDArray[np.bool_]
+                     ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.wall.column_median` of the rows ``take`` of (N, C)
+    ``colours`` (at least one): each column sorted, the mean of its middle two."""
+    n = int(np.count_nonzero(take))
+    out = np.empty(colours.shape[1])
+    column = np.empty(n)
+    for ch in range(colours.shape[1]):
+        k = 0
+        for r in range(colours.shape[0]):
+            if take[r]:
+                column[k] = colours[r, ch]
+                k += 1
+        column.sort()
+        out[ch] = 0.5 * (column[(n - 1) // 2] + column[n // 2])
+    return out
+
+
+@_compiled
+def two_part_medians(band: NDArray[np.float64], image: NDArray[np.uint8], cx: float, cy: float,
+                     c: float, s: float, within_axes: NDArray[np.float64],
+                     beyond_axes: NDArray[np.float64], least: int
+                     ) -> tuple[bool, NDArray[np.float64], NDArray[np.float64]]:  # pragma: no cover
+    """The two parts of :func:`~stackpick_sim.vision.markings.two_surfaces`: of the (N, 2)
+    ``band`` points, those inside the ellipse (centre, angle cosine and sine, shrunk axes
+    ``within_axes``) and those not inside it at ``beyond_axes`` (Ellipse.inside's
+    arithmetic); when both number at least ``least``, True and each part's median colour in
+    the (H, W, C) ``image`` at the points rounded and clamped into it (column_median's
+    values)."""
+    n = band.shape[0]
+    within = np.empty(n, np.bool_)
+    beyond = np.empty(n, np.bool_)
+    for k in range(n):
+        du, dv = band[k, 0] - cx, band[k, 1] - cy
+        xc, yc = c * du + s * dv, -s * du + c * dv
+        x, y = xc / within_axes[0], yc / within_axes[1]
+        within[k] = x * x + y * y < 1.0
+        x, y = xc / beyond_axes[0], yc / beyond_axes[1]
+        beyond[k] = not x * x + y * y < 1.0
+    empty = np.zeros(image.shape[2])
+    if min(np.count_nonzero(within), np.count_nonzero(beyond)) < least:
+        return False, empty, empty
+    h, w = image.shape[0], image.shape[1]
+    colours = np.empty((n, image.shape[2]))
+    for k in range(n):
+        u = min(max(int(np.rint(band[k, 0])), 0), w - 1)
+        v = min(max(int(np.rint(band[k, 1])), 0), h - 1)
+        for ch in range(image.shape[2]):
+            colours[k, ch] = float(image[v, u, ch])
+    return True, _channel_medians(colours, within), _channel_medians(colours, beyond)
+
+
 def inside(ellipse: Ellipse, points: NDArray[np.float64], margin_px: float = 0.0
            ) -> NDArray[np.bool_]:
     """``ellipse.inside(points, margin_px)`` (the same flags) in one compiled pass, for the
@@ -364,6 +417,11 @@ def warm_up() -> None:
     pixels = np.array([[0, 0], [4, 1], [6, 4], [4, 7], [0, 8], [-4, 7]], np.int32)
     pair_screen(pixels, np.array([0, 3, 6], np.int64), np.array([[0, 1]], np.int64), 0.0,
                 math.inf, 1.0, 1.0, 0.5)
-    inside_mask(np.zeros((1, 2)), 0.0, 0.0, 1.0, 0.0, 1.0, 1.0)
+    shared = np.zeros((1, 2))  # the cached outlines and rim bands are read-only
+    shared.setflags(write=False)
+    for points in (np.zeros((1, 2)), shared):
+        inside_mask(points, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0)
     bands_inside(np.zeros((1, 1)), np.zeros((1, 1)), np.ones((1, 1), np.bool_),
                  np.ones((1, 6)))
+    two_part_medians(shared, np.zeros((2, 2, 3), np.uint8), 0.0, 0.0, 1.0, 0.0, np.ones(2),
+                     np.ones(2), 1)

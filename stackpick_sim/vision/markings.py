@@ -304,17 +304,18 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     in chromaticity by more than ``params.surface_chroma_tolerance``, or in brightness by a
     ratio outside ``params.surface_brightness_range`` (False with fewer than
     ``params.min_part_samples`` either side)."""
-    band = rim_band(face)
-    within = kernels_top.inside(inner, band, margin_px)
-    beyond = ~kernels_top.inside(inner, band, -margin_px)
-    if min(int(within.sum()), int(beyond.sum())) < params.min_part_samples:
+    # The two parts (inside ``inner`` by the margin, and not inside it beyond the margin) and
+    # their median colours in one compiled pass (kernels_top.two_part_medians: the same
+    # values as Ellipse.inside, the rounded and clamped pixels and column_median).
+    t = math.radians(inner.angle_deg)
+    both, own, other = kernels_top.two_part_medians(
+        rim_band(face), np.require(image, np.uint8, ("C", "W")), inner.cx, inner.cy,
+        math.cos(t), math.sin(t),
+        np.array([max(inner.a - margin_px, 1e-6), max(inner.b - margin_px, 1e-6)]),
+        np.array([max(inner.a + margin_px, 1e-6), max(inner.b + margin_px, 1e-6)]),
+        params.min_part_samples)
+    if not both:
         return False
-    h, w = image.shape[:2]
-    pix = np.rint(band).astype(np.int64)
-    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
-    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
-    own = column_median(colours[within])
-    other = column_median(colours[beyond])
     own_sum, other_sum = max(float(own.sum()), 1e-9), max(float(other.sum()), 1e-9)
     chroma = float(np.abs(own / own_sum - other / other_sum).sum())
     lo, hi = params.surface_brightness_range
