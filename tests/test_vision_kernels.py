@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import RoiParams
 from stackpick_sim.vision import kernels
+from stackpick_sim.vision.roi import Roi, decimate, find_roi
 
 
 @pytest.fixture
@@ -755,3 +757,47 @@ def test_outline_columns_match_the_array_form(rng: np.random.Generator) -> None:
         got = kernels.outline_columns(cx, cy, a, b, c, s, ct, st)
         for column, want in zip(got, (pu, pv, c * nx - s * ny, s * nx + c * ny), strict=True):
             np.testing.assert_array_equal(column, want)
+
+
+def _find_roi_reference(image: NDArray[np.uint8], params: RoiParams) -> Roi:
+    """The region of interest by OpenCV's and numpy's whole-array calls (the form the
+    compiled passes stand for)."""
+    h, w = image.shape[:2]
+    small = decimate(image, params.decimation)
+    level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
+             if small.ndim == 3 else small)
+    counts = cv2.calcHist([level], [0], None, [256], [0, 256]).ravel()
+    window = np.asarray(np.bartlett(params.belt_mode_window + 2)[1:-1], np.float64)
+    belt = int(np.argmax(np.convolve(counts, window, mode="same")))
+    spread = params.belt_colour_levels
+    near = cv2.inRange(level, max(0, belt - spread), min(255, belt + spread))
+    channels = 1 if small.ndim == 2 else int(small.shape[2])
+    colour = ((float(belt),) * channels if cv2.countNonZero(near) == 0
+              else tuple(float(c) for c in cv2.mean(small, mask=near)[:channels]))
+    fg = cv2.absdiff(level, np.full_like(level, belt)) > params.foreground_delta
+    bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
+    if bw == 0 or bh == 0:
+        return Roi(u0=0, v0=0, u1=w, v1=h, belt=colour)
+    step, margin = params.decimation, params.margin_px
+    return Roi(u0=max(0, bu * step - margin), v0=max(0, bv * step - margin),
+               u1=min(w, (bu + bw) * step + margin), v1=min(h, (bv + bh) * step + margin),
+               belt=colour)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+@pytest.mark.parametrize("window", [1, 4, 9])
+def test_find_roi_matches_the_whole_array_calls(rng: np.random.Generator, channels: int,
+                                                window: int) -> None:
+    for trial in range(20):
+        h, w = (int(x) for x in rng.integers(12, 90, 2))
+        belt = int(rng.integers(0, 256))
+        image = np.clip(belt + rng.normal(0, 3, (h, w, channels)), 0, 255).astype(np.uint8)
+        if trial % 4:  # a few objects of other levels, some near the belt's
+            for _ in range(int(rng.integers(1, 4))):
+                v, u = int(rng.integers(0, h)), int(rng.integers(0, w))
+                image[v:v + int(rng.integers(2, 30)), u:u + int(rng.integers(2, 30))] = (
+                    rng.integers(0, 256, channels))
+        image = image.squeeze(axis=2) if channels == 1 else image
+        params = RoiParams(belt_mode_window=window, decimation=int(rng.choice([1, 2, 4])),
+                           belt_colour_levels=int(rng.integers(0, 4)))
+        assert find_roi(image, params) == _find_roi_reference(image, params)

@@ -1203,6 +1203,60 @@ def outline_columns(cx: float, cy: float, a: float, b: float, c: float, s: float
     return pu, pv, nu, nv
 
 
+@_compiled
+def level_histogram(small: NDArray[np.uint8]
+                    ) -> tuple[NDArray[np.uint8], NDArray[np.float64]]:  # pragma: no cover
+    """The brightest channel (H, W) of an (H, W, C) uint8 image and its 256-bin histogram
+    (counts as float64); see :func:`~stackpick_sim.vision.roi.find_roi` (the same values as
+    ``np.maximum`` over the channels and ``cv2.calcHist``)."""
+    h, w, channels = small.shape
+    level = np.empty((h, w), np.uint8)
+    counts = np.zeros(256)
+    for r in range(h):
+        for c in range(w):
+            top = small[r, c, 0]
+            for k in range(1, channels):
+                top = max(top, small[r, c, k])
+            level[r, c] = top
+            counts[top] += 1.0
+    return level, counts
+
+
+@_compiled
+def belt_box(small: NDArray[np.uint8], level: NDArray[np.uint8], belt: int, spread: int,
+             delta: float) -> tuple[NDArray[np.float64], int,
+                                    NDArray[np.int64]]:  # pragma: no cover - compiled
+    """For the (H, W, C) uint8 image ``small`` of brightest channel ``level`` (H, W) and the
+    belt's level ``belt``: the mean colour of the pixels whose level lies within ``spread``
+    of it (each channel's sum times the reciprocal of their count, as ``cv2.mean`` with a
+    mask; zeros without such pixels), their count, and the box (u, v, width, height, as
+    ``cv2.boundingRect``; zeros when empty) of the pixels whose level differs from the
+    belt's by more than ``delta``; see :func:`~stackpick_sim.vision.roi.find_roi`."""
+    h, w, channels = small.shape
+    sums = np.zeros(channels, np.int64)
+    near = 0
+    lo, hi = max(0, belt - spread), min(255, belt + spread)
+    u0, v0, u1, v1 = w, h, -1, -1
+    for r in range(h):
+        for c in range(w):
+            x = np.int64(level[r, c])
+            if lo <= x <= hi:
+                near += 1
+                for k in range(channels):
+                    sums[k] += small[r, c, k]
+            if abs(x - belt) > delta:
+                u0, u1 = min(u0, c), max(u1, c)
+                v0, v1 = min(v0, r), max(v1, r)
+    mean = np.zeros(channels)
+    scale = 1.0 / near if near else 0.0
+    for k in range(channels):
+        mean[k] = sums[k] * scale
+    box = np.zeros(4, np.int64)
+    if u1 >= 0:
+        box[0], box[1], box[2], box[3] = u0, v0, u1 - u0 + 1, v1 - v0 + 1
+    return mean, near, box
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1240,6 +1294,10 @@ def warm_up() -> None:
     band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
     circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6), np.ones(4))
     table = np.zeros(256, np.uint8)
+    small = np.zeros((4, 4, 3), np.uint8)
+    belt_box(small, level_histogram(small)[0], 0, 1, 1.0)
+    grey = np.zeros((4, 4, 1), np.uint8)
+    belt_box(grey, level_histogram(grey)[0], 0, 1, 1.0)
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)
