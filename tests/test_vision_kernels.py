@@ -6,14 +6,24 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from unittest import mock
 
 import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import RoiParams
+from stackpick_sim.config.vision_params import FitParams, RoiParams
+from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
+from stackpick_sim.vision.fitting import (
+    EQ2_CHECKED_RATIO_SQ,
+    distance_rows,
+    ellipse_params,
+    fit_ellipse,
+    grouped_distances,
+    plausible,
+)
 from stackpick_sim.vision.roi import Roi, decimate, find_roi
 
 
@@ -801,3 +811,38 @@ def test_find_roi_matches_the_whole_array_calls(rng: np.random.Generator, channe
         params = RoiParams(belt_mode_window=window, decimation=int(rng.choice([1, 2, 4])),
                            belt_colour_levels=int(rng.integers(0, 4)))
         assert find_roi(image, params) == _find_roi_reference(image, params)
+
+
+def test_fit_checks_match_fit_ellipse_and_plausible(rng: np.random.Generator) -> None:
+    raw = np.column_stack([rng.uniform(-50, 300, 400), rng.uniform(-50, 300, 400),
+                           rng.uniform(-5, 200, 400), rng.uniform(-5, 200, 400),
+                           rng.uniform(-180, 360, 400)])
+    raw[::7, 3] = raw[::7, 2] * 1e-4  # extreme axis ratios: Eq. 2 evaluated
+    raw[::11, 0], raw[::13, 4], raw[::17, 2] = np.nan, np.inf, 0.0
+    shape = (240, 320)
+    params = FitParams()
+    top = params.max_axis_diagonals * math.hypot(*shape)
+    rows, degrees, ok = kernels.fit_checks(raw, params.min_axis_px, top, EQ2_CHECKED_RATIO_SQ)
+    for k, (cx, cy, w, h, angle) in enumerate(raw.tolist()):
+        with mock.patch.object(cv2, "fitEllipseDirect", return_value=((cx, cy), (w, h), angle)):
+            e = fit_ellipse(np.zeros((5, 2), np.int32))
+        assert bool(ok[k]) == (e is not None and plausible(e, shape, params))
+        if e is not None:
+            assert (rows[k, :4].tolist(), degrees[k]) == ([e.cx, e.cy, e.a, e.b], e.angle_deg)
+            assert rows[k, 4] == math.radians(e.angle_deg)
+
+
+def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator) -> None:
+    pixels = rng.integers(0, 300, (500, 2)).astype(np.int32)
+    ellipses = [Ellipse.of(*rng.uniform(50, 250, 2), *np.sort(rng.uniform(5, 80, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(12)]
+    starts = rng.integers(0, 400, 12)
+    stops = starts + rng.integers(1, 100, 12)
+    which = rng.random(12) < 0.8
+    got = kernels.ranged_rms(distance_rows(ellipse_params(ellipses)), pixels, starts, stops,
+                             which)
+    for e, lo, hi, on, r in zip(ellipses, starts, stops, which, got, strict=True):
+        d = grouped_distances(ellipse_params([e]), np.array([hi - lo]),
+                              pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
+        assert r == (math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64),
+                                                 weights=d * d)[0]) / (hi - lo)) if on else 0.0)

@@ -381,8 +381,8 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
                          config.refine, config.fits)
     return state.updated(merged=[
-        MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
-                      support=m.support) for m, e in zip(merged, refined, strict=True)])
+        MergedEllipse.of(e, m.segments, m.residual_px, m.support)
+        for m, e in zip(merged, refined, strict=True)])
 
 
 def gate_stage(state: State, config: DetectorConfig) -> State:

@@ -1257,6 +1257,73 @@ def belt_box(small: NDArray[np.uint8], level: NDArray[np.uint8], belt: int, spre
     return mean, near, box
 
 
+@_compiled
+def _eq2_holds(a: float, b: float, angle_deg: float) -> bool:  # pragma: no cover - compiled
+    """Paper Eq. 2 on the ellipse of semi-axes (a, b) and angle ``angle_deg``: see
+    :func:`~stackpick_sim.vision.fitting.satisfies_eq2` (the same arithmetic)."""
+    t = angle_deg * (math.pi / 180.0)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0, math.pow(a / b, 2.0)
+    big_a, big_b, big_h = c * c * ia + s * s * ib, s * s * ia + c * c * ib, c * s * (ia - ib)
+    return big_a * big_b - big_h * big_h > 0.0
+
+
+@_compiled
+def fit_checks(raw: NDArray[np.float64], min_axis: float, max_axis: float, ratio_sq: float
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                          NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """Per direct fit (row k of (K, 5) ``raw``: centre u, v, full axes w, h and angle (deg) as
+    ``cv2.fitEllipseDirect`` gives them): (K, 5) rows cx, cy, a, b and the angle in radians
+    (zeros where the fit fails), the angle (deg, in [0, 180)) and whether it is an ellipse
+    (finite, positive axes, Eq. 2 checked beyond the squared axis ratio ``ratio_sq``) with a
+    semi-minor axis of at least ``min_axis`` and a semi-major axis of at most ``max_axis``;
+    see :func:`~stackpick_sim.vision.fitting.fit_ellipse` and
+    :func:`~stackpick_sim.vision.fitting.plausible` (the same arithmetic)."""
+    k = raw.shape[0]
+    params = np.zeros((k, 5))
+    degrees = np.zeros(k)
+    ok = np.zeros(k, np.bool_)
+    for i in range(k):
+        cx, cy, w, h, angle = raw[i, 0], raw[i, 1], raw[i, 2], raw[i, 3], raw[i, 4]
+        if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
+                and math.isfinite(angle)):
+            continue
+        if w >= h:
+            a, b, ang = w / 2.0, h / 2.0, angle
+        else:
+            a, b, ang = h / 2.0, w / 2.0, angle + 90.0
+        ang = ang % 180.0
+        if math.pow(a / b, 2.0) > ratio_sq and not _eq2_holds(a, b, ang):
+            continue
+        params[i, 0], params[i, 1], params[i, 2], params[i, 3] = cx, cy, a, b
+        params[i, 4] = ang * (math.pi / 180.0)
+        degrees[i] = ang
+        ok[i] = min_axis <= b and a <= max_axis
+    return params, degrees, ok
+
+
+@_compiled
+def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
+               starts: NDArray[np.int64], stops: NDArray[np.int64], which: NDArray[np.bool_]
+               ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
+    sine) with ``which[e]`` set, the RMS Sampson distance of the pixels
+    ``pixels[starts[e]:stops[e]]`` to it (their squares summed in order; 0 elsewhere); see
+    :func:`~stackpick_sim.vision.fitting.rms_residual` (the same sums)."""
+    n = rows.shape[1]
+    out = np.zeros(n)
+    for e in range(n):
+        if not which[e]:
+            continue
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        total = 0.0
+        for k in range(starts[e], stops[e]):
+            d = _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s)
+            total += d * d
+        out[e] = math.sqrt(total / (stops[e] - starts[e]))
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1286,6 +1353,10 @@ def warm_up() -> None:
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
+    bows(np.zeros((1, 2), np.int32), counts)
+    fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
+    ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
+               np.ones(1, np.bool_))
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
