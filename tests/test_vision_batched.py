@@ -19,7 +19,13 @@ from stackpick_sim.vision.fitting import (
     within,
     within_pairs,
 )
-from stackpick_sim.vision.merging import MergedEllipse, merge_segments
+from stackpick_sim.vision.merging import (
+    SUPPORT_RADIUS_PX,
+    MergedEllipse,
+    merge_segments,
+    support_map,
+    support_shares,
+)
 from stackpick_sim.vision.occlusion import DEFAULT_TOP, OcclusionEvidence, evidence_all
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
@@ -275,3 +281,14 @@ def test_merge_with_the_fits_residuals_gives_what_it_computes(
     for m, n in zip(given, computed, strict=True):
         assert (m.ellipse, m.segments, m.support) == (n.ellipse, n.segments, n.support)
         assert m.residual_px == pytest.approx(n.residual_px, rel=1e-12)
+
+
+def test_support_shares_on_the_edge_map_are_those_on_its_dilation(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, ellipses = scene
+    edges = edge_image(image).edges
+    grown = [Ellipse.of(e.cx + 0.7, e.cy - 0.4, e.a * 1.02, e.b, e.angle_deg + 3.0)
+             for e in ellipses]
+    on_map = support_shares(ellipses + grown, edges, SUPPORT_RADIUS_PX)
+    assert np.array_equal(on_map, support_shares(ellipses + grown, support_map(edges)))
+    assert on_map.max() > 0.5  # the scene's faces are supported

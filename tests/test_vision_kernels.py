@@ -186,9 +186,14 @@ def test_outline_support_is_the_lookup_of_the_rounded_samples(
     hit = np.zeros(u.size, bool)
     hit[inside] = support[v[inside].astype(int), u[inside].astype(int)] > 0
     want = np.bincount(np.arange(5).repeat(counts), weights=hit) / counts
-    got = kernels.outline_support(support, rows, counts, ct, st)
+    got = kernels.outline_support(support, rows, counts, ct, st, 0)
     assert np.array_equal(got, want)
     assert not inside.all()
+    # Within a radius of the (sparser) map's set pixels: the lookup in its dilation.
+    sparse = (rng.uniform(0, 1, (70, 90)) < 0.05).astype(np.uint8)
+    dilated = cv2.dilate(sparse, np.ones((3, 3), np.uint8))
+    assert np.array_equal(kernels.outline_support(sparse, rows, counts, ct, st, 1),
+                          kernels.outline_support(dilated, rows, counts, ct, st, 0))
 
 
 def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
@@ -846,3 +851,20 @@ def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator)
                               pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
         assert r == (math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64),
                                                  weights=d * d)[0]) / (hi - lo)) if on else 0.0)
+
+
+def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(
+        rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.edges import STAIR_LUTS
+
+    for density in (0.05, 0.3, 0.7):
+        edges = (rng.uniform(0, 1, (41, 57)) < density).astype(np.uint8)
+        gx, gy = _gradients(rng)
+        gx, gy = np.ascontiguousarray(gx[:41, :57]), np.ascontiguousarray(gy[:41, :57])
+        gx[::5, ::3] = gy[::5, ::3] = 0  # zero gradients: the floor of the norm
+        thin, pts, g = kernels.stairs_removed_pixels(edges, *STAIR_LUTS, gx, gy)
+        want = kernels.stairs_removed(edges, *STAIR_LUTS)
+        np.testing.assert_array_equal(thin, want)
+        want_pts, want_g = kernels.edge_pixels(want, gx, gy)
+        np.testing.assert_array_equal(pts, want_pts)
+        np.testing.assert_array_equal(g, want_g)

@@ -235,13 +235,28 @@ def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
 
 
 @_compiled
+def _near_set(image: NDArray[np.uint8], r: int, c: int, radius: int
+              ) -> bool:  # pragma: no cover - compiled
+    """Whether a pixel within ``radius`` (Chebyshev) of (r, c), on the image, is set."""
+    h, w = image.shape
+    for i in range(max(0, r - radius), min(h, r + radius + 1)):
+        for j in range(max(0, c - radius), min(w, c + radius + 1)):
+            if image[i, j] > 0:
+                return True
+    return False
+
+
+@_compiled
 def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
                     counts: NDArray[np.int64], ct: NDArray[np.float64],
-                    st: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+                    st: NDArray[np.float64], radius: int
+                    ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """Per ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine),
     the share of its ``counts[e]`` outline samples (parameters' cosines ``ct`` and sines
-    ``st``, ellipse by ellipse) whose rounded pixel is set in the (H, W) ``support`` map
-    (off the map: not); see :func:`~stackpick_sim.vision.merging.support_shares`."""
+    ``st``, ellipse by ellipse) whose rounded pixel lies within ``radius`` px (Chebyshev)
+    of a set pixel of the (H, W) ``support`` map (a sample off the map: not; radius 1 on an
+    edge map: the lookup in its 3x3 dilation); see
+    :func:`~stackpick_sim.vision.merging.support_shares`."""
     h, w = support.shape
     out = np.empty(counts.shape[0])
     k = 0
@@ -252,7 +267,8 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
             x, y = a * ct[k], b * st[k]
             u = np.rint(c * x + cx - s * y)
             v = np.rint(s * x + cy + c * y)
-            if 0.0 <= u < w and 0.0 <= v < h and support[np.int64(v), np.int64(u)] > 0:
+            if (0.0 <= u < w and 0.0 <= v < h
+                    and _near_set(support, int(v), int(u), radius)):
                 hits += 1
             k += 1
         out[e] = hits / counts[e]
@@ -983,6 +999,18 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     8-neighbour codes, bit i the ring neighbour i clockwise from north-west, off the image
     0), each pass reading every code before it clears any; see
     :func:`~stackpick_sim.vision.edges.remove_stairs` (the same pixels)."""
+    padded, _, _ = _stairs_pass_pair(edges, first, second)
+    return np.ascontiguousarray(padded[1:-1, 1:-1])
+
+
+@_compiled
+def _stairs_pass_pair(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                      second: NDArray[np.uint8]
+                      ) -> tuple[NDArray[np.uint8], NDArray[np.int64],
+                                 int]:  # pragma: no cover - compiled
+    """:func:`stairs_removed` on a map with a zero border of one pixel, the flat indices
+    (into it, ascending) of the pixels left at the front of the returned index array, and
+    how many."""
     h, w = edges.shape
     padded = np.zeros((h + 2, w + 2), np.uint8)
     n = 0
@@ -1000,8 +1028,29 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
         k += flat[i]
     gone = np.empty(n, np.int64)
     n = _stair_pass(padded, at, n, first, gone)
-    _stair_pass(padded, at, n, second, gone)
-    return np.ascontiguousarray(padded[1:-1, 1:-1])
+    n = _stair_pass(padded, at, n, second, gone)
+    return padded, at, n
+
+
+@_compiled
+def stairs_removed_pixels(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                          second: NDArray[np.uint8], gx: NDArray[np.int16],
+                          gy: NDArray[np.int16]
+                          ) -> tuple[NDArray[np.uint8], NDArray[np.float64],
+                                     NDArray[np.float64]]:  # pragma: no cover - compiled
+    """:func:`stairs_removed` and the :func:`edge_pixels` of its result (with the gradients
+    ``gx``, ``gy`` of the map's shape) in one call: the pixels left by the passes are
+    already listed in row-major order, so the map is not scanned again."""
+    padded, at, n = _stairs_pass_pair(edges, first, second)
+    wp = padded.shape[1]
+    pts, g = np.empty((2, n)), np.empty((2, n))
+    for k in range(n):
+        r, c = at[k] // wp - 1, at[k] % wp - 1
+        pts[0, k], pts[1, k] = c, r
+        x, y = np.float64(gx[r, c]), np.float64(gy[r, c])
+        norm = max(np.hypot(x, y), 1e-9)
+        g[0, k], g[1, k] = x / norm, y / norm
+    return np.ascontiguousarray(padded[1:-1, 1:-1]), pts, g
 
 
 @_compiled
@@ -1357,7 +1406,7 @@ def warm_up() -> None:
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
                np.ones(1, np.bool_))
-    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
+    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
@@ -1370,6 +1419,7 @@ def warm_up() -> None:
     grey = np.zeros((4, 4, 1), np.uint8)
     belt_box(grey, level_histogram(grey)[0], 0, 1, 1.0)
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
+    stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)
     outline_columns(0.0, 0.0, 1.0, 1.0, 1.0, 0.0, fixed, fixed)

@@ -122,8 +122,13 @@ def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]
     return out
 
 
-def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArray[np.float64]:
-    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
+def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8], radius: int = 0
+                   ) -> NDArray[np.float64]:
+    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass; with
+    ``radius`` (px), ``support`` is the edge map itself and a sample counts when an edge
+    pixel lies within that radius (Chebyshev) of it: ``support_shares(e, edges,
+    SUPPORT_RADIUS_PX)`` equals ``support_shares(e, support_map(edges))`` without the
+    dilated map."""
     if not ellipses:
         return np.zeros(0)
     counts, rows = [], []
@@ -136,7 +141,7 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
                                    np.array(rows, np.float64), np.array(counts, np.int64),
                                    np.concatenate([q[0] for q in circles]),
-                                   np.concatenate([q[1] for q in circles]))
+                                   np.concatenate([q[1] for q in circles]), radius)
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
@@ -527,7 +532,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     refits, refit_rms = _refits(chains, groups, extras, shape, fits_params)
     finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table,
                                 fits_params.max_residual_px)
-    shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
+    # The edge map's support read round each sample: no dilated map.
+    shares = support_shares([e for _, e in finals], edges, SUPPORT_RADIUS_PX).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= params.min_support]
     out.sort(key=lambda m: -m.support)
