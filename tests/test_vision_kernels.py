@@ -868,3 +868,23 @@ def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(
         want_pts, want_g = kernels.edge_pixels(want, gx, gy)
         np.testing.assert_array_equal(pts, want_pts)
         np.testing.assert_array_equal(g, want_g)
+
+
+def test_junctions_cut_matches_the_box_filters(rng: np.random.Generator) -> None:
+    for density in (0.0, 0.1, 0.4, 0.9):
+        edges = (rng.uniform(0, 1, (37, 53)) < density).astype(np.uint8)
+        box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
+                            borderType=cv2.BORDER_CONSTANT)
+        cut = ((box <= 3) & (edges > 0)).astype(np.uint8)
+        box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False,
+                            borderType=cv2.BORDER_CONSTANT)
+        rows, cols = np.nonzero(edges)
+        for got, want in zip(kernels.set_pixels(edges), (rows, cols), strict=True):
+            np.testing.assert_array_equal(got, want)
+        got_cut, got_end, valid = kernels.junctions_cut(edges, rows, cols)
+        assert valid
+        np.testing.assert_array_equal(got_cut, cut)
+        np.testing.assert_array_equal(got_end, ((box <= 2) & (cut > 0)).astype(np.uint8))
+        if rows.size > 1:  # pixels out of order, or not set: told, not used
+            assert not kernels.junctions_cut(edges, rows[::-1].copy(), cols[::-1].copy())[2]
+            assert not kernels.junctions_cut(1 - edges, rows, cols)[2]

@@ -349,7 +349,8 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
     """The edge chains (:func:`~stackpick_sim.vision.segments.link_segments`), the
     ``limits.max_chains`` longest."""
     cap = config.limits.max_chains
-    segments = link_segments(state.edges("segments").edges, cap, config.segments).chains
+    segments = link_segments(state.edges("segments").edges, cap, config.segments,
+                             state.points).chains
     if len(segments) > cap:
         segments = tuple(segments[i] for i in longest(segments, cap))
     return state.updated(segments=segments)

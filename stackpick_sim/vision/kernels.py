@@ -1373,6 +1373,149 @@ def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
     return out
 
 
+@_compiled
+def set_pixels(image: NDArray[np.uint8]
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The rows and columns of the nonzero pixels of ``image`` (H, W), row-major (as
+    ``np.nonzero``)."""
+    h, w = image.shape
+    n = 0
+    for r in range(h):
+        for c in range(w):
+            n += image[r, c] != 0
+    rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
+    k = 0
+    for r in range(h):
+        for c in range(w):
+            if image[r, c] != 0:
+                rows[k], cols[k] = r, c
+                k += 1
+    return rows, cols
+
+
+@_compiled
+def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64]
+                  ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], bool]:  # pragma: no cover
+    """For a 0/1 edge map (H, W) whose set pixels are (``rows``, ``cols``) in row-major
+    order: the 0/1 map of its pixels with at most two edge neighbours (the junctions cut
+    out: a 3x3 sum, the pixel included, of at most 3) and, per pixel of that map, 1 where
+    it has at most one neighbour left in it (an end point: a 3x3 sum of at most 2; 0
+    elsewhere), off the image 0 (the same maps as the box filters of
+    :func:`~stackpick_sim.vision.segments.link_segments`); and whether the pixels given are
+    set and ascending (if not, the maps are not computed)."""
+    h, w = edges.shape
+    wp = w + 2
+    n = rows.shape[0]
+    padded = np.zeros((h + 2, wp), np.uint8)
+    flat = padded.ravel()
+    at = np.empty(n, np.int64)
+    for j in range(n):
+        r, c = rows[j], cols[j]
+        if not (0 <= r < h and 0 <= c < w and edges[r, c] != 0):
+            return padded, padded, False
+        at[j] = (r + 1) * wp + c + 1
+        if j > 0 and at[j] <= at[j - 1]:
+            return padded, padded, False
+        flat[at[j]] = 1
+    keep = np.empty(n, np.uint8)
+    for j in range(n):
+        keep[j] = _padded_box(flat, at[j], wp) <= 3
+    cut_padded = np.zeros((h + 2, wp), np.uint8)
+    cut_flat = cut_padded.ravel()
+    for j in range(n):
+        cut_flat[at[j]] = keep[j]
+    end = np.zeros((h, w), np.uint8)
+    for j in range(n):
+        if keep[j]:
+            end[rows[j], cols[j]] = _padded_box(cut_flat, at[j], wp) <= 2
+    return np.ascontiguousarray(cut_padded[1:-1, 1:-1]), end, True
+
+
+@_compiled
+def _padded_box(flat: NDArray[np.uint8], i: int, wp: int) -> int:  # pragma: no cover
+    """The 3x3 sum round flat index ``i`` of a map of row length ``wp`` with a zero border."""
+    return (int(flat[i - wp - 1]) + flat[i - wp] + flat[i - wp + 1] + flat[i - 1] + flat[i]
+            + flat[i + 1] + flat[i + wp - 1] + flat[i + wp] + flat[i + wp + 1])
+
+
+@_compiled
+def ordered_chains(contours: NDArray[np.int32], lengths: NDArray[np.int64],
+                   end: NDArray[np.uint8], shortest: int
+                   ) -> tuple[NDArray[np.int32], NDArray[np.int64],
+                              NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """The ordered chains of OpenCV contours of a one-pixel-wide map (all (M, 2) pixels
+    (u, v) concatenated, ``lengths[i]`` each) given its ``end`` point map (H, W): per
+    contour, the stretch from its first end pixel to its next one, or with a single end the
+    contour turned to start there, or without any the contour itself (closed); only those
+    of at least ``shortest`` pixels, concatenated, with their bounds (C + 1,) and whether
+    each is closed; see :func:`~stackpick_sim.vision.segments.link_segments`."""
+    out = np.empty_like(contours)
+    bounds = np.zeros(lengths.shape[0] + 1, np.int64)
+    closed = np.zeros(lengths.shape[0], np.bool_)
+    k, count, start = 0, 0, 0
+    for i in range(lengths.shape[0]):
+        n = lengths[i]
+        first, second = -1, -1
+        for j in range(n):
+            if end[contours[start + j, 1], contours[start + j, 0]]:
+                if first < 0:
+                    first = j
+                else:
+                    second = j
+                    break
+        lo, size = 0, n  # no end: the contour as it is
+        if second >= 0:
+            lo, size = first, second - first + 1
+        elif first >= 0:
+            lo = first  # one end: turned to start there, n pixels
+        if size >= shortest:
+            for j in range(size):
+                at = start + (lo + j) % n
+                out[k + j, 0], out[k + j, 1] = contours[at, 0], contours[at, 1]
+            closed[count] = first < 0
+            k += size
+            count += 1
+            bounds[count] = k
+        start += n
+    return out[:k], bounds[:count + 1], closed[:count]
+
+
+@_compiled
+def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDArray[np.bool_],
+               polys: NDArray[np.int32], poly_bounds: NDArray[np.int64], shortest: int,
+               corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
+               ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """Each chain (``chains[bounds[c]:bounds[c + 1]]``, ``closed[c]``) cut at the
+    :func:`corner_cuts` of its polygon (``polys[poly_bounds[c]:poly_bounds[c + 1]]``; fewer
+    than 3 vertices: no cut), a closed chain turned to start at its first cut: the chains'
+    pixels so turned and the (A, 2) [start, stop) ranges of the arcs of at least
+    ``shortest`` pixels, in order; see :func:`~stackpick_sim.vision.segments.split_chain`."""
+    out = np.empty_like(chains)
+    ranges = np.empty((chains.shape[0] + bounds.shape[0], 2), np.int64)
+    count = 0
+    for c in range(bounds.shape[0] - 1):
+        lo, hi = bounds[c], bounds[c + 1]
+        n = hi - lo
+        chain = chains[lo:hi]
+        poly = polys[poly_bounds[c]:poly_bounds[c + 1]]
+        cuts = np.empty(0, np.int64)
+        if poly.shape[0] >= 3:
+            cuts = corner_cuts(chain, poly, closed[c], corner_deg, spike_deg, spike_ratio,
+                               signed_deg)
+        first = cuts[0] if closed[c] and cuts.shape[0] else 0
+        for j in range(n):
+            at = (first + j) % n
+            out[lo + j, 0], out[lo + j, 1] = chain[at, 0], chain[at, 1]
+        prev = 0
+        for j in range(cuts.shape[0] + 1):
+            stop = n if j == cuts.shape[0] else cuts[j] - first
+            if stop > prev and stop - prev >= shortest:
+                ranges[count, 0], ranges[count, 1] = lo + prev, lo + stop
+                count += 1
+            prev = max(prev, stop)
+    return out, ranges[:count]
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1419,6 +1562,11 @@ def warm_up() -> None:
     grey = np.zeros((4, 4, 1), np.uint8)
     belt_box(grey, level_histogram(grey)[0], 0, 1, 1.0)
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
+    grid = np.zeros((4, 4), np.uint8)
+    _, end, _ = junctions_cut(grid, *set_pixels(grid))
+    pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
+    chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
+               1.0)
     stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)
