@@ -888,3 +888,27 @@ def test_junctions_cut_matches_the_box_filters(rng: np.random.Generator) -> None
         if rows.size > 1:  # pixels out of order, or not set: told, not used
             assert not kernels.junctions_cut(edges, rows[::-1].copy(), cols[::-1].copy())[2]
             assert not kernels.junctions_cut(1 - edges, rows, cols)[2]
+
+
+def test_near_pairs_beyond_one_per_point_are_all_listed(rng: np.random.Generator) -> None:
+    rows = np.repeat(_ellipse_rows(rng, 1), 5, axis=1)  # one outline, five times over
+    t = rng.uniform(0, 2 * np.pi, 40)
+    pu = rows[0, 0] + rows[4, 0] * rows[2, 0] * np.cos(t) - rows[5, 0] * rows[3, 0] * np.sin(t)
+    pv = rows[1, 0] + rows[5, 0] * rows[2, 0] * np.cos(t) + rows[4, 0] * rows[3, 0] * np.sin(t)
+    got_e, got_m = kernels.near_pairs(pu, pv, rows, rows[2] + 3.0, 1.0)
+    assert np.array_equal(got_e, np.arange(5).repeat(40))
+    assert np.array_equal(got_m, np.tile(np.arange(40), 5))
+
+
+def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
+    sizes = rng.integers(1, 40, 15)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    for fraction in (0.3, 0.5, 1.0):
+        pair_g = rng.integers(0, 4, 600).astype(np.int64)
+        pair_p = rng.integers(0, int(starts[-1]), 600).astype(np.int64)
+        seg = np.arange(15).repeat(sizes)
+        hits = np.bincount(pair_g * 15 + seg[pair_p], minlength=60).reshape(4, 15)
+        want = (hits / sizes.astype(np.float64)[None, :] >= fraction).nonzero()
+        got = kernels.lying_pairs(pair_g, pair_p, starts, 4, fraction)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+        assert 0 < want[0].size

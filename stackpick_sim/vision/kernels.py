@@ -1516,6 +1516,37 @@ def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDA
     return out, ranges[:count]
 
 
+@_compiled
+def lying_pairs(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
+                starts: NDArray[np.int64], n_groups: int, fraction: float
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The (group, segment) pairs, in ``np.nonzero`` order of the (G, S) matrix, where at
+    least ``fraction`` of the segment's pixels (segment s: pixels ``starts[s]`` to
+    ``starts[s + 1] - 1``) appear among the (group, pixel) pairs (``pair_g``, ``pair_p``)
+    (each pair once; the share as the count over the size, in float64); see
+    :func:`~stackpick_sim.vision.merging._lying_segments`."""
+    n_seg = starts.shape[0] - 1
+    seg = np.empty(starts[n_seg], np.int64)
+    for s in range(n_seg):
+        for p in range(starts[s], starts[s + 1]):
+            seg[p] = s
+    hits = np.zeros((n_groups, n_seg), np.int64)
+    for k in range(pair_g.shape[0]):
+        hits[pair_g[k], seg[pair_p[k]]] += 1
+    count = 0
+    for g in range(n_groups):
+        for s in range(n_seg):
+            count += hits[g, s] / np.float64(starts[s + 1] - starts[s]) >= fraction
+    on_g, on_s = np.empty(count, np.int64), np.empty(count, np.int64)
+    k = 0
+    for g in range(n_groups):
+        for s in range(n_seg):
+            if hits[g, s] / np.float64(starts[s + 1] - starts[s]) >= fraction:
+                on_g[k], on_s[k] = g, s
+                k += 1
+    return on_g, on_s
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1545,6 +1576,8 @@ def warm_up() -> None:
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
+    lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
+                0.5)
     bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,

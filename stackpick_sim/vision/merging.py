@@ -420,13 +420,10 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
             g_rest, p_rest = rest
         g_on = np.concatenate([g_known, g_rest])
         p_on = np.concatenate([p_known, p_rest])
-    n_chains = len(table.sizes)
-    seg_id = np.arange(n_chains).repeat(table.sizes)
-    hits = np.bincount(g_on * n_chains + seg_id[p_on],
-                       minlength=len(groups) * n_chains).reshape(len(groups), n_chains)
-    frac = hits / np.array(table.sizes, np.float64)[None, :]
     lying: list[list[int]] = [[] for _ in groups]
-    on_g, on_s = (frac >= params.absorb_fraction).nonzero()
+    # The pairs' count per (group, segment) and the shares at the fraction, in one pass.
+    on_g, on_s = kernels.lying_pairs(g_on, p_on, table.starts, len(groups),
+                                     params.absorb_fraction)
     for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
         lying[g].append(s)
     return lying
