@@ -912,3 +912,22 @@ def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
         got = kernels.lying_pairs(pair_g, pair_p, starts, 4, fraction)
         assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
         assert 0 < want[0].size
+
+
+def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:
+    sizes = rng.integers(1, 30, 12)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    points = rng.integers(0, 200, (int(starts[-1]), 2)).astype(np.float64)
+    ellipses = [Ellipse.of(*rng.uniform(50, 150, 2), *np.sort(rng.uniform(5, 60, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(6)]
+    chosen = [sorted(rng.choice(12, int(rng.integers(1, 6)), replace=False).tolist())
+              for _ in ellipses]
+    got = kernels.segments_rms(distance_rows(ellipse_params(ellipses)), points, starts,
+                               np.array([s for segs in chosen for s in segs], np.int64),
+                               np.array([len(segs) for segs in chosen], np.int64))
+    for e, segs, r in zip(ellipses, chosen, got, strict=True):
+        at = np.concatenate([np.arange(starts[s], starts[s + 1]) for s in segs])
+        d = grouped_distances(ellipse_params([e]), np.array([at.size]), points[at, 0],
+                              points[at, 1])
+        assert r == np.sqrt(np.bincount(np.zeros(at.size, np.int64), weights=d * d)[0]
+                            / at.size)

@@ -1547,6 +1547,32 @@ def lying_pairs(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
     return on_g, on_s
 
 
+@_compiled
+def segments_rms(rows: NDArray[np.float64], points: NDArray[np.float64],
+                 starts: NDArray[np.int64], segments: NDArray[np.int64],
+                 per: NDArray[np.int64]) -> NDArray[np.float64]:  # pragma: no cover
+    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
+    sine), the RMS Sampson distance to it of the pixels of its ``per[e]`` segments (the next
+    ones of ``segments``; segment s: ``points[starts[s]:starts[s + 1]]``, (N, 2)), their
+    squares summed in that order; see :meth:`~stackpick_sim.vision.merging._Chains.rms`
+    (the same sums)."""
+    out = np.empty(rows.shape[1])
+    j = 0
+    for e in range(rows.shape[1]):
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        total = 0.0
+        count = 0
+        for _ in range(per[e]):
+            seg = segments[j]
+            j += 1
+            for k in range(starts[seg], starts[seg + 1]):
+                d = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+                total += d * d
+            count += starts[seg + 1] - starts[seg]
+        out[e] = math.sqrt(total / count)
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1576,6 +1602,8 @@ def warm_up() -> None:
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
+    segments_rms(np.ones((6, 1)), np.zeros((1, 2)), np.array([0, 1], np.int64), counts - 1,
+                 counts)
     lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
                 0.5)
     bows(np.zeros((1, 2), np.int32), counts)

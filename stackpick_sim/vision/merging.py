@@ -37,7 +37,6 @@ from stackpick_sim.vision.fitting import (
     ellipse_distances,
     ellipse_params,
     fit_ellipse,
-    grouped_distances,
     plausible,
     rms_residual,
     within_pairs,
@@ -385,19 +384,16 @@ class _Chains:
         # Each pair's pixels in ascending order (its segments ascending, each segment's
         # pixel range in turn): the order of the sums does not change.
         segs_all: list[int] = []
-        count = []
+        per = []
         for _, segs in pairs:
             ordered = sorted(set(segs))
             segs_all += ordered
-            count.append(sum(self.sizes[k] for k in ordered))
-        first = self.starts[segs_all]
-        lens = self.starts[np.array(segs_all) + 1] - first
-        at = np.arange(sum(count)) + (first - (lens.cumsum() - lens)).repeat(lens)
-        d = grouped_distances(ellipse_params([e for e, _ in pairs]), np.array(count),
-                              self.points[:, 0][at], self.points[:, 1][at])
-        which = np.arange(len(pairs)).repeat(count)
-        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
-                       / np.array(count)).tolist()
+            per.append(len(ordered))
+        # The distances and their sums per pair in one compiled pass.
+        rms = kernels.segments_rms(distance_rows(ellipse_params([e for e, _ in pairs])),
+                                   self.points, self.starts, np.array(segs_all, np.int64),
+                                   np.array(per, np.int64))
+        return cast("list[float]", rms.tolist())
 
 
 def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
