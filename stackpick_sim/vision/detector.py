@@ -67,7 +67,6 @@ from stackpick_sim.vision.limits import (
     upscaled,
 )
 from stackpick_sim.vision.markings import (
-    RIM_SAMPLE_SCALE,
     MarkingTest,
     inside_rim_band,
     whole_with_edges_inside,
@@ -120,9 +119,6 @@ from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
-#: Object kinds whose colours' chromaticities (r, g, b over their sum) differ by less than
-#: this (L1 distance) cannot be told apart by colour: the radius is then not read from it.
-MIN_KIND_CHROMA_DISTANCE = 0.1
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 #: The stages a detection cannot do without (the others, SKIPPABLE_STAGES, may be skipped:
@@ -559,21 +555,23 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
         return merged, replace(mine, index=both.index)
     face = extra[both.index - n]
     if choice.index is not None and _refit_round(face, merged[choice.index].ellipse,
-                                                 config.top.interior_margin_px):
+                                                 config.top.interior_margin_px,
+                                                 config.markings.rim_sample_scale):
         return merged, choice
     return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad,
                       config.merging)
 
 
-def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float) -> bool:
+def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float, rim_scale: float) -> bool:
     """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
     holds the other's centre) round it and beyond, the chosen face reaching into its rim band
     (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
     silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
     lying within the arc face's rim band (``margin_px``, the rule's interior margin) is a fit
-    on an arc of that face's outline and its artwork, and gives way."""
+    on an arc of that face's outline and its artwork, and gives way (``rim_scale``: the rim
+    band's, ``markings.rim_sample_scale``)."""
     return ((holds_centre(face, chosen) or holds_centre(chosen, face))
-            and not inside_rim_band(chosen, face, margin_px))
+            and not inside_rim_band(chosen, face, margin_px, rim_scale))
 
 
 def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -722,13 +720,15 @@ def _upscaled_detection(found: Detection, factor: int) -> Detection:
     return replace(found, ellipses=ellipses, segments=segments, pose=pose)
 
 
-def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]]
+def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]],
+                 min_chroma_distance: float = DEFAULT_TOP.kind_min_chroma_distance
                  ) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...] | None,
                             tuple[float, ...] | None]:
     """``radii_m``, ``kind_colours`` and ``heights_m`` for a DetectorConfig from a scene's
     object kinds, (radius m, RGB 0-1, height m) triples: each radius once, largest first, with
     its colour and height. The colours are None when the kinds cannot be told apart by colour
-    (one radius in two colours, or two radii in colours within MIN_KIND_CHROMA_DISTANCE); the
+    (one radius in two colours, or two radii in colours within ``min_chroma_distance``,
+    :attr:`TopParams.kind_min_chroma_distance`); the
     heights are None when one radius comes in two heights. ValueError for no kinds."""
     if not kinds:
         raise ValueError("no object kinds given")
@@ -747,7 +747,7 @@ def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]
     chroma = np.asarray(colours) / np.maximum(np.sum(colours, axis=1, keepdims=True), 1e-9)
     apart = np.abs(chroma[:, None, :] - chroma[None, :, :]).sum(axis=2)
     np.fill_diagonal(apart, np.inf)
-    if float(apart.min(initial=np.inf)) < MIN_KIND_CHROMA_DISTANCE:
+    if float(apart.min(initial=np.inf)) < min_chroma_distance:
         return radii, None, kind_heights
     return radii, colours, kind_heights
 
@@ -785,7 +785,7 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     colours = config.kind_colours
     rim_radius_of = (None if colours is None or rgb is None else
                      radius_by_colour(rgb, config.radii_m, colours,
-                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
+                                      face_colours(rgb, config.markings.rim_sample_scale)))
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,
