@@ -339,7 +339,8 @@ class TopParams(Section):
         "arc_split_reach_px": (0.0, 50.0, "px"), "arc_grow_rounds": (0, 20, "rounds"),
         "off_outline_px": (0.0, 20.0, "px"), "rest_kind_margin_m": (0.0, 0.1, "m"),
         "cover_extra_depths": (0.0, 5.0, "radii"), "perspective_enlargement": (0.5, 2.0, ""),
-        "kind_min_chroma_distance": (0.0, 2.0, "")}
+        "kind_min_chroma_distance": (0.0, 2.0, ""), "inner_refit_max_area": (0.0, 1.0, ""),
+        "inner_refit_reach_px": (1, 30, "px")}
 
     min_support: float = 0.9
     """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
@@ -484,6 +485,23 @@ class TopParams(Section):
     the choice: an occluder whose outline shows runs into the face it covers, so a face cut
     short by nothing lies under a face of its colour and shade the merge never fitted, which
     can be the top (needs the object kinds' colours)."""
+    inner_refit: bool = True
+    """When an ellipse passes the rule outright, it is refitted on its innermost consistent
+    edge (the ``contrast_*`` fields' refit), and a refit clearly smaller
+    (``inner_refit_max_area``) that passes the rule too replaces it: a top face over lower
+    faces of its colour and shade is fitted round slivers of them on their strong
+    silhouette, its own boundary with them a faint step of a few grey levels inside the fit
+    that the edge map misses."""
+    inner_refit_reach_px: int = 12
+    """Inward search reach (px) of the inner refit: the slivers of lower faces a fit takes in
+    beyond a top face of their colour are as wide as the faces' offset, 5-11 px on rendered
+    cluttered-scene frames (a lower face nearly concentric with the top one), beyond the
+    contrast fallback's reach (``contrast_inner_reach_px``)."""
+    inner_refit_max_area: float = 0.95
+    """Largest ratio [0, 1] of the inner refit's area (product of semi-axes) to the fit's for
+    the refit to replace the chosen face: a refit on a well-fitted face's own edge keeps
+    0.97-1.05 of its area (on rendered paper, grey and cluttered frames), so less than 0.95
+    is a fit that took in a sliver beyond the face."""
     hidden_min_support: float = 0.6
     """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
     hidden-face check: a face at least half visible, as the scoring counts faces (far rims

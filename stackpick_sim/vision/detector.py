@@ -391,9 +391,10 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
-    (``top.rest_check``) and the hidden-face check (``top.hidden_check``), and when it chose
-    none, its fallbacks (``top.fallbacks``). Before those, when no ellipse passed the rule
-    outright, faces with markings fitted on arc pairs join it (``top.marked_arcs``)."""
+    (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
+    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``). Before
+    those, when no ellipse passed the rule outright, faces with markings fitted on arc pairs
+    join it (``top.marked_arcs``)."""
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)
@@ -411,7 +412,41 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _nearer_arcs(state, merged, choice, cues, config, every_arc=False)
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
+    elif config.top.inner_refit:
+        merged, choice = _inner_refit(state, merged, choice, config)
     return state.updated(cues=cues, merged=merged, choice=choice)
+
+
+def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The chosen face refitted on its innermost consistent edge (:func:`~stackpick_sim.
+    vision.contrast.refit_on_contrast`, reaching ``top.inner_refit_reach_px`` inward) when it
+    passed the rule outright and the refit is clearly smaller (``top.inner_refit_max_area``),
+    plausible, within the size gate and passes the rule too: a top face over lower faces of
+    its colour and shade, fitted round slivers of them on their strong silhouette (its own
+    boundary with them a faint step inside the fit that the edge map misses, so no edge
+    shows inside it). The choice then says so (``inner``: the pose's final fit keeps off the
+    silhouette's edge pixels). Otherwise both unchanged."""
+    assert choice.index is not None
+    i = choice.index
+    if choice.evidence[i].occluded:  # chosen with markings, or by a later check
+        return merged, choice
+    fit = merged[i].ellipse
+    grad = state.edges("top")
+    reach = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px)
+    refit = refit_on_contrast(fit, grad, True, reach)
+    gate = state.gate
+    if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
+            or not plausible(refit, state.crop, config.fits)
+            or (gate is not None and not gate[0] <= refit.a <= gate[1])):
+        return merged, choice
+    evidence = select_top([refit], grad, edge_points=state.points,
+                          params=config.top).evidence[0]
+    if evidence.occluded:
+        return merged, choice
+    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
+    return merged, replace(choice, evidence=(*choice.evidence[:i], evidence,
+                                             *choice.evidence[i + 1:]), inner=True)
 
 
 def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -452,19 +487,23 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
         return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
                                                  timings_ms=state.timings_ms,
                                                  reason=choice.reason))
-    pose = _top_pose(state, merged[choice.index].ellipse, config)
+    pose = _top_pose(state, merged[choice.index].ellipse, config, choice.inner)
     return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
                                              top=keep.index(choice.index), pose=pose,
                                              timings_ms=state.timings_ms,
                                              reason=choice.reason))
 
 
-def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
-    """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
+def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig, inner: bool = False
+              ) -> Pose:
+    """The pose of the top face ``ellipse`` (crop pixels) after its final fit: the sub-pixel
+    refit on the edge pixels along it (not for an ``inner`` refit, whose faint outline the
+    edge map misses: the silhouette's edge pixels beyond it would pull it back), then the
+    refit on the gradient profile."""
     work, grad = state.work, state.edges("pose")
-    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
-                                  config.pose, config.refine.min_normal_cos, config.fits,
-                                  config.refine.min_pixels)
+    top_ellipse = ellipse if inner else refine_subpixel(
+        ellipse, grad, state.points, state.grads, state.crop, config.pose,
+        config.refine.min_normal_cos, config.fits, config.refine.min_pixels)
     top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose, config.fits)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).

@@ -135,11 +135,14 @@ class OcclusionEvidence:
 
 @dataclass(frozen=True, kw_only=True)
 class TopChoice:
-    """Outcome of the top-object rule: ``index`` into the ellipses, or None with a reason."""
+    """Outcome of the top-object rule: ``index`` into the ellipses, or None with a reason.
+    ``inner``: the chosen ellipse is the top stage's inner refit of a fit that took in slivers
+    of lower faces (the pose's final fit then keeps off the edge pixels beyond it)."""
 
     index: int | None
     evidence: tuple[OcclusionEvidence, ...]
     reason: str = ""
+    inner: bool = False
 
     def __bool__(self) -> bool:
         return self.index is not None
