@@ -485,6 +485,13 @@ class TopParams(Section):
     the choice: an occluder whose outline shows runs into the face it covers, so a face cut
     short by nothing lies under a face of its colour and shade the merge never fitted, which
     can be the top (needs the object kinds' colours)."""
+    nearer_hidden: bool = True
+    """After the ``unobstructed`` fallback's choice, a fitted face cut short by nothing (no
+    T-junction, no edge inside, support at least ``hidden_min_support``) that lies clearly
+    nearer (``depth_tie_m``) takes the choice: a top face over faces of its colour and
+    shade shows no contrast along its boundary with them, which can leave it below the
+    unobstructed test's support, while the face that test chose is a lower one whose
+    occluder only clips its rim (needs the object kinds' colours)."""
     inner_refit: bool = True
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller

@@ -627,6 +627,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
     fallback = select_unobstructed(choice.evidence) if "unobstructed" in use else None
     if fallback is not None:
         choice = replace(choice, index=fallback, reason="")
+        if config.top.nearer_hidden:
+            choice = _nearer_hidden(merged, choice, cues, config.top)
         return _nearer_arcs(found, merged, choice, cues, config)
     check_time(found.deadline, "top")
     retried = False
@@ -644,6 +646,29 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
     return _arc_fallbacks(found, merged, choice, spare, config)
+
+
+def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                   params: TopParams) -> TopChoice:
+    """``choice`` (the ``unobstructed`` fallback's), unless a face cut short by nothing (no
+    T-junction, no edge inside, support at least ``params.hidden_min_support``: at least half
+    visible, as :func:`~stackpick_sim.vision.occlusion.hidden_by_no_outline` counts it) lies
+    clearly nearer the camera than it (:func:`~stackpick_sim.vision.occlusion.
+    clearly_nearest`): a top face over faces of its colour and shade, whose boundary with
+    them shows no contrast along more of its outline than the unobstructed test allows; the
+    chosen face is then a lower one whose occluder only clips its rim. Unchanged without face
+    radii."""
+    assert choice.index is not None
+    if cues.radius_of is None:
+        return choice
+    cut = [i for i, ev in enumerate(choice.evidence)
+           if i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
+           and ev.support >= params.hidden_min_support]
+    if not cut:
+        return choice
+    faces = [merged[choice.index].ellipse, *(merged[i].ellipse for i in cut)]
+    nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
+    return choice if not nearest else replace(choice, index=cut[nearest - 1])
 
 
 def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,

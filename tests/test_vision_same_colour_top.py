@@ -1,8 +1,9 @@
-"""The top stage's inner refit: a top face over lower faces of its colour and shade, fitted
-round slivers of them on their strong silhouette (its own boundary with them a faint step
-inside the fit that the edge map misses), is refitted on its innermost consistent edge. A
-synthetic stack and a pinned rendered cluttered-scene frame (PNG and ground-truth JSON as
-`stackpick dataset` writes them) on which the step decides."""
+"""Two steps of the top stage for a top face over lower faces of its colour and shade: the
+inner refit (a face fitted round slivers of them on their strong silhouette, its own
+boundary with them a faint step inside the fit that the edge map misses, is refitted on its
+innermost consistent edge) and the nearer face cut short by nothing (after the unobstructed
+fallback). A synthetic stack and pinned rendered cluttered-scene frames (PNG and
+ground-truth JSON as `stackpick dataset` writes them) on which each step decides."""
 
 from __future__ import annotations
 
@@ -82,3 +83,13 @@ def test_a_faint_step_inside_the_fit_is_the_top_face(step: float, noise: float) 
     assert found is not None and mask_iou(found, top, SHAPE) > 0.9
     plain = detect(image, replace(config, top=TopParams(inner_refit=False))).top_ellipse
     assert plain is not None and mask_iou(plain, top, SHAPE) < MATCH_IOU
+
+
+def test_a_face_cut_short_by_nothing_nearer_than_the_unobstructed_choice_is_top() -> None:
+    # Cluttered frame 70136: no face passes the rule. The top face (blue) lies across blue
+    # faces and shows no contrast along a third of its outline (support 0.66, nothing
+    # crossing it); the unobstructed fallback takes a lower blue face whose occluder only
+    # clips its rim (0.84). The top face reads ~3 cm nearer.
+    frame = _frame(70136)
+    assert _top_iou(frame) > MATCH_IOU
+    assert _top_iou(frame, TopParams(nearer_hidden=False)) < MATCH_IOU
