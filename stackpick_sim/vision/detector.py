@@ -433,8 +433,15 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
         return merged, choice
     fit = merged[i].ellipse
     grad = state.edges("top")
-    reach = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px)
-    refit = refit_on_contrast(fit, grad, True, reach)
+    # Round by round (each re-centres on the last): a round that leaves more than
+    # inner_refit_max_area of the fit's area (most faces) ends the refit, at half its cost.
+    one = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px,
+                  contrast_rounds=1)
+    refit = refit_on_contrast(fit, grad, True, one)
+    for _ in range(config.top.contrast_rounds - 1):
+        if refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b:
+            break
+        refit = refit_on_contrast(refit, grad, True, one)
     gate = state.gate
     if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
             or not plausible(refit, state.crop, config.fits)
