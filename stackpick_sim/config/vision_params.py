@@ -601,8 +601,8 @@ class MarkingParams(Section):
     frames a tape roll's face has all of them there, printed lids and can ends under half."""
 
     rim_sample_scale: float = 0.94
-    """A face's rim band, whose colour gives its kind and whose samples the two-surface and
-    off-rim tests read: its ellipse at this share [0, 1] of its semi-axes. An object lying
+    """Share [0, 1] of a face's semi-axes at which its rim band lies (the band whose colour
+    gives its kind and whose samples the two-surface and off-rim tests read). An object lying
     wholly inside the face (inside by the interior-edge margin) can cover its middle, where
     its colour is read otherwise (at 0.5 of its semi-axes), but leaves most of this band; a
     can end's rim (its outer 12 %) lies on it."""
