@@ -22,15 +22,19 @@ from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector, det
 from stackpick_sim.vision.params import TopParams
 
 DATA = Path(__file__).parent / "data" / "cluttered_dev_frames"
+GREY_DATA = Path(__file__).parent / "data" / "grey_dev_frames"
+#: The paper scene with both kinds light grey.
+GREY = ("object_types.large.rgba=[0.7,0.7,0.7,1.0]", "object_types.small.rgba=[0.7,0.7,0.7,1.0]")
 SHAPE = (240, 320)
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 
 
-def _frame(seed: int) -> BenchFrame:
-    cfg = load_scene("cluttered")
+def _frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
+           overrides: tuple[str, ...] = ()) -> BenchFrame:
+    cfg = load_scene(scene, overrides)
     kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
                   for t in cfg.object_types.values())
-    return load_frame(DATA, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
+    return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
 
 
 def _top_iou(frame: BenchFrame, top: TopParams | None = None) -> float:
@@ -59,6 +63,15 @@ def test_the_inner_refit_follows_its_reach_and_least_shrink() -> None:
     assert _top_iou(frame, TopParams(inner_refit_reach_px=6)) < full - 0.05
     # The refit keeps ~0.83 of the fit's area: a least shrink of 0.2 keeps the fit.
     assert _top_iou(frame, TopParams(inner_refit_max_area=0.8)) < MATCH_IOU
+
+
+def test_a_small_top_face_nearly_concentric_on_a_large_one_is_refitted_inside() -> None:
+    # Grey frame 71169 (both kinds light grey): a small top face lies nearly concentric on a
+    # large lower one, the fit runs round the large face's silhouette, and the top face's
+    # far side lies ~17 px inside it: beyond a 12 px reach, the large face stays chosen.
+    frame = _frame(71169, GREY_DATA, "paper", GREY)
+    assert _top_iou(frame) > 0.9
+    assert _top_iou(frame, TopParams(inner_refit_reach_px=12)) < MATCH_IOU
 
 
 def _stack(step: float, noise: float) -> tuple[np.ndarray, Ellipse]:

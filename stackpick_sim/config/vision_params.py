@@ -499,11 +499,12 @@ class TopParams(Section):
     faces of its colour and shade is fitted round slivers of them on their strong
     silhouette, its own boundary with them a faint step of a few grey levels inside the fit
     that the edge map misses."""
-    inner_refit_reach_px: int = 12
+    inner_refit_reach_px: int = 20
     """Inward search reach (px) of the inner refit: the slivers of lower faces a fit takes in
-    beyond a top face of their colour are as wide as the faces' offset, 5-11 px on rendered
-    cluttered-scene frames (a lower face nearly concentric with the top one), beyond the
-    contrast fallback's reach (``contrast_inner_reach_px``)."""
+    beyond a top face of their colour are as wide as the faces' offset plus the difference of
+    their radii, 5-20 px on rendered cluttered and grey paper-scene frames (a small top face
+    nearly concentric on a large lower one), beyond the contrast fallback's reach
+    (``contrast_inner_reach_px``)."""
     inner_refit_max_area: float = 0.95
     """Largest ratio [0, 1] of the inner refit's area (product of semi-axes) to the fit's for
     the refit to replace the chosen face: a refit on a well-fitted face's own edge keeps
