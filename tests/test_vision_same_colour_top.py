@@ -37,6 +37,10 @@ def _frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
     return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
 
 
+#: The top rule with the inner refit on (off by default).
+INNER = TopParams(inner_refit=True)
+
+
 def _top_iou(frame: BenchFrame, top: TopParams | None = None) -> float:
     """IoU of the detector's choice with the best true top face."""
     config = detector_config(frame)
@@ -52,17 +56,17 @@ def test_a_top_face_fitted_round_same_colour_slivers_is_refitted_inside() -> Non
     # nearly concentric with it; the fit runs round slivers of both (5 and 11 px wide), whose
     # boundary with the top face is a step of 6-10 grey levels the edge map misses.
     frame = _frame(70233)
-    assert _top_iou(frame) > 0.9
-    assert _top_iou(frame, TopParams(inner_refit=False)) < MATCH_IOU
+    assert _top_iou(frame, INNER) > 0.9
+    assert _top_iou(frame) < MATCH_IOU
 
 
 def test_the_inner_refit_follows_its_reach_and_least_shrink() -> None:
     frame = _frame(70233)
-    full = _top_iou(frame)
+    full = _top_iou(frame, INNER)
     # Within the contrast fallback's 6 px, the 11 px sliver is only partly left out.
-    assert _top_iou(frame, TopParams(inner_refit_reach_px=6)) < full - 0.05
+    assert _top_iou(frame, replace(INNER, inner_refit_reach_px=6)) < full - 0.05
     # The refit keeps ~0.83 of the fit's area: a least shrink of 0.2 keeps the fit.
-    assert _top_iou(frame, TopParams(inner_refit_max_area=0.8)) < MATCH_IOU
+    assert _top_iou(frame, replace(INNER, inner_refit_max_area=0.8)) < MATCH_IOU
 
 
 def test_a_small_top_face_nearly_concentric_on_a_large_one_is_refitted_inside() -> None:
@@ -70,8 +74,8 @@ def test_a_small_top_face_nearly_concentric_on_a_large_one_is_refitted_inside() 
     # large lower one, the fit runs round the large face's silhouette, and the top face's
     # far side lies ~17 px inside it: beyond a 12 px reach, the large face stays chosen.
     frame = _frame(71169, GREY_DATA, "paper", GREY)
-    assert _top_iou(frame) > 0.9
-    assert _top_iou(frame, TopParams(inner_refit_reach_px=12)) < MATCH_IOU
+    assert _top_iou(frame, INNER) > 0.9
+    assert _top_iou(frame, replace(INNER, inner_refit_reach_px=12)) < MATCH_IOU
 
 
 def _stack(step: float, noise: float) -> tuple[np.ndarray, Ellipse]:
@@ -92,9 +96,9 @@ def _stack(step: float, noise: float) -> tuple[np.ndarray, Ellipse]:
 def test_a_faint_step_inside_the_fit_is_the_top_face(step: float, noise: float) -> None:
     image, top = _stack(step, noise)
     config = DetectorConfig(intrinsics=K)
-    found = detect(image, config).top_ellipse
+    found = detect(image, replace(config, top=INNER)).top_ellipse
     assert found is not None and mask_iou(found, top, SHAPE) > 0.9
-    plain = detect(image, replace(config, top=TopParams(inner_refit=False))).top_ellipse
+    plain = detect(image, config).top_ellipse
     assert plain is not None and mask_iou(plain, top, SHAPE) < MATCH_IOU
 
 

@@ -492,13 +492,16 @@ class TopParams(Section):
     shade shows no contrast along its boundary with them, which can leave it below the
     unobstructed test's support, while the face that test chose is a lower one whose
     occluder only clips its rim (needs the object kinds' colours)."""
-    inner_refit: bool = True
+    inner_refit: bool = False
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller
     (``inner_refit_max_area``) that passes the rule too replaces it: a top face over lower
     faces of its colour and shade is fitted round slivers of them on their strong
     silhouette, its own boundary with them a faint step of a few grey levels inside the fit
-    that the edge map misses."""
+    that the edge map misses. Off by default: on single frames it finds such faces without
+    changing any other choice (rendered paper, grey, cluttered and realistic frames), but in
+    a pick episode's tracked frames it can shrink a well-fitted face onto a faint inner edge
+    and move the pick off the face's centre."""
     inner_refit_reach_px: int = 20
     """Inward search reach (px) of the inner refit: the slivers of lower faces a fit takes in
     beyond a top face of their colour are as wide as the faces' offset plus the difference of
