@@ -1635,3 +1635,6 @@ def warm_up() -> None:
     band_hits(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1), np.bool_),
               np.zeros((4, 4, 3), np.uint8), np.ones((1, 3)), col, col, True, 0.1, 0.1,
               1.0)
+    from stackpick_sim.vision import kernels_top  # the top rule's kernels (imports this one)
+
+    kernels_top.warm_up()

@@ -87,6 +87,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import MarkingParams
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels_top
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.rings import hole_only
@@ -229,6 +230,8 @@ def _lies_across(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
     """Whether ``other`` (its top-rule ``evidence``), reaching into ``face``, is a face of its
     own lying on it: one that passes the rule, or a whole face with markings whose outline
     runs on across it (:func:`_crosses_over`)."""
+    if math.hypot(other.cx - face.cx, other.cy - face.cy) >= other.a + face.a:
+        return False  # too far apart to reach into it (_reaches_into's first test)
     if not evidence.occluded:
         return _reaches_into(other, face, test.margin_px)
     # Its verdict hangs on the evidence only through whether ``other`` is a whole face.
@@ -296,17 +299,19 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     in chromaticity by more than ``params.surface_chroma_tolerance``, or in brightness by a
     ratio outside ``params.surface_brightness_range`` (False with fewer than
     ``params.min_part_samples`` either side)."""
-    band = rim_band(face, params.rim_sample_scale)
-    within = inner.inside(band, margin_px)
-    beyond = ~inner.inside(band, -margin_px)
-    if min(int(within.sum()), int(beyond.sum())) < params.min_part_samples:
+    # The two parts (inside ``inner`` by the margin, and not inside it beyond the margin) and
+    # their median colours in one compiled pass (kernels_top.two_part_medians: the same
+    # values as Ellipse.inside, the rounded and clamped pixels and column_median).
+    t = math.radians(inner.angle_deg)
+    both, own, other = kernels_top.two_part_medians(
+        rim_band(face, params.rim_sample_scale), np.require(image, np.uint8, ("C", "W")),
+        inner.cx, inner.cy,
+        math.cos(t), math.sin(t),
+        np.array([max(inner.a - margin_px, 1e-6), max(inner.b - margin_px, 1e-6)]),
+        np.array([max(inner.a + margin_px, 1e-6), max(inner.b + margin_px, 1e-6)]),
+        params.min_part_samples)
+    if not both:
         return False
-    h, w = image.shape[:2]
-    pix = np.rint(band).astype(np.int64)
-    np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
-    colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
-    own = column_median(colours[within])
-    other = column_median(colours[beyond])
     own_sum, other_sum = max(float(own.sum()), 1e-9), max(float(other.sum()), 1e-9)
     chroma = float(np.abs(own / own_sum - other / other_sum).sum())
     lo, hi = params.surface_brightness_range
@@ -337,11 +342,15 @@ def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
             > float(shown[split:][under].mean()))
 
 
+@functools.lru_cache(maxsize=1024)
 def rim_band(face: Ellipse, scale: float = DEFAULT.rim_sample_scale) -> NDArray[np.float64]:
     """(BAND_SAMPLES, 2) pixels of ``face``'s rim band (its ellipse at ``scale`` of its
-    semi-axes, :attr:`MarkingParams.rim_sample_scale`)."""
-    return Ellipse.of(face.cx, face.cy, scale * face.a, scale * face.b,
+    semi-axes, :attr:`MarkingParams.rim_sample_scale`); each face's once (read-only: shared
+    by the tests that read it)."""
+    band = Ellipse.of(face.cx, face.cy, scale * face.a, scale * face.b,
                       face.angle_deg).points(BAND_SAMPLES)
+    band.setflags(write=False)
+    return band
 
 
 def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float,
@@ -351,7 +360,7 @@ def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float,
     the face's outline and its artwork does; a face that a larger fit runs round, beyond it on
     its wall or a lower face, reaches into the larger fit's band where their outlines run
     together)."""
-    return not bool(inner.inside(rim_band(face, scale), margin_px).any())
+    return not bool(kernels_top.inside(inner, rim_band(face, scale), margin_px).any())
 
 
 @functools.lru_cache(maxsize=1024)
@@ -367,13 +376,13 @@ def _reaches_into(other: Ellipse, face: Ellipse, margin_px: float) -> bool:
     axes together)."""
     if math.hypot(other.cx - face.cx, other.cy - face.cy) >= other.a + face.a:
         return False
-    return bool(face.inside(_outline(other), margin_px).any())
+    return bool(kernels_top.inside(face, _outline(other), margin_px).any())
 
 
 def _inside(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
     """Whether ``inner``'s whole outline (INSIDE_SAMPLES points) lies inside ``face`` by more
     than ``margin_px``."""
-    return bool(face.inside(_outline(inner), margin_px).all())
+    return bool(kernels_top.inside(face, _outline(inner), margin_px).all())
 
 
 def holds_centre(outer: Ellipse, inner: Ellipse) -> bool:

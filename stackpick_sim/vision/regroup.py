@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import MergeParams, StageSections
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_top
 from stackpick_sim.vision.fitting import (
     ellipse_distances,
     fit_ellipse,
@@ -106,10 +106,12 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
     pixels, owner, lengths = chain_table([chains[k] for k in distinct])
     out: list[Ellipse] = []
     grown_sets: list[set[int]] = []
-    for i, j in pairs:
+    for (i, j), may_pass in zip(pairs, _screened(chains, arcs, pairs, axis_range, sections),
+                                strict=True):
         ci, cj = arcs[i], arcs[j]
-        # Not both on an ellipse grown already.
-        if any(ci in g and cj in g for g in grown_sets):
+        # Not a pair whose fit clearly fails _pair_fit's checks, nor both on an ellipse grown
+        # already.
+        if not may_pass or any(ci in g and cj in g for g in grown_sets):
             continue
         union = np.concatenate([chains[ci], chains[cj]])
         fit = _pair_fit(union, chains[ci].shape[0], shape, axis_range, sections)
@@ -120,6 +122,24 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
         grown_sets.append({ci, cj, *lying})
         out.append(fit)
     return out
+
+
+def _screened(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int], pairs: list[list[int]],
+              axis_range: tuple[float, float] | None, sections: StageSections) -> list[bool]:
+    """For each pair (i, j) of ``pairs`` (positions in ``arcs``, indices into ``chains``):
+    False when its direct fit clearly fails :func:`_pair_fit`'s axis, residual and share
+    checks, all pairs in one compiled pass (:func:`~stackpick_sim.vision.kernels_top.
+    pair_screen`: the same fit, decided only where rounding cannot change the outcome)."""
+    if not pairs:
+        return []
+    pixels = np.ascontiguousarray(np.concatenate([chains[k] for k in arcs]), np.int32)
+    starts = np.zeros(len(arcs) + 1, np.int64)
+    np.cumsum([chains[k].shape[0] for k in arcs], out=starts[1:])
+    lo, hi = (0.0, math.inf) if axis_range is None else axis_range
+    merge = sections.merging
+    return kernels_top.pair_screen(pixels, starts, np.array(pairs, np.int64), lo, hi,
+                                   merge.tolerance_px, merge.max_residual_px,
+                                   merge.absorb_fraction).tolist()
 
 
 def _grown(fit: Ellipse, union: NDArray[np.int32], pair: tuple[int, int],

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels_top
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.wall import solution_band_points, solution_bands
 
@@ -138,11 +139,11 @@ def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         t = math.radians(f.angle_deg)
         rows.append((f.cx, f.cy, math.cos(t), math.sin(t), max(f.a - margin, 1e-6),
                      max(f.b - margin, 1e-6)))
-    cx, cy, c, s, a, b = np.array(rows, np.float64).T[:, None, :, None]
-    du, dv = pu[:, None, :] - cx, pv[:, None, :] - cy
-    x = (c * du + s * dv) / a
-    y = (-s * du + c * dv) / b
-    covered = (x * x + y * y < 1.0) & keep[:, None, :]
+    # One compiled pass (kernels_top.bands_inside: the same arithmetic as the array form).
+    covered = kernels_top.bands_inside(np.require(pu, np.float64, ("C", "W")),
+                                       np.require(pv, np.float64, ("C", "W")),
+                                       np.require(keep, np.bool_, ("C", "W")),
+                                       np.array(rows, np.float64).reshape(-1, 6))
     if radii is not None:
         sols = [(s.normal_cam, s.centre_cam) for f in faces
                 for s in unit_circle_poses(f, intrinsics)]
