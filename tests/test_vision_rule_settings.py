@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from two_faces import FACES, SHAPE, K, two_face_image
@@ -15,9 +16,12 @@ from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.vision_params import OutlineTrackingParams
 from stackpick_sim.episodes.detectors import scene_detector_config
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import Ellipse, normal_from_tilt, project_circle
-from stackpick_sim.vision.detector import DetectorConfig, detect
-from stackpick_sim.vision.markings import two_surfaces
+from stackpick_sim.geometry import Ellipse, mask_iou, normal_from_tilt, project_circle
+from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
+from stackpick_sim.vision.benchmark.methods import detector_config
+from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
+from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector, detect
+from stackpick_sim.vision.markings import off_rim_share, rim_band, two_surfaces
 from stackpick_sim.vision.moving_edges import track_outline
 from stackpick_sim.vision.occlusion import select_top, select_unobstructed
 from stackpick_sim.vision.params import (
@@ -30,7 +34,25 @@ from stackpick_sim.vision.params import (
 from stackpick_sim.vision.pose import circle_poses
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import band_points, wall_evidence
-from stackpick_sim.vision.wall_cover import covered_share, under_another
+from stackpick_sim.vision.wall_cover import covered_share, covered_shares, under_another
+
+#: Pinned paper-scene frames with their ground truth (see test_vision_dev_frames).
+DEV_FRAMES = Path(__file__).parent / "data" / "paper_dev_frames"
+
+
+def _dev_frame(seed: int) -> BenchFrame:
+    scene = load_scene("paper")
+    kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
+                  for t in scene.object_types.values())
+    return load_frame(DEV_FRAMES, seed, scene.conveyor.top_z, scene.objects.max_face_height,
+                      kinds)
+
+
+def _top_is_true(frame: BenchFrame, config: DetectorConfig) -> bool:
+    """Whether the detector's choice on ``frame`` is a true top face."""
+    found = TopObjectDetector(config).detect(frame.image_rgb).top_ellipse
+    return found is not None and max(mask_iou(found, f.ellipse, frame.shape)
+                                     for f in frame.tops) > MATCH_IOU
 
 
 @pytest.fixture(scope="module")
@@ -196,3 +218,105 @@ def test_the_wall_band_test_follows_its_brightness_margin() -> None:
                           params=PoseParams(band_brightness_margin=2.0))
     assert strict.samples == loose.samples > 0
     assert strict.share < 0.2 < 0.8 < loose.share
+
+
+def test_kinds_closer_in_colour_than_the_least_distance_give_no_colour_cue() -> None:
+    # The small kind in a tan 0.07 from the large kind's orange (chromaticity, L1).
+    near = ("object_types.small.rgba=[0.85,0.66,0.33,1.0]",)
+    default = scene_detector_config(load_scene("paper", list(near)), K, (0.2, 0.3))
+    assert default.kind_colours is None  # within the default 0.1: no radius from colour
+    finer = scene_detector_config(
+        load_scene("paper", [*near, "vision.top.kind_min_chroma_distance=0.05"]), K, (0.2, 0.3))
+    assert finer.kind_colours is not None and len(finer.kind_colours) == 2
+    with pytest.raises(ConfigError, match=r"vision\.top\.kind_min_chroma_distance = 3\.0 is "
+                                          r"out of range; allowed: 0 to 2") as err:
+        load_scene("paper", ["vision.top.kind_min_chroma_distance=3.0"])
+    assert "\n" not in str(err.value)
+
+
+def test_the_rim_band_test_follows_its_sample_scale() -> None:
+    # A blue face with a tan ring along its outer 10 % (another surface at the rim).
+    face = Ellipse(cx=160, cy=120, a=40, b=38, angle_deg=0)
+    inner = Ellipse(cx=160, cy=120, a=36, b=34.2, angle_deg=0)
+    image = np.full((*SHAPE, 3), 30, np.uint8)
+    image[face.mask(SHAPE)] = (209, 189, 140)
+    image[inner.mask(SHAPE)] = (77, 153, 217)
+    band = MarkingParams().rim_sample_scale
+    assert off_rim_share(face, image) < 0.05  # the band (0.94) lies on the ring alone
+    assert rim_band(face).shape == rim_band(face, band).shape
+    mixed = MarkingParams(rim_sample_scale=0.9)  # the band along the ring's inner edge
+    assert off_rim_share(face, image, mixed) > 0.2
+    cfg = load_scene("paper", ["vision.markings.rim_sample_scale=0.9"])
+    assert scene_detector_config(cfg, K, (0.2, 0.3)).markings.rim_sample_scale == 0.9
+
+
+def test_the_rest_check_gate_follows_the_perspective_enlargement() -> None:
+    # A top face whose fit took in a same-colour lower face's sliver rests on the whole face
+    # the rule chooses: the rest check reaches it only when it reads nearer than that face,
+    # through r / a, within the enlargement.
+    frame = _dev_frame(1769)
+    config = detector_config(frame)
+    top = TopParams(hidden_check=False)
+    assert _top_is_true(frame, replace(config, top=top))
+    strict = replace(top, perspective_enlargement=0.8)
+    assert not _top_is_true(frame, replace(config, top=strict))
+
+
+def test_the_wall_band_follows_its_depths_and_margin() -> None:
+    face = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(30.0, 0.0), 0.035, K)
+    sol = circle_poses(face, K, 1.0)[0]
+    # A wall drawn from the face's rim to 0.7 radii deep, at a wall's brightness.
+    deep = band_points(sol.normal_cam, sol.centre_cam, face, K,
+                       tuple(np.linspace(0.05, 0.7, 14)), 0.0)
+    image = np.full((*SHAPE, 3), 30, np.uint8)
+    for u, v in np.rint(deep).astype(int):
+        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = (109, 77, 32)
+    image[face.mask(SHAPE)] = (217, 153, 64)
+    colour = np.array([217.0, 153.0, 64.0])
+    on = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour)
+    assert on.samples > 0 and on.share > 0.8
+    beyond = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour,
+                           params=PoseParams(wall_depths=(1.2, 1.5)))
+    assert beyond.share < 0.2  # sampled past the drawn wall: belt
+    wide = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour,
+                         params=PoseParams(wall_margin_px=6.0))
+    assert wide.samples < on.samples
+    with pytest.raises(ConfigError, match=r"vision\.pose\.wall_depths = \[\] is out of "
+                                          r"range") as err:
+        load_scene("paper", ["vision.pose.wall_depths=[]"])
+    assert "\n" not in str(err.value)
+
+
+def test_the_wall_cover_follows_its_extra_depths() -> None:
+    tilted = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(35.0, 0.0), 0.035, K)
+    sol = circle_poses(tilted, K, 1.0)[0]
+    # A small face over the far edge of the predicted wall only: beyond the band's point
+    # farthest from the face at 0.8 radii deep, reaching 2 px into it (the 0.6 radii band
+    # lies ~4 px nearer the face).
+    ring = band_points(sol.normal_cam, sol.centre_cam, tilted, K, (0.8,))
+    out = ring - np.array([tilted.cx, tilted.cy])
+    far = ring[np.argmax(np.hypot(out[:, 0], out[:, 1]))]
+    away = (far - [tilted.cx, tilted.cy]) / np.hypot(*(far - [tilted.cx, tilted.cy]))
+    centre = far + 5.0 * away
+    over = Ellipse(cx=float(centre[0]), cy=float(centre[1]), a=8.0, b=8.0, angle_deg=0.0)
+    with_far = covered_shares([tilted, over], K)[0, 1]
+    near_only = covered_shares([tilted, over], K,
+                               params=TopParams(cover_extra_depths=()))[0, 1]
+    assert with_far > 0.0 == near_only
+
+
+def test_the_final_outline_search_follows_its_reach() -> None:
+    # A face (grey 200 on the belt) ringed 4 px outside by a brighter band: the stronger step.
+    face = FACES[1]
+    ring = replace(face, a=face.a + 8.0, b=face.b + 8.0)
+    edge = replace(face, a=face.a + 4.0, b=face.b + 4.0)
+    image = np.full(SHAPE, 30.0)
+    image[ring.mask(SHAPE)] = 255.0
+    image[edge.mask(SHAPE)] = 30.0
+    image[face.mask(SHAPE)] = 200.0
+    gray = np.asarray(cv2.GaussianBlur(image, (0, 0), 1.0), np.float32)
+    close = track_outline(gray, face, search_px=2.0)
+    assert close is not None and abs(close.a - face.a) < 1.0
+    reach = OutlineTrackingParams(close_search_px=6.0)
+    wide = track_outline(gray, face, search_px=2.0, params=reach)
+    assert wide is None or abs(wide.a - face.a) > 2.0  # the ring's edge taken, or no fit

@@ -9,8 +9,8 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse, normal_from_tilt, 
 from stackpick_sim.vision.pose import circle_poses, unit_circle_poses
 from stackpick_sim.vision.wall import band_points, solution_band_points, solution_bands
 from stackpick_sim.vision.wall_cover import (
-    COVER_DEPTH_FRACTIONS,
     DEFAULT_TOP,
+    cover_depths,
     covered_share,
     covered_shares,
     face_bands,
@@ -56,7 +56,7 @@ def test_covered_shares_are_each_bands_share_inside_each_face() -> None:
                             0.025, K)]
     shares = covered_shares(faces, K)
     for i, face in enumerate(faces):
-        bands = [band_points(s.normal_cam, s.centre_cam, face, K, COVER_DEPTH_FRACTIONS)
+        bands = [band_points(s.normal_cam, s.centre_cam, face, K, cover_depths())
                  for s in circle_poses(face, K, 1.0)]
         bands = [b for b in bands if b.shape[0] >= MIN_COVER_SAMPLES]
         for j, other in enumerate(faces):
@@ -70,8 +70,8 @@ def test_solution_band_point_depths_are_those_of_the_projected_pixels() -> None:
     """solution_band_points' depths follow solution_bands' point order: the points rebuilt
     from them project onto solution_bands' pixels."""
     sols = [(s.normal_cam, s.centre_cam) for s in circle_poses(TILTED, K, 1.0)]
-    pu, pv, _ = solution_bands(sols, [TILTED, TILTED], K, COVER_DEPTH_FRACTIONS)
-    depth = solution_band_points(sols, COVER_DEPTH_FRACTIONS)[2]
+    pu, pv, _ = solution_bands(sols, [TILTED, TILTED], K, cover_depths())
+    depth = solution_band_points(sols, cover_depths())[2]
     assert depth.shape == pu.shape
     for k, (normal, centre) in enumerate(sols):
         # Back-project each pixel to its depth: it must land on the solution's wall cylinder
@@ -82,7 +82,7 @@ def test_solution_band_point_depths_are_those_of_the_projected_pixels() -> None:
         along = np.asarray(normal) @ rel
         radial = np.linalg.norm(rel - np.outer(normal, along), axis=0)
         assert np.allclose(radial, 1.0, atol=1e-9)
-        assert np.allclose(np.sort(np.unique(np.round(along, 9))), COVER_DEPTH_FRACTIONS)
+        assert np.allclose(np.sort(np.unique(np.round(along, 9))), cover_depths())
 
 
 @pytest.mark.parametrize(("over_radius_m", "under"), [(0.02, True), (0.035, False)])
@@ -110,7 +110,7 @@ def test_face_bands_are_each_faces_solution_bands_in_any_order() -> None:
         pu, pv, keep = face_bands(order, K, kept)
         for i, face in enumerate(order):
             sols = [(s.normal_cam, s.centre_cam) for s in unit_circle_poses(face, K)]
-            want = solution_bands(sols, [face, face], K, COVER_DEPTH_FRACTIONS)
+            want = solution_bands(sols, [face, face], K, cover_depths())
             for got, expected in zip((pu, pv, keep), want, strict=True):
                 np.testing.assert_array_equal(got[2 * i:2 * i + 2], expected)
     assert len(cache) == 3  # each face's bands computed once

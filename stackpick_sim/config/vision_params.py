@@ -337,7 +337,10 @@ class TopParams(Section):
         "cover_min_samples": (1, 1000, "points"), "rest_contact_gap_m": (0.0, 0.1, "m"),
         "rest_max_penetration_m": (0.0, 0.1, "m"), "rest_min_up": (0.0, 1.0, ""),
         "arc_split_reach_px": (0.0, 50.0, "px"), "arc_grow_rounds": (0, 20, "rounds"),
-        "off_outline_px": (0.0, 20.0, "px"), "rest_kind_margin_m": (0.0, 0.1, "m")}
+        "off_outline_px": (0.0, 20.0, "px"), "rest_kind_margin_m": (0.0, 0.1, "m"),
+        "cover_extra_depths": (0.0, 5.0, "radii"), "perspective_enlargement": (0.5, 2.0, ""),
+        "kind_min_chroma_distance": (0.0, 2.0, ""), "inner_refit_max_area": (0.0, 1.0, ""),
+        "inner_refit_reach_px": (1, 30, "px")}
 
     min_support: float = 0.9
     """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
@@ -405,6 +408,12 @@ class TopParams(Section):
     camera than the point, or farther by at most this (m): a face's depth error (~1 mm) plus
     a 1-2 deg tilt error moving its far rim ~1 mm, on each of the two faces. A real cover has
     the covering object's body between its face and the wall, well in front."""
+    cover_extra_depths: tuple[float, ...] = (0.8,)
+    """Depths along the axis, in face radii, that the cover test's wall band samples beyond
+    the pose's wall band (``pose.wall_depths``, which it samples first: the rest test reads
+    those): 0.8 stays on the wall of the paper scene's squattest cylinder (height / radius =
+    0.86). Deeper than the colour test's band because an object resting on a wall often
+    covers only its far part. [] samples the pose's band alone."""
     cover_min_samples: int = 8
     """Points a solution's wall band needs outside its face for its covered share to count
     (fewer: 0), above the pose's ``min_band_samples``: a share over a few points of a thin
@@ -420,6 +429,21 @@ class TopParams(Section):
     """A contact normal (from the lower body to the upper, unit) with at least this upward
     component means the upper body rests on the lower: the ground truth's own threshold
     (an object is top when nothing touches it from above by more than this)."""
+    perspective_enlargement: float = 1.04
+    """Ratio by which perspective enlarges a face's semi-major axis beyond f r / z at most (4 %
+    on the paper scene's frames, as ``gate.slack``): the rest check compares two faces'
+    depths through r / a up to this factor to decide whether a face with its own rim inside
+    reads nearer than the chosen one and is worth its refit and rest test (a cost gate, not a
+    measurement: a face reading farther lies below the chosen one). Below 1, a rimmed face
+    must read nearer by that ratio."""
+    kind_min_chroma_distance: float = 0.1
+    """Object kinds whose colours' chromaticities (r, g, b over their sum) differ by less than
+    this (L1) cannot be told apart by colour: no face's radius is then read from its colour
+    (the depth, cover and rest tests run without radii, or under every assignment of them).
+    The paper scene's orange and blue lie 0.68 apart, the realistic scene's nearest kinds
+    (grey and tan) 0.18; one object's face and wall differ by ~0.02-0.07 on rendered
+    paper-scene frames (``pose.band_chroma_tolerance``), so kinds within 0.1 would be
+    confused face by face."""
     rest_kind_margin_m: float = 0.01
     """With object kinds that colour cannot tell apart, the rest test
     (:mod:`~stackpick_sim.vision.resting`) reconstructs each pair of whole faces under every
@@ -461,6 +485,34 @@ class TopParams(Section):
     the choice: an occluder whose outline shows runs into the face it covers, so a face cut
     short by nothing lies under a face of its colour and shade the merge never fitted, which
     can be the top (needs the object kinds' colours)."""
+    nearer_hidden: bool = True
+    """After the ``unobstructed`` fallback's choice, a fitted face cut short by nothing (no
+    T-junction, no edge inside, support at least ``hidden_min_support``) that lies clearly
+    nearer (``depth_tie_m``) takes the choice: a top face over faces of its colour and
+    shade shows no contrast along its boundary with them, which can leave it below the
+    unobstructed test's support, while the face that test chose is a lower one whose
+    occluder only clips its rim (needs the object kinds' colours)."""
+    inner_refit: bool = False
+    """When an ellipse passes the rule outright, it is refitted on its innermost consistent
+    edge (the ``contrast_*`` fields' refit), and a refit clearly smaller
+    (``inner_refit_max_area``) that passes the rule too replaces it: a top face over lower
+    faces of its colour and shade is fitted round slivers of them on their strong
+    silhouette, its own boundary with them a faint step of a few grey levels inside the fit
+    that the edge map misses. Off by default: on single frames it finds such faces without
+    changing any other choice (rendered paper, grey, cluttered and realistic frames), but in
+    a pick episode's tracked frames it can shrink a well-fitted face onto a faint inner edge
+    and move the pick off the face's centre."""
+    inner_refit_reach_px: int = 20
+    """Inward search reach (px) of the inner refit: the slivers of lower faces a fit takes in
+    beyond a top face of their colour are as wide as the faces' offset plus the difference of
+    their radii, 5-20 px on rendered cluttered and grey paper-scene frames (a small top face
+    nearly concentric on a large lower one), beyond the contrast fallback's reach
+    (``contrast_inner_reach_px``)."""
+    inner_refit_max_area: float = 0.95
+    """Largest ratio [0, 1] of the inner refit's area (product of semi-axes) to the fit's for
+    the refit to replace the chosen face: a refit on a well-fitted face's own edge keeps
+    0.97-1.05 of its area (on rendered paper, grey and cluttered frames), so less than 0.95
+    is a fit that took in a sliver beyond the face."""
     hidden_min_support: float = 0.6
     """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
     hidden-face check: a face at least half visible, as the scoring counts faces (far rims
@@ -505,7 +557,7 @@ class MarkingParams(Section):
         "surface_brightness_range": (0.01, 100.0, ""),
         "crossing_min_support": (0.0, 1.0, ""), "min_part_samples": (1, 64, "samples"),
         "max_off_rim_share": (0.0, 1.0, ""), "ring_hole_scale": (0.0, 1.0, ""),
-        "ring_hole_share": (0.0, 1.0, "")}
+        "ring_hole_share": (0.0, 1.0, ""), "rim_sample_scale": (0.5, 1.0, "")}
 
     surface_chroma_tolerance: float = 0.12
     """Two parts of a face's rim band (inside and outside an inner whole face) are two
@@ -551,6 +603,13 @@ class MarkingParams(Section):
     ``ring_hole_scale`` for it to be judged a ring face round its hole: nearly all (a few
     stray edges of noise or the worn belt's texture aside); on rendered realistic-scene
     frames a tape roll's face has all of them there, printed lids and can ends under half."""
+
+    rim_sample_scale: float = 0.94
+    """Share [0, 1] of a face's semi-axes at which its rim band lies (the band whose colour
+    gives its kind and whose samples the two-surface and off-rim tests read). An object lying
+    wholly inside the face (inside by the interior-edge margin) can cover its middle, where
+    its colour is read otherwise (at 0.5 of its semi-axes), but leaves most of this band; a
+    can end's rim (its outer 12 %) lies on it."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -629,7 +688,8 @@ class PoseParams(Section):
         "profile_min_share": (0.0, 1.0, ""), "outlier_medians": (1.0, 100.0, ""),
         "outlier_min_px": (0.0, 10.0, "px"), "band_chroma_tolerance": (0.0, 2.0, ""),
         "band_min_brightness": (0.0, 1.0, ""), "band_brightness_margin": (0.0, 10.0, ""),
-        "band_belt_delta": (0.0, 255.0, "grey levels")}
+        "band_belt_delta": (0.0, 255.0, "grey levels"), "wall_depths": (0.0, 5.0, "radii"),
+        "wall_margin_px": (0.0, 20.0, "px")}
 
     subpixel_tolerance_px: float = 1.2
     """Collection tolerance (px) of the top face's sub-pixel refit on the edge pixels along
@@ -691,6 +751,14 @@ class PoseParams(Section):
     """A band sample within this many grey levels of the bare belt's colour in every channel
     is belt, not wall (what tells them apart when the face has the belt's hue: a grey
     object): the belt's own spread under the ring light, as ``roi.foreground_delta``."""
+    wall_depths: tuple[float, ...] = (0.2, 0.4, 0.6)
+    """Depths along the axis, in face radii, at which a pose solution's predicted wall band is
+    sampled (the colour test's band, which the rest and cover tests read too): the paper
+    scene's squattest cylinder has height / radius = 0.03 / 0.035 = 0.86, so 0.6 stays on the
+    wall of either kind."""
+    wall_margin_px: float = 2.0
+    """Wall band samples closer than this (px) to the face's outline are dropped (in the
+    colour, cover and rest tests): the blurred face edge there mixes both colours."""
     wall_tie: float = 0.15
     """Without a colour image: edge support [0, 1] of the two solutions' predicted wall
     silhouette lines closer than this is a tie."""
@@ -703,6 +771,12 @@ class PoseParams(Section):
     wall_end_skip_px: float = 2.0
     """Without a colour image: px skipped at each end of a predicted silhouette line, where it
     meets the face outline (whose own edge would support either solution)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.wall_depths:
+            raise ConfigError("vision.pose.wall_depths = [] is out of range; allowed: one or "
+                              "more depths, radii")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -754,7 +828,7 @@ class OutlineTrackingParams(Section):
         "search_px": (0.5, 100.0, "px"), "min_axis_px": (1.0, 1000.0, "px"),
         "samples": (8, 1024, "points"), "min_step": (0.0, 255.0, "grey levels/px"),
         "inlier_px": (0.1, 20.0, "px"), "min_inlier_share": (0.0, 1.0, ""),
-        "size_tolerance": (0.0, 1.0, "")}
+        "size_tolerance": (0.0, 1.0, ""), "close_search_px": (0.5, 100.0, "px")}
 
     search_px: float = 6.0
     """How far (px) the outline is searched for along the predicted ellipse's normals: the
@@ -778,6 +852,10 @@ class OutlineTrackingParams(Section):
     size_tolerance: float = 0.2
     """The fit must keep its semi-axes within this share of the predicted semi-major axis
     (ratio): a fit on a neighbour's outline or on arcs of two faces changes size."""
+    close_search_px: float = 2.0
+    """Search reach (px) of the final search, along the normals of the fit itself (after the
+    inlier refits on the ``search_px`` search): the fit then lies about a pixel from the
+    outline; twice that with margin, so a neighbour's edge a few px off stays out."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -51,7 +51,8 @@ def scene_detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
     and ``[vision]`` table (limits, marking test, the stages' sections), for a top face
     expected at ``depth_range_m`` (min, max) m."""
     types = [cfg.object_types[name] for name in cfg.objects.types]
-    radii, colours, heights = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])
+    radii, colours, heights = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types],
+                                           cfg.vision.top.kind_min_chroma_distance)
     return DetectorConfig(intrinsics=intrinsics, radii_m=radii, kind_colours=colours,
                           heights_m=heights, depth_range_m=depth_range_m
                           ).with_vision(cfg.vision)

@@ -67,7 +67,6 @@ from stackpick_sim.vision.limits import (
     upscaled,
 )
 from stackpick_sim.vision.markings import (
-    RIM_SAMPLE_SCALE,
     MarkingTest,
     inside_rim_band,
     whole_with_edges_inside,
@@ -119,9 +118,6 @@ from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
-#: Object kinds whose colours' chromaticities (r, g, b over their sum) differ by less than
-#: this (L1 distance) cannot be told apart by colour: the radius is then not read from it.
-MIN_KIND_CHROMA_DISTANCE = 0.1
 #: The paper scene's cylinder radii, metres (large and small kind).
 DEFAULT_RADII_M: tuple[float, ...] = (0.035, 0.025)
 #: The stages a detection cannot do without (the others, SKIPPABLE_STAGES, may be skipped:
@@ -395,9 +391,10 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
-    (``top.rest_check``) and the hidden-face check (``top.hidden_check``), and when it chose
-    none, its fallbacks (``top.fallbacks``). Before those, when no ellipse passed the rule
-    outright, faces with markings fitted on arc pairs join it (``top.marked_arcs``)."""
+    (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
+    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``). Before
+    those, when no ellipse passed the rule outright, faces with markings fitted on arc pairs
+    join it (``top.marked_arcs``)."""
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)
@@ -415,7 +412,48 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _nearer_arcs(state, merged, choice, cues, config, every_arc=False)
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
+    elif config.top.inner_refit:
+        merged, choice = _inner_refit(state, merged, choice, config)
     return state.updated(cues=cues, merged=merged, choice=choice)
+
+
+def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The chosen face refitted on its innermost consistent edge (:func:`~stackpick_sim.
+    vision.contrast.refit_on_contrast`, reaching ``top.inner_refit_reach_px`` inward) when it
+    passed the rule outright and the refit is clearly smaller (``top.inner_refit_max_area``),
+    plausible, within the size gate and passes the rule too: a top face over lower faces of
+    its colour and shade, fitted round slivers of them on their strong silhouette (its own
+    boundary with them a faint step inside the fit that the edge map misses, so no edge
+    shows inside it). The choice then says so (``inner``: the pose's final fit keeps off the
+    silhouette's edge pixels). Otherwise both unchanged."""
+    assert choice.index is not None
+    i = choice.index
+    if choice.evidence[i].occluded:  # chosen with markings, or by a later check
+        return merged, choice
+    fit = merged[i].ellipse
+    grad = state.edges("top")
+    # Round by round (each re-centres on the last): a round that leaves more than
+    # inner_refit_max_area of the fit's area (most faces) ends the refit, at half its cost.
+    one = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px,
+                  contrast_rounds=1)
+    refit = refit_on_contrast(fit, grad, True, one)
+    for _ in range(config.top.contrast_rounds - 1):
+        if refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b:
+            break
+        refit = refit_on_contrast(refit, grad, True, one)
+    gate = state.gate
+    if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
+            or not plausible(refit, state.crop, config.fits)
+            or (gate is not None and not gate[0] <= refit.a <= gate[1])):
+        return merged, choice
+    evidence = select_top([refit], grad, edge_points=state.points,
+                          params=config.top).evidence[0]
+    if evidence.occluded:
+        return merged, choice
+    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
+    return merged, replace(choice, evidence=(*choice.evidence[:i], evidence,
+                                             *choice.evidence[i + 1:]), inner=True)
 
 
 def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -456,19 +494,23 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
         return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
                                                  timings_ms=state.timings_ms,
                                                  reason=choice.reason))
-    pose = _top_pose(state, merged[choice.index].ellipse, config)
+    pose = _top_pose(state, merged[choice.index].ellipse, config, choice.inner)
     return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
                                              top=keep.index(choice.index), pose=pose,
                                              timings_ms=state.timings_ms,
                                              reason=choice.reason))
 
 
-def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig) -> Pose:
-    """The pose of the top face ``ellipse`` (crop pixels) after its final fit."""
+def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig, inner: bool = False
+              ) -> Pose:
+    """The pose of the top face ``ellipse`` (crop pixels) after its final fit: the sub-pixel
+    refit on the edge pixels along it (not for an ``inner`` refit, whose faint outline the
+    edge map misses: the silhouette's edge pixels beyond it would pull it back), then the
+    refit on the gradient profile."""
     work, grad = state.work, state.edges("pose")
-    top_ellipse = refine_subpixel(ellipse, grad, state.points, state.grads, state.crop,
-                                  config.pose, config.refine.min_normal_cos, config.fits,
-                                  config.refine.min_pixels)
+    top_ellipse = ellipse if inner else refine_subpixel(
+        ellipse, grad, state.points, state.grads, state.crop, config.pose,
+        config.refine.min_normal_cos, config.fits, config.refine.min_pixels)
     top_ellipse = _profile_refit(top_ellipse, work, grad, config.pose, config.fits)
     # The face's colour once, for its radius and the pose's wall test (the same pixels in the
     # crop and in the frame while the face's interior lies in the crop).
@@ -559,21 +601,23 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
         return merged, replace(mine, index=both.index)
     face = extra[both.index - n]
     if choice.index is not None and _refit_round(face, merged[choice.index].ellipse,
-                                                 config.top.interior_margin_px):
+                                                 config.top.interior_margin_px,
+                                                 config.markings.rim_sample_scale):
         return merged, choice
     return _with_face(merged, mine, face, both.evidence[both.index], state.chains, grad,
                       config.merging)
 
 
-def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float) -> bool:
+def _refit_round(face: Ellipse, chosen: Ellipse, margin_px: float, rim_scale: float) -> bool:
     """Whether an arc pairs' ``face`` is the ``chosen`` face of the merge fitted again (one
     holds the other's centre) round it and beyond, the chosen face reaching into its rim band
     (:func:`~stackpick_sim.vision.markings.inside_rim_band`; the fit taking in the wall's
     silhouette or a lower face's arc beyond it): then the merge's fit is kept. A chosen fit
     lying within the arc face's rim band (``margin_px``, the rule's interior margin) is a fit
-    on an arc of that face's outline and its artwork, and gives way."""
+    on an arc of that face's outline and its artwork, and gives way (``rim_scale``: the rim
+    band's, ``markings.rim_sample_scale``)."""
     return ((holds_centre(face, chosen) or holds_centre(chosen, face))
-            and not inside_rim_band(chosen, face, margin_px))
+            and not inside_rim_band(chosen, face, margin_px, rim_scale))
 
 
 def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -590,6 +634,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
     fallback = select_unobstructed(choice.evidence) if "unobstructed" in use else None
     if fallback is not None:
         choice = replace(choice, index=fallback, reason="")
+        if config.top.nearer_hidden:
+            choice = _nearer_hidden(merged, choice, cues, config.top)
         return _nearer_arcs(found, merged, choice, cues, config)
     check_time(found.deadline, "top")
     retried = False
@@ -607,6 +653,29 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
     return _arc_fallbacks(found, merged, choice, spare, config)
+
+
+def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                   params: TopParams) -> TopChoice:
+    """``choice`` (the ``unobstructed`` fallback's), unless a face cut short by nothing (no
+    T-junction, no edge inside, support at least ``params.hidden_min_support``: at least half
+    visible, as :func:`~stackpick_sim.vision.occlusion.hidden_by_no_outline` counts it) lies
+    clearly nearer the camera than it (:func:`~stackpick_sim.vision.occlusion.
+    clearly_nearest`): a top face over faces of its colour and shade, whose boundary with
+    them shows no contrast along more of its outline than the unobstructed test allows; the
+    chosen face is then a lower one whose occluder only clips its rim. Unchanged without face
+    radii."""
+    assert choice.index is not None
+    if cues.radius_of is None:
+        return choice
+    cut = [i for i, ev in enumerate(choice.evidence)
+           if i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
+           and ev.support >= params.hidden_min_support]
+    if not cut:
+        return choice
+    faces = [merged[choice.index].ellipse, *(merged[i].ellipse for i in cut)]
+    nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
+    return choice if not nearest else replace(choice, index=cut[nearest - 1])
 
 
 def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -722,13 +791,15 @@ def _upscaled_detection(found: Detection, factor: int) -> Detection:
     return replace(found, ellipses=ellipses, segments=segments, pose=pose)
 
 
-def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]]
+def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]],
+                 min_chroma_distance: float = DEFAULT_TOP.kind_min_chroma_distance
                  ) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...] | None,
                             tuple[float, ...] | None]:
     """``radii_m``, ``kind_colours`` and ``heights_m`` for a DetectorConfig from a scene's
     object kinds, (radius m, RGB 0-1, height m) triples: each radius once, largest first, with
     its colour and height. The colours are None when the kinds cannot be told apart by colour
-    (one radius in two colours, or two radii in colours within MIN_KIND_CHROMA_DISTANCE); the
+    (one radius in two colours, or two radii in colours within ``min_chroma_distance``,
+    :attr:`TopParams.kind_min_chroma_distance`); the
     heights are None when one radius comes in two heights. ValueError for no kinds."""
     if not kinds:
         raise ValueError("no object kinds given")
@@ -747,7 +818,7 @@ def object_kinds(kinds: Sequence[tuple[float, tuple[float, float, float], float]
     chroma = np.asarray(colours) / np.maximum(np.sum(colours, axis=1, keepdims=True), 1e-9)
     apart = np.abs(chroma[:, None, :] - chroma[None, :, :]).sum(axis=2)
     np.fill_diagonal(apart, np.inf)
-    if float(apart.min(initial=np.inf)) < MIN_KIND_CHROMA_DISTANCE:
+    if float(apart.min(initial=np.inf)) < min_chroma_distance:
         return radii, None, kind_heights
     return radii, colours, kind_heights
 
@@ -785,7 +856,7 @@ def marking_test(config: DetectorConfig, image: NDArray[np.uint8], grad: EdgeIma
     colours = config.kind_colours
     rim_radius_of = (None if colours is None or rgb is None else
                      radius_by_colour(rgb, config.radii_m, colours,
-                                      face_colours(rgb, RIM_SAMPLE_SCALE)))
+                                      face_colours(rgb, config.markings.rim_sample_scale)))
     return MarkingTest(radii=config.radii_m, rim_radius_of=rim_radius_of,
                        depth_ratio=config.marking_depth_ratio,
                        min_edge_share=config.marking_min_edge_share,

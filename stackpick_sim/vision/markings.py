@@ -98,11 +98,6 @@ if TYPE_CHECKING:  # the top rule (occlusion) calls this module
 
 #: Outline samples per ellipse for the "wholly inside" test.
 INSIDE_SAMPLES = 32
-#: A face's rim band, whose colour gives its kind: the ellipse at this share of its
-#: semi-axes. An object lying wholly inside the face (inside by the interior-edge margin) can
-#: cover its middle, where its colour is read otherwise (wall.FACE_SAMPLE_SCALE), but leaves
-#: most of this band; a can end's rim (its outer 12 %) lies on it.
-RIM_SAMPLE_SCALE = 0.94
 #: Rim band samples of the two-surface test.
 BAND_SAMPLES = 64
 #: The default settings of the two-surface and crossing tests (see MarkingParams).
@@ -113,10 +108,10 @@ DEFAULT = MarkingParams()
 class MarkingTest:
     """What the test reads besides the ellipses: the object kinds' ``radii`` (m); a face's
     radius by the colour of its rim band (``rim_radius_of``, None when the kinds' colours are
-    unknown; see RIM_SAMPLE_SCALE); ``depth_ratio``: an inner ellipse whose depth reads at
-    least this multiple of the face's is a marking (ratio); ``min_edge_share``: the interior
-    edge pixels, per pixel of its perimeter, a face holds at least for them to be read as
-    markings across it; ``margin_px``: how far (px)
+    unknown; see MarkingParams.rim_sample_scale); ``depth_ratio``: an inner ellipse whose
+    depth reads at least this multiple of the face's is a marking (ratio); ``min_edge_share``:
+    the interior edge pixels, per pixel of its perimeter, a face holds at least for them to be
+    read as markings across it; ``margin_px``: how far (px)
     inside the face a marking's whole outline lies (the margin of the interior-edge count);
     ``image``: the (H, W, 3) RGB image the ellipses are given in, for the two-surface test
     (:func:`two_surfaces`; None: no such test); ``gradients``: its edges and gradients, for
@@ -275,7 +270,7 @@ def off_rim_share(face: Ellipse, image: NDArray[np.uint8],
     ``params.surface_chroma_tolerance`` (L1) from it, or brightness (channel sum) outside
     ``params.surface_brightness_range`` of it."""
     h, w = image.shape[:2]
-    pix = np.rint(rim_band(face)).astype(np.int64)
+    pix = np.rint(rim_band(face, params.rim_sample_scale)).astype(np.int64)
     np.clip(pix, 0, np.array([w - 1, h - 1]), out=pix)
     colours = image[pix[:, 1], pix[:, 0]].astype(np.float64)
     sums = np.maximum(colours.sum(axis=1), 1e-9)
@@ -298,8 +293,8 @@ def _kept(test: MarkingTest, key: tuple[object, ...], verdict: Callable[[], bool
 
 def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
                  margin_px: float, params: MarkingParams = DEFAULT) -> bool:
-    """Whether ``face``'s rim band (BAND_SAMPLES points at RIM_SAMPLE_SCALE) shows two
-    surfaces in the (H, W, 3) RGB ``image``: the median colour of its points more than
+    """Whether ``face``'s rim band (BAND_SAMPLES points at ``params.rim_sample_scale``) shows
+    two surfaces in the (H, W, 3) RGB ``image``: the median colour of its points more than
     ``margin_px`` outside ``inner`` and that of those more than ``margin_px`` inside it differ
     in chromaticity by more than ``params.surface_chroma_tolerance``, or in brightness by a
     ratio outside ``params.surface_brightness_range`` (False with fewer than
@@ -309,7 +304,8 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     # values as Ellipse.inside, the rounded and clamped pixels and column_median).
     t = math.radians(inner.angle_deg)
     both, own, other = kernels_top.two_part_medians(
-        rim_band(face), np.require(image, np.uint8, ("C", "W")), inner.cx, inner.cy,
+        rim_band(face, params.rim_sample_scale), np.require(image, np.uint8, ("C", "W")),
+        inner.cx, inner.cy,
         math.cos(t), math.sin(t),
         np.array([max(inner.a - margin_px, 1e-6), max(inner.b - margin_px, 1e-6)]),
         np.array([max(inner.a + margin_px, 1e-6), max(inner.b + margin_px, 1e-6)]),
@@ -347,21 +343,24 @@ def _crosses_over(other: Ellipse, evidence: OcclusionEvidence, face: Ellipse,
 
 
 @functools.lru_cache(maxsize=1024)
-def rim_band(face: Ellipse) -> NDArray[np.float64]:
-    """(BAND_SAMPLES, 2) pixels of ``face``'s rim band (its ellipse at RIM_SAMPLE_SCALE);
-    each face's once (read-only: shared by the tests that read it)."""
-    band = Ellipse.of(face.cx, face.cy, RIM_SAMPLE_SCALE * face.a, RIM_SAMPLE_SCALE * face.b,
+def rim_band(face: Ellipse, scale: float = DEFAULT.rim_sample_scale) -> NDArray[np.float64]:
+    """(BAND_SAMPLES, 2) pixels of ``face``'s rim band (its ellipse at ``scale`` of its
+    semi-axes, :attr:`MarkingParams.rim_sample_scale`); each face's once (read-only: shared
+    by the tests that read it)."""
+    band = Ellipse.of(face.cx, face.cy, scale * face.a, scale * face.b,
                       face.angle_deg).points(BAND_SAMPLES)
     band.setflags(write=False)
     return band
 
 
-def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float) -> bool:
-    """Whether no point of ``face``'s rim band (:func:`rim_band`) lies inside ``inner`` by
-    more than ``margin_px``: ``inner`` lies within the band (a fit on an arc of the face's
-    outline and its artwork does; a face that a larger fit runs round, beyond it on its wall
-    or a lower face, reaches into the larger fit's band where their outlines run together)."""
-    return not bool(kernels_top.inside(inner, rim_band(face), margin_px).any())
+def inside_rim_band(inner: Ellipse, face: Ellipse, margin_px: float,
+                    scale: float = DEFAULT.rim_sample_scale) -> bool:
+    """Whether no point of ``face``'s rim band (:func:`rim_band` at ``scale``) lies inside
+    ``inner`` by more than ``margin_px``: ``inner`` lies within the band (a fit on an arc of
+    the face's outline and its artwork does; a face that a larger fit runs round, beyond it on
+    its wall or a lower face, reaches into the larger fit's band where their outlines run
+    together)."""
+    return not bool(kernels_top.inside(inner, rim_band(face, scale), margin_px).any())
 
 
 @functools.lru_cache(maxsize=1024)

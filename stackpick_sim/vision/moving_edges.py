@@ -28,9 +28,6 @@ FloatArray = NDArray[np.float64]
 
 #: The default settings (see OutlineTrackingParams: the reasons for each).
 DEFAULT = OutlineTrackingParams()
-#: Search reach (px) of the final search, around the fit itself: its distance to the
-#: outline after the inlier refits is about a pixel; twice that with margin.
-CLOSE_SEARCH_PX = 2.0
 
 
 def _normals(e: Ellipse, n: int) -> tuple[FloatArray, FloatArray]:
@@ -111,7 +108,7 @@ def track_outline(gray: NDArray[np.float32], predicted: Ellipse,
     if fit is None:
         return None
     # A final search close to the fit itself, then the acceptance tests.
-    points = _edge_points(gray, fit, CLOSE_SEARCH_PX, params)
+    points = _edge_points(gray, fit, params.close_search_px, params)
     fit2 = _fit(points)
     if fit2 is None:
         return None

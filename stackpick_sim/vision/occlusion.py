@@ -76,10 +76,6 @@ from stackpick_sim.vision.wall_cover import BandCache, under_another
 DEFAULT_TOP = TopParams()
 #: The pose's default settings (the rest test reads its wall band test).
 DEFAULT_POSE = PoseParams()
-#: A face's semi-major axis is at least f r / z px and perspective enlarges it by up to this
-#: factor on the paper scene's frames (see GateParams.slack): the slack of a depth
-#: compared through r / a.
-PERSPECTIVE_ENLARGEMENT = 1.04
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -139,11 +135,14 @@ class OcclusionEvidence:
 
 @dataclass(frozen=True, kw_only=True)
 class TopChoice:
-    """Outcome of the top-object rule: ``index`` into the ellipses, or None with a reason."""
+    """Outcome of the top-object rule: ``index`` into the ellipses, or None with a reason.
+    ``inner``: the chosen ellipse is the top stage's inner refit of a fit that took in slivers
+    of lower faces (the pose's final fit then keeps off the edge pixels beyond it)."""
 
     index: int | None
     evidence: tuple[OcclusionEvidence, ...]
     reason: str = ""
+    inner: bool = False
 
     def __bool__(self) -> bool:
         return self.index is not None
@@ -421,13 +420,13 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     best-supported (:func:`select_rimmed`'s order).
 
     The refit and the rest test (~1 ms) run only for a rimmed face whose fit reads nearer
-    the camera than the chosen face, up to PERSPECTIVE_ENLARGEMENT (a cost gate, on about one
-    frame in fifty of the paper scene's; one in nine has a rimmed face): the fit is too large,
-    so it reads nearer than its face is, and a face reading farther lies below the chosen
-    one; such a lower face resting on it (a lean on its wall, below its face) is left to the
-    top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's wall bands;
-    ``params``: the contrast refit's and the rest test's settings; ``pose_params``: the wall
-    band test's."""
+    the camera than the chosen face, up to ``params.perspective_enlargement`` (a cost gate,
+    on about one frame in fifty of the paper scene's; one in nine has a rimmed face): the fit
+    is too large, so it reads nearer than its face is, and a face reading farther lies below
+    the chosen one; such a lower face resting on it (a lean on its wall, below its face) is
+    left to the top rule. ``belt``: the bare belt's colour in ``image``, for the rest test's
+    wall bands; ``params``: the contrast refit's and the rest test's settings;
+    ``pose_params``: the wall band test's."""
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
@@ -439,8 +438,8 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     if radius is None:
         return None
     # Depth ~ radius / semi-major axis (f r / a; perspective enlarges a by up to
-    # PERSPECTIVE_ENLARGEMENT, either face): a gate, not a measurement.
-    depth = radius / chosen.a * PERSPECTIVE_ENLARGEMENT
+    # params.perspective_enlargement, either face): a gate, not a measurement.
+    depth = radius / chosen.a * params.perspective_enlargement
     nearer = [i for i in rimmed if (own := radius_of(ellipses[i])) is not None
               and own / ellipses[i].a < depth]
     above = []
@@ -615,7 +614,7 @@ def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[i
                 else cover_check(faces, cues.intrinsics, cues.radius_of, cues.height_of,
                                  cues.params))
     under = under_another(faces, cues.intrinsics, cues.radius_of, cache=bands,
-                          params=cues.params, possible=possible)
+                          params=cues.params, pose=cues.pose_params, possible=possible)
     return _without_under(pool, candidates, under, False)
 
 

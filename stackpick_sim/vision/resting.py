@@ -41,7 +41,6 @@ from stackpick_sim.vision.pose import (
     unit_circle_poses,
 )
 from stackpick_sim.vision.wall import (
-    WALL_DEPTH_FRACTIONS,
     WALL_RIM_POINTS,
     WallEvidence,
     band_evidences,
@@ -390,11 +389,12 @@ def wall_evidences_of(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     pose solutions (the same values; its colour :func:`~stackpick_sim.vision.wall.
     face_colour` in the (H, W, 3) RGB or (H, W) gray ``image``), every face in one array
     pass, read from the cover test's bands (:func:`~stackpick_sim.vision.wall_cover.
-    face_bands`, from its ``cache``: WALL_DEPTH_FRACTIONS are their first depths, depth by
-    depth). ``colour_of``: a face's colour, when the caller keeps them; ``belt``: the bare
-    belt's colour (C,) or None; ``params``: the band test's settings."""
-    pu, pv, keep = face_bands(faces, intrinsics, cache)
-    per = len(WALL_DEPTH_FRACTIONS) * WALL_RIM_POINTS
+    face_bands`, from its ``cache``: ``params.wall_depths`` are their first depths, depth by
+    depth, whatever depths the cover test adds). ``colour_of``: a face's colour, when the
+    caller keeps them; ``belt``: the bare belt's colour (C,) or None; ``params``: the band's
+    and the band test's settings."""
+    pu, pv, keep = face_bands(faces, intrinsics, cache, pose=params)
+    per = len(params.wall_depths) * WALL_RIM_POINTS
     colour = (lambda f: face_colour(f, image)) if colour_of is None else colour_of
     colours = np.array([np.asarray(colour(f), np.float64).reshape(-1) for f in faces
                         for _ in range(2)])

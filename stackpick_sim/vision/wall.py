@@ -38,17 +38,10 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import unit_circle
 
-#: Depths along the axis, as fractions of the face radius, at which the band is sampled.
-#: The paper scene's squattest cylinder has height / radius = 0.03 / 0.035 = 0.86, so 0.6
-#: stays on the wall of either kind.
-WALL_DEPTH_FRACTIONS: tuple[float, ...] = (0.2, 0.4, 0.6)
 #: Rim points per depth.
 WALL_RIM_POINTS = 32
-#: Samples closer than this (px) to the face ellipse are dropped: the blurred face edge there
-#: mixes both colours.
-WALL_MARGIN_PX = 2.0
-#: The default settings of the band's colour test (the ``band_*`` fields of PoseParams: the
-#: reasons for each).
+#: The default settings of the band (``wall_depths``, ``wall_margin_px``) and of its colour
+#: test (the ``band_*`` fields of PoseParams: the reasons for each).
 DEFAULT_POSE = PoseParams()
 #: Interior points whose median colour is the face's colour, at this share of the semi-axes.
 FACE_SAMPLE_SCALE = 0.5
@@ -123,14 +116,17 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8],
 
 def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64],
                 ellipse: Ellipse, intrinsics: CameraIntrinsics,
-                depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS) -> NDArray[np.float64]:
-    """(N, 2) pixels (u, v) of the predicted wall band outside ``ellipse``.
+                depths: tuple[float, ...] = DEFAULT_POSE.wall_depths,
+                margin_px: float = DEFAULT_POSE.wall_margin_px) -> NDArray[np.float64]:
+    """(N, 2) pixels (u, v) of the predicted wall band more than ``margin_px`` outside
+    ``ellipse``.
 
     ``normal_cam`` (3,) is the inward unit face normal and ``centre_cam`` (3,) the centre of a
     unit-radius face, camera frame (a unit-radius :class:`~stackpick_sim.vision.pose.
     CirclePose`); ``depths`` the sampled depths along the axis, in face radii.
     """
-    pu, pv, keep = solution_bands([(normal_cam, centre_cam)], ellipse, intrinsics, depths)
+    pu, pv, keep = solution_bands([(normal_cam, centre_cam)], ellipse, intrinsics, depths,
+                                  margin_px)
     pts = np.empty((int(np.count_nonzero(keep)), 2))
     pts[:, 0], pts[:, 1] = pu[keep], pv[keep]
     return pts
@@ -138,21 +134,22 @@ def band_points(normal_cam: NDArray[np.float64], centre_cam: NDArray[np.float64]
 
 def solution_bands(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
                    faces: Ellipse | Sequence[Ellipse], intrinsics: CameraIntrinsics,
-                   depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS
+                   depths: tuple[float, ...] = DEFAULT_POSE.wall_depths,
+                   margin_px: float = DEFAULT_POSE.wall_margin_px
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """The predicted wall bands of S unit-radius solutions (normal_cam (3,), centre_cam (3,),
     as in :func:`band_points`) of one face ellipse, or each of the face ``faces[s]``
     (parallel), in one array pass: pixels u, v (S, P) of every band point (P = len(depths) x
     WALL_RIM_POINTS, depth by depth; (S * P,) for one face ellipse) and which of them lie
-    more than WALL_MARGIN_PX outside the solution's face."""
+    more than ``margin_px`` outside the solution's face."""
     band = solution_band_points(solutions, depths)
     # One face: flat rows (its terms are scalars; numpy broadcasts them at less cost).
     return _project_outside(band.reshape(3, -1) if isinstance(faces, Ellipse) else band,
-                            faces, intrinsics)
+                            faces, intrinsics, margin_px)
 
 
 def solution_band_points(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
-                         depths: tuple[float, ...] = WALL_DEPTH_FRACTIONS
+                         depths: tuple[float, ...] = DEFAULT_POSE.wall_depths
                          ) -> NDArray[np.float64]:
     """(3, S, P) camera-frame points of the wall bands of S unit-radius solutions
     (normal_cam (3,), centre_cam (3,)): P = len(depths) x WALL_RIM_POINTS, depth by depth,
@@ -178,10 +175,10 @@ def _depths(depths: tuple[float, ...]) -> NDArray[np.float64]:
 
 
 def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellipse],
-                     intrinsics: CameraIntrinsics
+                     intrinsics: CameraIntrinsics, margin_px: float
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """The pixels u, v (S, P) of the (3, S, P) camera-frame points ``band`` and which of them
-    lie more than WALL_MARGIN_PX outside ``faces[s]`` (one per row s); for one face ellipse,
+    lie more than ``margin_px`` outside ``faces[s]`` (one per row s); for one face ellipse,
     the same of (3, N) points."""
     # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses),
     # in one compiled pass (kernels.project_outside: the same arithmetic as the array form).
@@ -190,7 +187,7 @@ def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellips
     terms = np.array([_terms(faces)] if isinstance(faces, Ellipse)
                      else [_terms(e) for e in faces], np.float64).reshape(-1, 6)
     pu, pv, outside = kernels.project_outside(points, terms, intrinsics.fx, intrinsics.fy,
-                                              intrinsics.cx, intrinsics.cy, WALL_MARGIN_PX)
+                                              intrinsics.cx, intrinsics.cy, margin_px)
     if one:
         return pu[0], pv[0], outside[0]
     return pu, pv, outside
@@ -227,9 +224,11 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
                    params: PoseParams = DEFAULT_POSE) -> list[WallEvidence]:
     """:func:`wall_evidence` of each unit-radius solution (normal_cam (3,), centre_cam (3,))
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
-    ``belt`` the bare belt's (or None)."""
+    ``belt`` the bare belt's (or None); the band's depths and margin are ``params``'
+    (``wall_depths``, ``wall_margin_px``)."""
     n_sol = len(solutions)
-    pu, pv, keep = solution_bands(solutions, ellipse, intrinsics)
+    pu, pv, keep = solution_bands(solutions, ellipse, intrinsics, params.wall_depths,
+                                  params.wall_margin_px)
     colours = np.broadcast_to(face.reshape(1, -1), (n_sol, face.size))
     return band_evidences(pu.reshape(n_sol, -1), pv.reshape(n_sol, -1),
                           keep.reshape(n_sol, -1), image, colours,

@@ -30,20 +30,24 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.config.vision_params import TopParams
+from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels_top
 from stackpick_sim.vision.pose import unit_circle_poses
-from stackpick_sim.vision.wall import WALL_DEPTH_FRACTIONS, solution_band_points, solution_bands
+from stackpick_sim.vision.wall import solution_band_points, solution_bands
 
 #: The top rule's default settings (the ``cover_*`` fields).
 DEFAULT_TOP = TopParams()
-#: Depths along the axis (face radii) of the band checked for cover: the colour test's
-#: (WALL_DEPTH_FRACTIONS, first: the rest test reads its bands from these) and 0.8, which
-#: stays on the wall of the paper scene's squattest cylinder (height / radius = 0.86).
-#: Deeper than the colour test's band: an object resting on a wall often covers only its
-#: far part.
-COVER_DEPTH_FRACTIONS: tuple[float, ...] = (*WALL_DEPTH_FRACTIONS, 0.8)
+#: The pose's default settings (its wall band's depths and margin).
+DEFAULT_POSE = PoseParams()
+
+
+def cover_depths(params: TopParams = DEFAULT_TOP, pose: PoseParams = DEFAULT_POSE
+                 ) -> tuple[float, ...]:
+    """Depths along the axis (face radii) of the band checked for cover: the colour test's
+    (``pose.wall_depths``, first: the rest test reads its bands from these), then
+    ``params.cover_extra_depths``."""
+    return (*pose.wall_depths, *params.cover_extra_depths)
 
 
 #: Bands kept by :func:`face_bands` for one run of the top rule: per (face, intrinsics), its
@@ -53,10 +57,13 @@ BandCache = dict[tuple[Ellipse, CameraIntrinsics],
 
 
 def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
-               cache: BandCache | None = None
+               cache: BandCache | None = None, *, params: TopParams = DEFAULT_TOP,
+               pose: PoseParams = DEFAULT_POSE
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """:func:`~stackpick_sim.vision.wall.solution_bands` of both unit-radius pose solutions
-    of each face at COVER_DEPTH_FRACTIONS: pixels u, v (2n, P) and which lie outside the
+    of each face at :func:`cover_depths` (of ``params`` and ``pose``, whose
+    ``wall_margin_px`` sets which lie outside the face): pixels u, v (2n, P) and which lie
+    outside the
     face, rows 2i and 2i + 1 face i's (its :func:`~stackpick_sim.vision.pose.
     unit_circle_poses` order), ellipses in the pixel frame of ``intrinsics``; the faces not
     in ``cache`` in one array pass.
@@ -68,29 +75,30 @@ def face_bands(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     found = {f: kept.get((f, intrinsics)) for f in faces}
     missing = [f for f, bands in found.items() if bands is None]
     if missing:
-        for f, new in zip(missing, _bands_of(missing, intrinsics), strict=True):
+        for f, new in zip(missing, _bands_of(missing, intrinsics, params, pose), strict=True):
             found[f] = kept[(f, intrinsics)] = new
     got = [bands for f in faces if (bands := found[f]) is not None]
     return (np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]),
             np.concatenate([g[2] for g in got]))
 
 
-def _bands_of(faces: list[Ellipse], intrinsics: CameraIntrinsics
+def _bands_of(faces: list[Ellipse], intrinsics: CameraIntrinsics, params: TopParams,
+              pose: PoseParams
               ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]]:
     """Each face's two solutions' (u, v, outside) rows (see :func:`face_bands`), all faces in
     one array pass."""
     sols = [(s.normal_cam, s.centre_cam) for f in faces
             for s in unit_circle_poses(f, intrinsics)]
     pu, pv, keep = solution_bands(sols, [f for f in faces for _ in range(2)], intrinsics,
-                                  COVER_DEPTH_FRACTIONS)
+                                  cover_depths(params, pose), pose.wall_margin_px)
     return [(pu[2 * i:2 * i + 2], pv[2 * i:2 * i + 2], keep[2 * i:2 * i + 2])
             for i in range(len(faces))]
 
 
 def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                    radii: Sequence[float | None] | None = None, *,
-                   cache: BandCache | None = None, params: TopParams = DEFAULT_TOP
-                   ) -> NDArray[np.float64]:
+                   cache: BandCache | None = None, params: TopParams = DEFAULT_TOP,
+                   pose: PoseParams = DEFAULT_POSE) -> NDArray[np.float64]:
     """(n, n) share (0-1) ``[i, j]``: the largest, over the two pose solutions of face i, of
     its predicted wall band lying inside face j (0 on the diagonal), all ellipses in the
     pixel frame of ``intrinsics``; every band and pair in one array pass.
@@ -99,10 +107,11 @@ def covered_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     ``radii`` (each face's radius, m, or None if unknown; parallel to ``faces``), a band point
     inside face j counts only where face j lies in front of it (within
     ``params.cover_depth_tolerance_m``) when both radii are known; a point counts inside
-    ``params.cover_margin_px`` from the outline. ``cache``: :func:`face_bands`'.
+    ``params.cover_margin_px`` from the outline. ``cache``: :func:`face_bands`'; ``pose``:
+    the band's depths and margin (with ``params.cover_extra_depths``).
     """
     return _largest_of_two(solution_shares(faces, intrinsics, radii, cache=cache,
-                                           params=params))
+                                           params=params, pose=pose))
 
 
 def _largest_of_two(each: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -116,13 +125,13 @@ def _largest_of_two(each: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                     radii: Sequence[float | None] | None = None, *,
-                    cache: BandCache | None = None, params: TopParams = DEFAULT_TOP
-                    ) -> NDArray[np.float64]:
+                    cache: BandCache | None = None, params: TopParams = DEFAULT_TOP,
+                    pose: PoseParams = DEFAULT_POSE) -> NDArray[np.float64]:
     """(2n, n) share (0-1) ``[2 i + s, j]``: of pose solution s of face i (its
     :func:`~stackpick_sim.vision.pose.unit_circle_poses` order), its predicted wall band
     lying inside face j (the diagonal pairs are not meaningful); see
     :func:`covered_shares`, the larger of each face's two."""
-    pu, pv, keep = face_bands(faces, intrinsics, cache)
+    pu, pv, keep = face_bands(faces, intrinsics, cache, params=params, pose=pose)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
     rows, margin = [], params.cover_margin_px
@@ -138,7 +147,8 @@ def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     if radii is not None:
         sols = [(s.normal_cam, s.centre_cam) for f in faces
                 for s in unit_circle_poses(f, intrinsics)]
-        covered &= _in_front(sols, pu, pv, radii, intrinsics, params.cover_depth_tolerance_m)
+        covered &= _in_front(sols, pu, pv, radii, intrinsics, params.cover_depth_tolerance_m,
+                             cover_depths(params, pose))
     inside = np.count_nonzero(covered, axis=2)
     # Each solution's shares (0 for too few band points).
     return np.asarray(np.where((samples >= params.cover_min_samples)[:, None],
@@ -147,15 +157,16 @@ def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
 
 def _in_front(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
               pu: NDArray[np.float64], pv: NDArray[np.float64], radii: Sequence[float | None],
-              intrinsics: CameraIntrinsics, tolerance_m: float) -> NDArray[np.bool_]:
+              intrinsics: CameraIntrinsics, tolerance_m: float, depths: tuple[float, ...]
+              ) -> NDArray[np.bool_]:
     """(S, n, P): whether face j's plane (the nearer of its two solutions, scaled by its
     radius) lies in front of solution s's band point p (scaled by its face's radius), within
     ``tolerance_m``; True where either radius is unknown. ``solutions``: two unit
-    solutions per face, face by face; ``pu``, ``pv``: (S, P) band pixels."""
+    solutions per face, face by face; ``pu``, ``pv``: (S, P) band pixels at ``depths``."""
     known = np.array([r is not None for r in radii])
     scale = np.array([0.0 if r is None else float(r) for r in radii])
     # (S, P) depth (camera z) of every band point, metres.
-    wall = solution_band_points(solutions, COVER_DEPTH_FRACTIONS)[2] * scale.repeat(2)[:, None]
+    wall = solution_band_points(solutions, depths)[2] * scale.repeat(2)[:, None]
     rx = (pu - intrinsics.cx) / intrinsics.fx
     ry = (pv - intrinsics.cy) / intrinsics.fy
     normals = np.array([nc[0] for nc in solutions], np.float64)  # (S, 3)
@@ -187,7 +198,8 @@ CoverCheck = Callable[[list[tuple[int, int, int]]], list[bool]]
 def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
                   radius_of: Callable[[Ellipse], float | None] | None = None, *,
                   cache: BandCache | None = None, params: TopParams = DEFAULT_TOP,
-                  possible: CoverCheck | None = None) -> list[bool]:
+                  pose: PoseParams = DEFAULT_POSE, possible: CoverCheck | None = None
+                  ) -> list[bool]:
     """Per face: does its wall band run under another of the (whole) ``faces``.
 
     When each of two faces' bands runs under the other (one of them through its wrong pose
@@ -202,15 +214,15 @@ def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
     puts neither face under: the other face's share is still weighed against it.
     ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
     ``params``: the ``cover_*`` settings (a face is under another from a covered share of
-    ``cover_min_share``).
+    ``cover_min_share``); ``pose``: the band's depths and margin.
     """
     cache = {} if cache is None else cache
     least = params.cover_min_share
-    share = covered_shares(faces, intrinsics, cache=cache, params=params)
+    share = covered_shares(faces, intrinsics, cache=cache, params=params, pose=pose)
     allowed = share
     if radius_of is not None and np.any(share >= least):
         each = solution_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache,
-                               params=params)
+                               params=params, pose=pose)
         share = allowed = _largest_of_two(each)
         if possible is not None and np.any(share >= least):
             allowed = _largest_of_two(_possible_only(each, possible, least))

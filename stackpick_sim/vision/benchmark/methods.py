@@ -33,6 +33,7 @@ from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.scoring import MethodOutput
 from stackpick_sim.vision.detector import (
     DEFAULT_RADII_M,
+    DEFAULT_TOP,
     DetectorConfig,
     TopObjectDetector,
     marking_test,
@@ -60,7 +61,8 @@ def detector_config(frame: BenchFrame, vision: VisionCfg | None = None) -> Detec
     """What a caller knows of ``frame``: its intrinsics, depth range and object kinds (radii,
     colours and heights; the default radii when the kinds are unknown), and the settings of
     a scene's ``vision`` table (default: the defaults)."""
-    radii, colours, heights = (object_kinds(frame.kinds) if frame.kinds
+    least = (DEFAULT_TOP if vision is None else vision.top).kind_min_chroma_distance
+    radii, colours, heights = (object_kinds(frame.kinds, least) if frame.kinds
                                else (DEFAULT_RADII_M, None, None))
     config = DetectorConfig(intrinsics=frame.intrinsics, depth_range_m=frame.depth_range_m,
                             radii_m=radii, kind_colours=colours, heights_m=heights)
