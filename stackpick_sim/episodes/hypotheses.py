@@ -124,8 +124,7 @@ class RadiusHypotheses:
             for h, a in zip(self.hypotheses, associated, strict=True):
                 if not a and h.missed_last:
                     h.nis += h.tracker.config.gate_chi2
-        active_used = used[self.hypotheses.index(self.active)]
-        if active_used:
+        if self.by_colour and used[self.hypotheses.index(self.active)]:
             self._read(self.active.last_candidate)
         read = self._read_kind()
         latest = self.active.last_fused_time or 0.0
