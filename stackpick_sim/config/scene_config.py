@@ -476,11 +476,11 @@ class EpisodeCfg:
     0.001 to 0.1 s."""
     track_frames: int = 3
     """Detections fused before the approach starts (two initialise the filter); 2 to 30."""
-    max_retargets: int = 0
+    max_retargets: int = 1
     """Times an episode may drop its tracked face for one that later frames voted top
-    (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
-    every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
-    cost picks (docs/detector.md, "Which face is picked"). 0 to 3."""
+    (stackpick_sim/episodes/topvote.py): a first detection that named a face lying under
+    another is outvoted by the frames after it. 0: never (the arm stops for the new
+    detection: on a fast belt the pause can cost the pick). 0 to 3."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
