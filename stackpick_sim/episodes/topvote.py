@@ -14,14 +14,14 @@ belt moves the pile, the approach changes the view), so the later frames vote:
   apart by their face centres on the belt (world x, y less the belt's nominal travel);
 * a frame without a posed top face, or without the tracked face, does not vote.
 
-Once a rival has at least :data:`RETARGET_VOTES` votes and :data:`RIVAL_MAJORITY` times as
-many as the tracked face (whose first detection counts as one), the detector has
-consistently seen that face as the top and the tracked one as not: the episode detects
-again, taking the rival's face (:class:`~stackpick_sim.episodes.phases.PhaseLogic`), as often
-as the scene allows (``episode.max_retargets``). Votes accumulate over the whole track, so a
-track confirmed over many frames is not dropped when the detector later alternates between
-two true top faces, or names a lower face top from the approach's oblique views for a few
-frames.
+Once a rival has at least :data:`RETARGET_VOTES` votes while no frame after the first
+detection named the tracked face top, the first detection was the detector's outlier (a
+face lying under another, named top in one frame): the episode detects again, taking the
+rival's face (:class:`~stackpick_sim.episodes.phases.PhaseLogic`), as often as the scene
+allows (``episode.max_retargets``). A tracked face that a later frame confirmed keeps the
+pick: the approach's oblique views can name a lower face top for many frames in a row after
+the look view confirmed the tracked one, and the detector may alternate between two true
+top faces.
 """
 
 from __future__ import annotations
@@ -43,14 +43,6 @@ FloatArray = NDArray[np.float64]
 #: move the pick, and three frames (0.1 s at 30 fps) keep the re-target early in the
 #: approach. Placeholder from those rates, not tuned on episodes.
 RETARGET_VOTES = 3
-#: ... and this many times the tracked face's votes. The detector's wrong frames are not
-#: only single ones: the approach's oblique views of a pile can show a face partly under the
-#: tracked one as the top for several frames in a row, after the look view and the first
-#: approach frames confirmed the tracked face; a bare majority then moves the pick to the
-#: lower face. A first detection that named a face under another is outvoted by nearly every
-#: later frame, so twice its votes still take the rival early. Placeholder, not tuned on
-#: episodes.
-RIVAL_MAJORITY = 2
 #: Two top faces whose centres on the belt lie within this distance are one face, m: the
 #: tracker's association distance (half the small face radius).
 SAME_FACE_M = ASSOCIATION_MAX
@@ -153,11 +145,10 @@ class TopVote:
         return self.rivals[min(near)[1]] if near else None
 
     def winner(self) -> Rival | None:
-        """The rival that outvoted the tracked face (at least RETARGET_VOTES votes and
-        RIVAL_MAJORITY times the tracked face's), or None; ties between rivals go to the
-        first seen."""
+        """The rival that outvoted an unconfirmed tracked face (at least RETARGET_VOTES
+        votes, while the tracked face has only its first detection's), or None; ties between
+        rivals go to the first seen."""
         best = max(self.rivals, key=lambda r: r.votes, default=None)
-        if (best is None or best.votes < RETARGET_VOTES
-                or best.votes < RIVAL_MAJORITY * self.tracked):
+        if best is None or best.votes < RETARGET_VOTES or self.tracked > 1:
             return None
         return best
