@@ -115,3 +115,5 @@ def test_the_built_in_estimator_reads_colours_only_where_kinds_differ_in_colour(
     same = load_scene("realistic", [f"object_types.{n}.rgba=[0.5, 0.5, 0.5, 1.0]"
                                     for n in real.objects.types])
     assert not kalman_estimator(same, K, False, "belt").by_colour
+    plugin = load_scene("realistic", ["episode.detector='tests.test_hypotheses:_posed'"])
+    assert not kalman_estimator(plugin, K, False, "belt").by_colour

@@ -22,6 +22,9 @@ FloatArray = NDArray[np.float64]
 #: measurement is at most this much older than the latest of any hypothesis, s: half the
 #: phases' longest blind time (MAX_BLIND_S), a few frames at camera rates.
 KIND_FOLLOW_S = 0.2
+#: The built-in detectors whose posed face's radius is its kind read from its colour, where
+#: the scene's kinds differ in colour (a plug-in's radius may come from anything).
+COLOUR_READING_DETECTORS = ("ours", "rht", "findellipses")
 
 
 class RadiusHypotheses:
@@ -184,13 +187,17 @@ class RadiusHypotheses:
 def kalman_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics, exact: bool,
                      frame: str) -> RadiusHypotheses:
     """The built-in tracker in ``frame``: one radius hypothesis per object kind, or the exact
-    detector's own radius (``exact``: ground truth, trusted as such)."""
+    detector's own radius (``exact``: ground truth, trusted as such); the kind read from the
+    colour acts where the scene's kinds differ in colour and the episode's detector reads it
+    (COLOUR_READING_DETECTORS)."""
     radii = sorted({t.radius for t in cfg.object_types.values()}, reverse=True)
     types = [cfg.object_types[name] for name in cfg.objects.types]
     colours = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])[1]
+    by_colour = (colours is not None and not exact
+                 and cfg.episode.detector in COLOUR_READING_DETECTORS)
     return RadiusHypotheses(cfg, intrinsics, oracle=exact,
                             radii=(0.0,) if exact else tuple(radii), frame=frame,
-                            by_colour=colours is not None and not exact)
+                            by_colour=by_colour)
 
 
 def belt_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics,
