@@ -116,6 +116,8 @@ class RadiusHypotheses:
         would stop accruing NIS and soon look better than the right one, which goes on
         paying for every measurement's noise. Only a hypothesis that fused at least as
         recently as the active one may take over: one that lost the face is no alternative.
+        Where the kinds differ in colour, the kind read most often acts instead while its
+        hypothesis follows the face (see the class docstring).
         """
         before = [h.nis for h in self.hypotheses]
         used = [h.offer(obs) for h in self.hypotheses]
@@ -130,12 +132,12 @@ class RadiusHypotheses:
         if self.by_colour and used[self.hypotheses.index(self.active)]:
             self._read(self.active.last_candidate)
         read = self._read_kind()
-        latest = self.active.last_fused_time or 0.0
-        alive = [h for h in self.hypotheses
-                 if h.initialised and (h.last_fused_time or 0.0) >= latest - 1e-9]
         if read is not None:
             self.active = read
             return used[self.hypotheses.index(read)]
+        latest = self.active.last_fused_time or 0.0
+        alive = [h for h in self.hypotheses
+                 if h.initialised and (h.last_fused_time or 0.0) >= latest - 1e-9]
         best = min(alive, key=lambda h: (h.nis, h is not self.active), default=self.active)
         if best.nis + NIS_SWITCH_MARGIN < self.active.nis:
             self.active = best
