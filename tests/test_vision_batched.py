@@ -7,10 +7,16 @@ import cv2
 import numpy as np
 import pytest
 
+from stackpick_sim.config.vision_params import SegmentParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_profile, contrast_profiles, outline, outlines
-from stackpick_sim.vision.edges import adaptive_thresholds, edge_image, noise_level
+from stackpick_sim.vision.edges import (
+    adaptive_thresholds,
+    edge_image,
+    noise_level,
+    remove_stairs,
+)
 from stackpick_sim.vision.fitting import (
     distances,
     ellipse_params,
@@ -19,7 +25,13 @@ from stackpick_sim.vision.fitting import (
     within,
     within_pairs,
 )
-from stackpick_sim.vision.merging import MergedEllipse, merge_segments
+from stackpick_sim.vision.merging import (
+    SUPPORT_RADIUS_PX,
+    MergedEllipse,
+    merge_segments,
+    support_map,
+    support_shares,
+)
 from stackpick_sim.vision.occlusion import DEFAULT_TOP, OcclusionEvidence, evidence_all
 from stackpick_sim.vision.refine import (
     MIN_NORMAL_COS,
@@ -31,7 +43,7 @@ from stackpick_sim.vision.refine import (
 )
 from stackpick_sim.vision.roi import DEFAULT as ROI_DEFAULT
 from stackpick_sim.vision.roi import decimate
-from stackpick_sim.vision.segments import link_segments, neighbour_count
+from stackpick_sim.vision.segments import link_segments, neighbour_count, split_chain
 from stackpick_sim.vision.synthetic import draw_ellipses
 from stackpick_sim.vision.wall import column_median
 
@@ -275,3 +287,64 @@ def test_merge_with_the_fits_residuals_gives_what_it_computes(
     for m, n in zip(given, computed, strict=True):
         assert (m.ellipse, m.segments, m.support) == (n.ellipse, n.segments, n.support)
         assert m.residual_px == pytest.approx(n.residual_px, rel=1e-12)
+
+
+def test_support_shares_on_the_edge_map_are_those_on_its_dilation(
+        scene: tuple[np.ndarray, list[Ellipse]]) -> None:
+    image, ellipses = scene
+    edges = edge_image(image).edges
+    grown = [Ellipse.of(e.cx + 0.7, e.cy - 0.4, e.a * 1.02, e.b, e.angle_deg + 3.0)
+             for e in ellipses]
+    on_map = support_shares(ellipses + grown, edges, SUPPORT_RADIUS_PX)
+    assert np.array_equal(on_map, support_shares(ellipses + grown, support_map(edges)))
+    assert on_map.max() > 0.5  # the scene's faces are supported
+
+
+def _link_segments_reference(edges: np.ndarray, max_contours: int | None,
+                             params: SegmentParams) -> list[np.ndarray]:
+    """The chains of link_segments by OpenCV's box filters, a Python pass per contour and
+    split_chain per chain (the form its compiled passes stand for)."""
+    shortest = params.min_chain_px
+    box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
+                        borderType=cv2.BORDER_CONSTANT)
+    cut = cv2.threshold(box, 3, 1, cv2.THRESH_BINARY_INV)[1]
+    cv2.bitwise_and(cut, edges, cut)
+    box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hierarchy is None:
+        return []
+    kept = [c.reshape(-1, 2) for c, parent in zip(contours, hierarchy[0][:, 3], strict=True)
+            if parent == -1 and c.shape[0] >= shortest]
+    if max_contours is not None and len(kept) > max_contours:
+        longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
+        kept = [kept[i] for i in sorted(longest[:max_contours])]
+    chains = []
+    for pts in kept:
+        ends = (box[pts[:, 1], pts[:, 0]] <= 2).nonzero()[0].tolist()
+        if not ends:
+            chain = pts
+        elif len(ends) > 1:
+            chain = pts[ends[0]:ends[1] + 1]
+        else:
+            chain = np.concatenate([pts[ends[0]:], pts[:ends[0]]])
+        if chain.shape[0] >= shortest:
+            chains += [arc for arc in split_chain(chain, not ends, params)
+                       if arc.shape[0] >= shortest]
+    return chains
+
+
+@pytest.mark.parametrize("density", [0.0, 0.02, 0.15, 0.4])
+def test_link_segments_matches_the_per_contour_form(
+        scene: tuple[np.ndarray, list[Ellipse]], density: float) -> None:
+    image, _ = scene
+    edges = edge_image(image).edges.copy()
+    rng = np.random.default_rng(int(density * 100))
+    # Noise pixels: junctions, short pieces, small loops and closed rings.
+    edges |= remove_stairs((rng.uniform(0, 1, edges.shape) < density).astype(np.uint8))
+    for params, cap in ((SegmentParams(), None), (SegmentParams(), 7),
+                        (SegmentParams(min_chain_px=3, poly_epsilon_px=0.5), None)):
+        got = link_segments(edges, cap, params).chains
+        want = _link_segments_reference(edges, cap, params)
+        assert len(got) == len(want) > 0
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)

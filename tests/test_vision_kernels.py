@@ -6,13 +6,25 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from unittest import mock
 
 import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from stackpick_sim.config.vision_params import FitParams, RoiParams
+from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
+from stackpick_sim.vision.fitting import (
+    EQ2_CHECKED_RATIO_SQ,
+    distance_rows,
+    ellipse_params,
+    fit_ellipse,
+    grouped_distances,
+    plausible,
+)
+from stackpick_sim.vision.roi import Roi, decimate, find_roi
 
 
 @pytest.fixture
@@ -174,9 +186,14 @@ def test_outline_support_is_the_lookup_of_the_rounded_samples(
     hit = np.zeros(u.size, bool)
     hit[inside] = support[v[inside].astype(int), u[inside].astype(int)] > 0
     want = np.bincount(np.arange(5).repeat(counts), weights=hit) / counts
-    got = kernels.outline_support(support, rows, counts, ct, st)
+    got = kernels.outline_support(support, rows, counts, ct, st, 0)
     assert np.array_equal(got, want)
     assert not inside.all()
+    # Within a radius of the (sparser) map's set pixels: the lookup in its dilation.
+    sparse = (rng.uniform(0, 1, (70, 90)) < 0.05).astype(np.uint8)
+    dilated = cv2.dilate(sparse, np.ones((3, 3), np.uint8))
+    assert np.array_equal(kernels.outline_support(sparse, rows, counts, ct, st, 1),
+                          kernels.outline_support(dilated, rows, counts, ct, st, 0))
 
 
 def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
@@ -755,3 +772,162 @@ def test_outline_columns_match_the_array_form(rng: np.random.Generator) -> None:
         got = kernels.outline_columns(cx, cy, a, b, c, s, ct, st)
         for column, want in zip(got, (pu, pv, c * nx - s * ny, s * nx + c * ny), strict=True):
             np.testing.assert_array_equal(column, want)
+
+
+def _find_roi_reference(image: NDArray[np.uint8], params: RoiParams) -> Roi:
+    """The region of interest by OpenCV's and numpy's whole-array calls (the form the
+    compiled passes stand for)."""
+    h, w = image.shape[:2]
+    small = decimate(image, params.decimation)
+    level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
+             if small.ndim == 3 else small)
+    counts = cv2.calcHist([level], [0], None, [256], [0, 256]).ravel()
+    window = np.asarray(np.bartlett(params.belt_mode_window + 2)[1:-1], np.float64)
+    belt = int(np.argmax(np.convolve(counts, window, mode="same")))
+    spread = params.belt_colour_levels
+    near = cv2.inRange(level, max(0, belt - spread), min(255, belt + spread))
+    channels = 1 if small.ndim == 2 else int(small.shape[2])
+    colour = ((float(belt),) * channels if cv2.countNonZero(near) == 0
+              else tuple(float(c) for c in cv2.mean(small, mask=near)[:channels]))
+    fg = cv2.absdiff(level, np.full_like(level, belt)) > params.foreground_delta
+    bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
+    if bw == 0 or bh == 0:
+        return Roi(u0=0, v0=0, u1=w, v1=h, belt=colour)
+    step, margin = params.decimation, params.margin_px
+    return Roi(u0=max(0, bu * step - margin), v0=max(0, bv * step - margin),
+               u1=min(w, (bu + bw) * step + margin), v1=min(h, (bv + bh) * step + margin),
+               belt=colour)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+@pytest.mark.parametrize("window", [1, 4, 9])
+def test_find_roi_matches_the_whole_array_calls(rng: np.random.Generator, channels: int,
+                                                window: int) -> None:
+    for trial in range(20):
+        h, w = (int(x) for x in rng.integers(12, 90, 2))
+        belt = int(rng.integers(0, 256))
+        image = np.clip(belt + rng.normal(0, 3, (h, w, channels)), 0, 255).astype(np.uint8)
+        if trial % 4:  # a few objects of other levels, some near the belt's
+            for _ in range(int(rng.integers(1, 4))):
+                v, u = int(rng.integers(0, h)), int(rng.integers(0, w))
+                image[v:v + int(rng.integers(2, 30)), u:u + int(rng.integers(2, 30))] = (
+                    rng.integers(0, 256, channels))
+        image = image.squeeze(axis=2) if channels == 1 else image
+        params = RoiParams(belt_mode_window=window, decimation=int(rng.choice([1, 2, 4])),
+                           belt_colour_levels=int(rng.integers(0, 4)))
+        assert find_roi(image, params) == _find_roi_reference(image, params)
+
+
+def test_fit_checks_match_fit_ellipse_and_plausible(rng: np.random.Generator) -> None:
+    raw = np.column_stack([rng.uniform(-50, 300, 400), rng.uniform(-50, 300, 400),
+                           rng.uniform(-5, 200, 400), rng.uniform(-5, 200, 400),
+                           rng.uniform(-180, 360, 400)])
+    raw[::7, 3] = raw[::7, 2] * 1e-4  # extreme axis ratios: Eq. 2 evaluated
+    raw[::11, 0], raw[::13, 4], raw[::17, 2] = np.nan, np.inf, 0.0
+    shape = (240, 320)
+    params = FitParams()
+    top = params.max_axis_diagonals * math.hypot(*shape)
+    rows, degrees, ok = kernels.fit_checks(raw, params.min_axis_px, top, EQ2_CHECKED_RATIO_SQ)
+    for k, (cx, cy, w, h, angle) in enumerate(raw.tolist()):
+        with mock.patch.object(cv2, "fitEllipseDirect", return_value=((cx, cy), (w, h), angle)):
+            e = fit_ellipse(np.zeros((5, 2), np.int32))
+        assert bool(ok[k]) == (e is not None and plausible(e, shape, params))
+        if e is not None:
+            assert (rows[k, :4].tolist(), degrees[k]) == ([e.cx, e.cy, e.a, e.b], e.angle_deg)
+            assert rows[k, 4] == math.radians(e.angle_deg)
+
+
+def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator) -> None:
+    pixels = rng.integers(0, 300, (500, 2)).astype(np.int32)
+    ellipses = [Ellipse.of(*rng.uniform(50, 250, 2), *np.sort(rng.uniform(5, 80, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(12)]
+    starts = rng.integers(0, 400, 12)
+    stops = starts + rng.integers(1, 100, 12)
+    which = rng.random(12) < 0.8
+    got = kernels.ranged_rms(distance_rows(ellipse_params(ellipses)), pixels, starts, stops,
+                             which)
+    for e, lo, hi, on, r in zip(ellipses, starts, stops, which, got, strict=True):
+        d = grouped_distances(ellipse_params([e]), np.array([hi - lo]),
+                              pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
+        assert r == (math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64),
+                                                 weights=d * d)[0]) / (hi - lo)) if on else 0.0)
+
+
+def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(
+        rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.edges import STAIR_LUTS
+
+    for density in (0.05, 0.3, 0.7):
+        edges = (rng.uniform(0, 1, (41, 57)) < density).astype(np.uint8)
+        gx, gy = _gradients(rng)
+        gx, gy = np.ascontiguousarray(gx[:41, :57]), np.ascontiguousarray(gy[:41, :57])
+        gx[::5, ::3] = gy[::5, ::3] = 0  # zero gradients: the floor of the norm
+        thin, pts, g = kernels.stairs_removed_pixels(edges, *STAIR_LUTS, gx, gy)
+        want = kernels.stairs_removed(edges, *STAIR_LUTS)
+        np.testing.assert_array_equal(thin, want)
+        want_pts, want_g = kernels.edge_pixels(want, gx, gy)
+        np.testing.assert_array_equal(pts, want_pts)
+        np.testing.assert_array_equal(g, want_g)
+
+
+def test_junctions_cut_matches_the_box_filters(rng: np.random.Generator) -> None:
+    for density in (0.0, 0.1, 0.4, 0.9):
+        edges = (rng.uniform(0, 1, (37, 53)) < density).astype(np.uint8)
+        box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
+                            borderType=cv2.BORDER_CONSTANT)
+        cut = ((box <= 3) & (edges > 0)).astype(np.uint8)
+        box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False,
+                            borderType=cv2.BORDER_CONSTANT)
+        rows, cols = np.nonzero(edges)
+        for got, want in zip(kernels.set_pixels(edges), (rows, cols), strict=True):
+            np.testing.assert_array_equal(got, want)
+        got_cut, got_end, valid = kernels.junctions_cut(edges, rows, cols)
+        assert valid
+        np.testing.assert_array_equal(got_cut, cut)
+        np.testing.assert_array_equal(got_end, ((box <= 2) & (cut > 0)).astype(np.uint8))
+        if rows.size > 1:  # pixels out of order, or not set: told, not used
+            assert not kernels.junctions_cut(edges, rows[::-1].copy(), cols[::-1].copy())[2]
+            assert not kernels.junctions_cut(1 - edges, rows, cols)[2]
+
+
+def test_near_pairs_beyond_one_per_point_are_all_listed(rng: np.random.Generator) -> None:
+    rows = np.repeat(_ellipse_rows(rng, 1), 5, axis=1)  # one outline, five times over
+    t = rng.uniform(0, 2 * np.pi, 40)
+    pu = rows[0, 0] + rows[4, 0] * rows[2, 0] * np.cos(t) - rows[5, 0] * rows[3, 0] * np.sin(t)
+    pv = rows[1, 0] + rows[5, 0] * rows[2, 0] * np.cos(t) + rows[4, 0] * rows[3, 0] * np.sin(t)
+    got_e, got_m = kernels.near_pairs(pu, pv, rows, rows[2] + 3.0, 1.0)
+    assert np.array_equal(got_e, np.arange(5).repeat(40))
+    assert np.array_equal(got_m, np.tile(np.arange(40), 5))
+
+
+def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
+    sizes = rng.integers(1, 40, 15)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    for fraction in (0.3, 0.5, 1.0):
+        pair_g = rng.integers(0, 4, 600).astype(np.int64)
+        pair_p = rng.integers(0, int(starts[-1]), 600).astype(np.int64)
+        seg = np.arange(15).repeat(sizes)
+        hits = np.bincount(pair_g * 15 + seg[pair_p], minlength=60).reshape(4, 15)
+        want = (hits / sizes.astype(np.float64)[None, :] >= fraction).nonzero()
+        got = kernels.lying_pairs(pair_g, pair_p, starts, 4, fraction)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+        assert 0 < want[0].size
+
+
+def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:
+    sizes = rng.integers(1, 30, 12)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    points = rng.integers(0, 200, (int(starts[-1]), 2)).astype(np.float64)
+    ellipses = [Ellipse.of(*rng.uniform(50, 150, 2), *np.sort(rng.uniform(5, 60, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(6)]
+    chosen = [sorted(rng.choice(12, int(rng.integers(1, 6)), replace=False).tolist())
+              for _ in ellipses]
+    got = kernels.segments_rms(distance_rows(ellipse_params(ellipses)), points, starts,
+                               np.array([s for segs in chosen for s in segs], np.int64),
+                               np.array([len(segs) for segs in chosen], np.int64))
+    for e, segs, r in zip(ellipses, chosen, got, strict=True):
+        at = np.concatenate([np.arange(starts[s], starts[s + 1]) for s in segs])
+        d = grouped_distances(ellipse_params([e]), np.array([at.size]), points[at, 0],
+                              points[at, 1])
+        assert r == np.sqrt(np.bincount(np.zeros(at.size, np.int64), weights=d * d)[0]
+                            / at.size)

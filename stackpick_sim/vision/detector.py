@@ -49,7 +49,7 @@ from stackpick_sim.vision.edges import (
     MIN_SIDE_PX,
     EdgeImage,
     as_rgb_or_gray,
-    edge_image,
+    edge_image_points,
     unblurred_gradients,
 )
 from stackpick_sim.vision.fitting import (
@@ -93,7 +93,6 @@ from stackpick_sim.vision.occlusion import (
 )
 from stackpick_sim.vision.pose import Pose, estimate_pose
 from stackpick_sim.vision.refine import (
-    edge_points,
     refine_all,
     refine_on_profile,
     refine_subpixel,
@@ -340,9 +339,9 @@ def roi_stage(state: State, config: DetectorConfig) -> State:
 
 def edges_stage(state: State, config: DetectorConfig) -> State:
     """The crop's edge image (:func:`~stackpick_sim.vision.edges.edge_image`) and its edge
-    pixels with their unit gradients (:func:`~stackpick_sim.vision.refine.edge_points`)."""
-    grad = edge_image(state.work, config.edges)
-    points, grads = edge_points(grad)
+    pixels with their unit gradients (:func:`~stackpick_sim.vision.refine.edge_points`), in
+    one pass (:func:`~stackpick_sim.vision.edges.edge_image_points`)."""
+    grad, points, grads = edge_image_points(state.work, config.edges)
     return state.updated(grad=grad, points=points, grads=grads)
 
 
@@ -350,7 +349,8 @@ def segments_stage(state: State, config: DetectorConfig) -> State:
     """The edge chains (:func:`~stackpick_sim.vision.segments.link_segments`), the
     ``limits.max_chains`` longest."""
     cap = config.limits.max_chains
-    segments = link_segments(state.edges("segments").edges, cap, config.segments).chains
+    segments = link_segments(state.edges("segments").edges, cap, config.segments,
+                             state.points).chains
     if len(segments) > cap:
         segments = tuple(segments[i] for i in longest(segments, cap))
     return state.updated(segments=segments)
@@ -381,8 +381,8 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
                          config.refine, config.fits)
     return state.updated(merged=[
-        MergedEllipse(ellipse=e, segments=m.segments, residual_px=m.residual_px,
-                      support=m.support) for m, e in zip(merged, refined, strict=True)])
+        MergedEllipse.of(e, m.segments, m.residual_px, m.support)
+        for m, e in zip(merged, refined, strict=True)])
 
 
 def gate_stage(state: State, config: DetectorConfig) -> State:

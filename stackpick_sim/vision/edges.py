@@ -241,6 +241,27 @@ class EdgeImage:
 def edge_image(image: NDArray[np.uint8], params: EdgeParams = DEFAULT) -> EdgeImage:
     """Edges and gradients of a uint8 (H, W) gray or (H, W, 3) RGB image (settings:
     ``params``)."""
+    gx, gy, canny, noise = _canny(image, params)
+    edges = remove_stairs(canny)
+    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise, params=params)
+
+
+def edge_image_points(image: NDArray[np.uint8], params: EdgeParams = DEFAULT
+                      ) -> tuple[EdgeImage, NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`edge_image` and its edge pixels (M, 2) (u, v) in row-major order with their
+    unit gradient directions (M, 2), each with contiguous columns (as
+    :func:`~stackpick_sim.vision.refine.edge_points` of it), the stair passes and the
+    pixel list in one compiled call."""
+    gx, gy, canny, noise = _canny(image, params)
+    edges, pts, g = kernels.stairs_removed_pixels(np.ascontiguousarray(canny), *STAIR_LUTS,
+                                                  gx, gy)
+    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise, params=params), pts.T, g.T
+
+
+def _canny(image: NDArray[np.uint8], params: EdgeParams
+           ) -> tuple[NDArray[np.int16], NDArray[np.int16], NDArray[np.uint8], float]:
+    """The gradients of the smoothed image, Canny's 0/255 edge map on them and the noise
+    level (see :func:`edge_image`)."""
     # The colour image blurred in one call (the same values as channel by channel, at about
     # half the cost), then split into the planes the gradients need; the kernel covers
     # +-2 sigma.
@@ -249,9 +270,8 @@ def edge_image(image: NDArray[np.uint8], params: EdgeParams = DEFAULT) -> EdgeIm
     blurred = cast("NDArray[np.uint8]", cv2.GaussianBlur(image, (side, side), sigma))
     gx, gy = colour_gradients(blurred)
     low, high, noise = adaptive_thresholds(gx, gy, params)
-    canny = cv2.Canny(gx, gy, low, high, L2gradient=True)
-    edges = remove_stairs(cast("NDArray[np.uint8]", canny))
-    return EdgeImage(edges=edges, gx=gx, gy=gy, noise=noise, params=params)
+    canny = cast("NDArray[np.uint8]", cv2.Canny(gx, gy, low, high, L2gradient=True))
+    return gx, gy, canny, noise
 
 
 def unblurred_gradients(image: NDArray[np.uint8], edges: EdgeImage) -> EdgeImage:

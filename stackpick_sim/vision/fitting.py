@@ -233,64 +233,70 @@ _Piece = tuple[int, str, NDArray]
 
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
-    """:func:`fit_or_split` of every chain, level by level: the straightness test and the
-    residuals of all pieces of one level are one array pass each (only the direct fit runs
-    per piece). Returns (chain index, points, ellipse, residual) per accepted piece, in the
-    order :func:`fit_or_split` gives them chain after chain (with the default ``params``)."""
+    """:func:`fit_or_split` of every chain, level by level: the straightness test, the fits'
+    checks and the residuals of all pieces of one level are one compiled pass each (only the
+    direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
+    accepted piece, in the order :func:`fit_or_split` gives them chain after chain."""
     pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
+    max_axis = params.max_axis_diagonals * math.hypot(*shape)
     for level in range(depth + 1):
         if not pending:
             break
-        fitted, failed = _direct_fits(pending, shape, params)
-        accepted, rejected = _within_residual(fitted, params.max_residual_px)
+        accepted, failed = _fit_level(pending, max_axis, params)
         found += accepted
         if level == depth:
             break
-        pending = _halves(failed + rejected, params.min_fit_px)
+        pending = _halves(failed, params.min_fit_px)
     found.sort(key=lambda f: f[0])
     return [(key[0], pts_, e, r) for key, pts_, e, r in found]
 
 
-def _direct_fits(pending: list[_Piece], shape: tuple[int, int], params: FitParams
-                 ) -> tuple[list[tuple[_Piece, Ellipse]], list[_Piece]]:
-    """The pieces long enough, bowed enough and with a plausible direct fit (with it), and
-    the others (too short first, then the failed ones in their order)."""
-    long_enough = [p for p in pending if p[2].shape[0] >= params.min_fit_px]
-    bows = _bows([p[2] for p in long_enough])
-    fitted: list[tuple[_Piece, Ellipse]] = []
-    failed = [p for p in pending if p[2].shape[0] < params.min_fit_px]
-    for p, bow in zip(long_enough, bows, strict=True):
-        e = fit_ellipse(p[2]) if bow >= params.min_bow_px else None
-        if e is None or not plausible(e, shape, params):
-            failed.append(p)
-        else:
-            fitted.append((p, e))
-    return fitted, failed
+def _fit_level(pending: list[_Piece], max_axis: float, params: FitParams
+               ) -> tuple[list[tuple[tuple[int, str], NDArray, Ellipse, float]],
+                          list[_Piece]]:
+    """The pieces long enough, bowed enough, with a plausible direct fit (semi-major axis
+    at most ``max_axis`` px) within ``params.max_residual_px``, as ((chain, path), pixels,
+    ellipse, residual), and the others."""
+    pieces = [p[2] for p in pending]
+    counts = np.array([q.shape[0] for q in pieces], np.int64)
+    pixels = np.concatenate(pieces)
+    if pixels.dtype != _INT32:  # int32 chains, as the stages pass them, read as they are
+        pixels = pixels.astype(np.float64)
+    stops = np.cumsum(counts)
+    shortest = max(5, params.min_fit_px)
+    bows = kernels.bows(pixels, counts).tolist()
+    tried = [k for k, (n, bow) in enumerate(zip(counts.tolist(), bows, strict=True))
+             if n >= shortest and bow >= params.min_bow_px]
+    if not tried:
+        return [], pending
+    rows, degrees, ok = kernels.fit_checks(_direct_rows([pieces[k] for k in tried]),
+                                           params.min_axis_px, max_axis, EQ2_CHECKED_RATIO_SQ)
+    at = np.array(tried, np.int64)
+    rms = kernels.ranged_rms(distance_rows(rows), pixels, stops[at] - counts[at], stops[at],
+                             ok).tolist()
+    accepted: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
+    fitted = set()
+    for k, good, (cx, cy, a, b, _), ang, r in zip(tried, ok.tolist(), rows.tolist(),
+                                                  degrees.tolist(), rms, strict=True):
+        if good and r <= params.max_residual_px:
+            i, path, pts_ = pending[k]
+            accepted.append(((i, path), pts_, Ellipse.of(cx, cy, a, b, ang), r))
+            fitted.add(k)
+    return accepted, [p for k, p in enumerate(pending) if k not in fitted]
 
 
-def _within_residual(fitted: list[tuple[_Piece, Ellipse]], max_residual_px: float
-                     ) -> tuple[list[tuple[tuple[int, str], NDArray, Ellipse, float]],
-                                list[_Piece]]:
-    """The fitted pieces whose RMS residual is within ``max_residual_px``, as ((chain, path),
-    pixels, ellipse, residual), and the others; all residuals in one array pass."""
-    if not fitted:
-        return [], []
-    # (2, N): contiguous u and v rows.
-    pts = np.concatenate([f[0][2] for f in fitted]).T.astype(np.float64)
-    counts = np.array([f[0][2].shape[0] for f in fitted])
-    # The pieces' pixels run piece by piece: each fit's parameters repeated.
-    d = grouped_distances(ellipse_params([f[1] for f in fitted]), counts, pts[0], pts[1])
-    which = np.arange(len(fitted)).repeat(counts)
-    sums = np.bincount(which, weights=d * d).tolist()
-    rms = [math.sqrt(t / k) for t, k in zip(sums, counts.tolist(), strict=True)]
-    accepted, rejected = [], []
-    for (p, e), r in zip(fitted, rms, strict=True):
-        if r > max_residual_px:
-            rejected.append(p)
-        else:
-            accepted.append(((p[0], p[1]), p[2], e, r))
-    return accepted, rejected
+def _direct_rows(pieces: list[NDArray]) -> NDArray[np.float64]:
+    """(K, 5) rows centre u, v, full axes w, h and angle (deg) of ``cv2.fitEllipseDirect`` of
+    each piece (int32 and float32 pixels as they are, others as float32, as
+    :func:`fit_ellipse`)."""
+    out = []
+    for q in pieces:
+        if q.dtype is not _INT32 and q.dtype is not _FLOAT32:
+            q = np.asarray(q, np.float32)
+        (cx, cy), (w, h), angle = cv2.fitEllipseDirect(q)
+        out.append((cx, cy, w, h, angle))
+    return np.array(out, np.float64).reshape(-1, 5)
 
 
 def _halves(failed: list[_Piece], min_fit_px: int) -> list[_Piece]:
@@ -301,12 +307,3 @@ def _halves(failed: list[_Piece], min_fit_px: int) -> list[_Piece]:
             half = pts_.shape[0] // 2
             pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
     return pending
-
-
-def _bows(pieces: list[NDArray]) -> list[float]:
-    """:func:`bow_px` of each piece (N_i, 2), in one compiled pass (the same sums)."""
-    if not pieces:
-        return []
-    counts = np.array([q.shape[0] for q in pieces], np.int64)
-    bows = kernels.bows(np.concatenate(pieces).astype(np.float64), counts)
-    return cast("list[float]", bows.tolist())

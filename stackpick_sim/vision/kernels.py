@@ -235,13 +235,28 @@ def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
 
 
 @_compiled
+def _near_set(image: NDArray[np.uint8], r: int, c: int, radius: int
+              ) -> bool:  # pragma: no cover - compiled
+    """Whether a pixel within ``radius`` (Chebyshev) of (r, c), on the image, is set."""
+    h, w = image.shape
+    for i in range(max(0, r - radius), min(h, r + radius + 1)):
+        for j in range(max(0, c - radius), min(w, c + radius + 1)):
+            if image[i, j] > 0:
+                return True
+    return False
+
+
+@_compiled
 def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
                     counts: NDArray[np.int64], ct: NDArray[np.float64],
-                    st: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+                    st: NDArray[np.float64], radius: int
+                    ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """Per ellipse (row e of (E, 6) ``rows``: cx, cy, a, b and the angle's cosine and sine),
     the share of its ``counts[e]`` outline samples (parameters' cosines ``ct`` and sines
-    ``st``, ellipse by ellipse) whose rounded pixel is set in the (H, W) ``support`` map
-    (off the map: not); see :func:`~stackpick_sim.vision.merging.support_shares`."""
+    ``st``, ellipse by ellipse) whose rounded pixel lies within ``radius`` px (Chebyshev)
+    of a set pixel of the (H, W) ``support`` map (a sample off the map: not; radius 1 on an
+    edge map: the lookup in its 3x3 dilation); see
+    :func:`~stackpick_sim.vision.merging.support_shares`."""
     h, w = support.shape
     out = np.empty(counts.shape[0])
     k = 0
@@ -252,7 +267,8 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
             x, y = a * ct[k], b * st[k]
             u = np.rint(c * x + cx - s * y)
             v = np.rint(s * x + cy + c * y)
-            if 0.0 <= u < w and 0.0 <= v < h and support[np.int64(v), np.int64(u)] > 0:
+            if (0.0 <= u < w and 0.0 <= v < h
+                    and _near_set(support, int(v), int(u), radius)):
                 hits += 1
             k += 1
         out[e] = hits / counts[e]
@@ -983,6 +999,18 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     8-neighbour codes, bit i the ring neighbour i clockwise from north-west, off the image
     0), each pass reading every code before it clears any; see
     :func:`~stackpick_sim.vision.edges.remove_stairs` (the same pixels)."""
+    padded, _, _ = _stairs_pass_pair(edges, first, second)
+    return np.ascontiguousarray(padded[1:-1, 1:-1])
+
+
+@_compiled
+def _stairs_pass_pair(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                      second: NDArray[np.uint8]
+                      ) -> tuple[NDArray[np.uint8], NDArray[np.int64],
+                                 int]:  # pragma: no cover - compiled
+    """:func:`stairs_removed` on a map with a zero border of one pixel, the flat indices
+    (into it, ascending) of the pixels left at the front of the returned index array, and
+    how many."""
     h, w = edges.shape
     padded = np.zeros((h + 2, w + 2), np.uint8)
     n = 0
@@ -1000,8 +1028,29 @@ def stairs_removed(edges: NDArray[np.uint8], first: NDArray[np.uint8],
         k += flat[i]
     gone = np.empty(n, np.int64)
     n = _stair_pass(padded, at, n, first, gone)
-    _stair_pass(padded, at, n, second, gone)
-    return np.ascontiguousarray(padded[1:-1, 1:-1])
+    n = _stair_pass(padded, at, n, second, gone)
+    return padded, at, n
+
+
+@_compiled
+def stairs_removed_pixels(edges: NDArray[np.uint8], first: NDArray[np.uint8],
+                          second: NDArray[np.uint8], gx: NDArray[np.int16],
+                          gy: NDArray[np.int16]
+                          ) -> tuple[NDArray[np.uint8], NDArray[np.float64],
+                                     NDArray[np.float64]]:  # pragma: no cover - compiled
+    """:func:`stairs_removed` and the :func:`edge_pixels` of its result (with the gradients
+    ``gx``, ``gy`` of the map's shape) in one call: the pixels left by the passes are
+    already listed in row-major order, so the map is not scanned again."""
+    padded, at, n = _stairs_pass_pair(edges, first, second)
+    wp = padded.shape[1]
+    pts, g = np.empty((2, n)), np.empty((2, n))
+    for k in range(n):
+        r, c = at[k] // wp - 1, at[k] % wp - 1
+        pts[0, k], pts[1, k] = c, r
+        x, y = np.float64(gx[r, c]), np.float64(gy[r, c])
+        norm = max(np.hypot(x, y), 1e-9)
+        g[0, k], g[1, k] = x / norm, y / norm
+    return np.ascontiguousarray(padded[1:-1, 1:-1]), pts, g
 
 
 @_compiled
@@ -1203,6 +1252,327 @@ def outline_columns(cx: float, cy: float, a: float, b: float, c: float, s: float
     return pu, pv, nu, nv
 
 
+@_compiled
+def level_histogram(small: NDArray[np.uint8]
+                    ) -> tuple[NDArray[np.uint8], NDArray[np.float64]]:  # pragma: no cover
+    """The brightest channel (H, W) of an (H, W, C) uint8 image and its 256-bin histogram
+    (counts as float64); see :func:`~stackpick_sim.vision.roi.find_roi` (the same values as
+    ``np.maximum`` over the channels and ``cv2.calcHist``)."""
+    h, w, channels = small.shape
+    level = np.empty((h, w), np.uint8)
+    counts = np.zeros(256)
+    for r in range(h):
+        for c in range(w):
+            top = small[r, c, 0]
+            for k in range(1, channels):
+                top = max(top, small[r, c, k])
+            level[r, c] = top
+            counts[top] += 1.0
+    return level, counts
+
+
+@_compiled
+def belt_box(small: NDArray[np.uint8], level: NDArray[np.uint8], belt: int, spread: int,
+             delta: float) -> tuple[NDArray[np.float64], int,
+                                    NDArray[np.int64]]:  # pragma: no cover - compiled
+    """For the (H, W, C) uint8 image ``small`` of brightest channel ``level`` (H, W) and the
+    belt's level ``belt``: the mean colour of the pixels whose level lies within ``spread``
+    of it (each channel's sum times the reciprocal of their count, as ``cv2.mean`` with a
+    mask; zeros without such pixels), their count, and the box (u, v, width, height, as
+    ``cv2.boundingRect``; zeros when empty) of the pixels whose level differs from the
+    belt's by more than ``delta``; see :func:`~stackpick_sim.vision.roi.find_roi`."""
+    h, w, channels = small.shape
+    sums = np.zeros(channels, np.int64)
+    near = 0
+    lo, hi = max(0, belt - spread), min(255, belt + spread)
+    u0, v0, u1, v1 = w, h, -1, -1
+    for r in range(h):
+        for c in range(w):
+            x = np.int64(level[r, c])
+            if lo <= x <= hi:
+                near += 1
+                for k in range(channels):
+                    sums[k] += small[r, c, k]
+            if abs(x - belt) > delta:
+                u0, u1 = min(u0, c), max(u1, c)
+                v0, v1 = min(v0, r), max(v1, r)
+    mean = np.zeros(channels)
+    scale = 1.0 / near if near else 0.0
+    for k in range(channels):
+        mean[k] = sums[k] * scale
+    box = np.zeros(4, np.int64)
+    if u1 >= 0:
+        box[0], box[1], box[2], box[3] = u0, v0, u1 - u0 + 1, v1 - v0 + 1
+    return mean, near, box
+
+
+@_compiled
+def _eq2_holds(a: float, b: float, angle_deg: float) -> bool:  # pragma: no cover - compiled
+    """Paper Eq. 2 on the ellipse of semi-axes (a, b) and angle ``angle_deg``: see
+    :func:`~stackpick_sim.vision.fitting.satisfies_eq2` (the same arithmetic)."""
+    t = angle_deg * (math.pi / 180.0)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0, math.pow(a / b, 2.0)
+    big_a, big_b, big_h = c * c * ia + s * s * ib, s * s * ia + c * c * ib, c * s * (ia - ib)
+    return big_a * big_b - big_h * big_h > 0.0
+
+
+@_compiled
+def fit_checks(raw: NDArray[np.float64], min_axis: float, max_axis: float, ratio_sq: float
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                          NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """Per direct fit (row k of (K, 5) ``raw``: centre u, v, full axes w, h and angle (deg) as
+    ``cv2.fitEllipseDirect`` gives them): (K, 5) rows cx, cy, a, b and the angle in radians
+    (zeros where the fit fails), the angle (deg, in [0, 180)) and whether it is an ellipse
+    (finite, positive axes, Eq. 2 checked beyond the squared axis ratio ``ratio_sq``) with a
+    semi-minor axis of at least ``min_axis`` and a semi-major axis of at most ``max_axis``;
+    see :func:`~stackpick_sim.vision.fitting.fit_ellipse` and
+    :func:`~stackpick_sim.vision.fitting.plausible` (the same arithmetic)."""
+    k = raw.shape[0]
+    params = np.zeros((k, 5))
+    degrees = np.zeros(k)
+    ok = np.zeros(k, np.bool_)
+    for i in range(k):
+        cx, cy, w, h, angle = raw[i, 0], raw[i, 1], raw[i, 2], raw[i, 3], raw[i, 4]
+        if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
+                and math.isfinite(angle)):
+            continue
+        if w >= h:
+            a, b, ang = w / 2.0, h / 2.0, angle
+        else:
+            a, b, ang = h / 2.0, w / 2.0, angle + 90.0
+        ang = ang % 180.0
+        if math.pow(a / b, 2.0) > ratio_sq and not _eq2_holds(a, b, ang):
+            continue
+        params[i, 0], params[i, 1], params[i, 2], params[i, 3] = cx, cy, a, b
+        params[i, 4] = ang * (math.pi / 180.0)
+        degrees[i] = ang
+        ok[i] = min_axis <= b and a <= max_axis
+    return params, degrees, ok
+
+
+@_compiled
+def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
+               starts: NDArray[np.int64], stops: NDArray[np.int64], which: NDArray[np.bool_]
+               ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
+    sine) with ``which[e]`` set, the RMS Sampson distance of the pixels
+    ``pixels[starts[e]:stops[e]]`` to it (their squares summed in order; 0 elsewhere); see
+    :func:`~stackpick_sim.vision.fitting.rms_residual` (the same sums)."""
+    n = rows.shape[1]
+    out = np.zeros(n)
+    for e in range(n):
+        if not which[e]:
+            continue
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        total = 0.0
+        for k in range(starts[e], stops[e]):
+            d = _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s)
+            total += d * d
+        out[e] = math.sqrt(total / (stops[e] - starts[e]))
+    return out
+
+
+@_compiled
+def set_pixels(image: NDArray[np.uint8]
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The rows and columns of the nonzero pixels of ``image`` (H, W), row-major (as
+    ``np.nonzero``)."""
+    h, w = image.shape
+    n = 0
+    for r in range(h):
+        for c in range(w):
+            n += image[r, c] != 0
+    rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
+    k = 0
+    for r in range(h):
+        for c in range(w):
+            if image[r, c] != 0:
+                rows[k], cols[k] = r, c
+                k += 1
+    return rows, cols
+
+
+@_compiled
+def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64]
+                  ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], bool]:  # pragma: no cover
+    """For a 0/1 edge map (H, W) whose set pixels are (``rows``, ``cols``) in row-major
+    order: the 0/1 map of its pixels with at most two edge neighbours (the junctions cut
+    out: a 3x3 sum, the pixel included, of at most 3) and, per pixel of that map, 1 where
+    it has at most one neighbour left in it (an end point: a 3x3 sum of at most 2; 0
+    elsewhere), off the image 0 (the same maps as the box filters of
+    :func:`~stackpick_sim.vision.segments.link_segments`); and whether the pixels given are
+    set and ascending (if not, the maps are not computed)."""
+    h, w = edges.shape
+    wp = w + 2
+    n = rows.shape[0]
+    padded = np.zeros((h + 2, wp), np.uint8)
+    flat = padded.ravel()
+    at = np.empty(n, np.int64)
+    for j in range(n):
+        r, c = rows[j], cols[j]
+        if not (0 <= r < h and 0 <= c < w and edges[r, c] != 0):
+            return padded, padded, False
+        at[j] = (r + 1) * wp + c + 1
+        if j > 0 and at[j] <= at[j - 1]:
+            return padded, padded, False
+        flat[at[j]] = 1
+    keep = np.empty(n, np.uint8)
+    for j in range(n):
+        keep[j] = _padded_box(flat, at[j], wp) <= 3
+    cut_padded = np.zeros((h + 2, wp), np.uint8)
+    cut_flat = cut_padded.ravel()
+    for j in range(n):
+        cut_flat[at[j]] = keep[j]
+    end = np.zeros((h, w), np.uint8)
+    for j in range(n):
+        if keep[j]:
+            end[rows[j], cols[j]] = _padded_box(cut_flat, at[j], wp) <= 2
+    return np.ascontiguousarray(cut_padded[1:-1, 1:-1]), end, True
+
+
+@_compiled
+def _padded_box(flat: NDArray[np.uint8], i: int, wp: int) -> int:  # pragma: no cover
+    """The 3x3 sum round flat index ``i`` of a map of row length ``wp`` with a zero border."""
+    return (int(flat[i - wp - 1]) + flat[i - wp] + flat[i - wp + 1] + flat[i - 1] + flat[i]
+            + flat[i + 1] + flat[i + wp - 1] + flat[i + wp] + flat[i + wp + 1])
+
+
+@_compiled
+def ordered_chains(contours: NDArray[np.int32], lengths: NDArray[np.int64],
+                   end: NDArray[np.uint8], shortest: int
+                   ) -> tuple[NDArray[np.int32], NDArray[np.int64],
+                              NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """The ordered chains of OpenCV contours of a one-pixel-wide map (all (M, 2) pixels
+    (u, v) concatenated, ``lengths[i]`` each) given its ``end`` point map (H, W): per
+    contour, the stretch from its first end pixel to its next one, or with a single end the
+    contour turned to start there, or without any the contour itself (closed); only those
+    of at least ``shortest`` pixels, concatenated, with their bounds (C + 1,) and whether
+    each is closed; see :func:`~stackpick_sim.vision.segments.link_segments`."""
+    out = np.empty_like(contours)
+    bounds = np.zeros(lengths.shape[0] + 1, np.int64)
+    closed = np.zeros(lengths.shape[0], np.bool_)
+    k, count, start = 0, 0, 0
+    for i in range(lengths.shape[0]):
+        n = lengths[i]
+        first, second = -1, -1
+        for j in range(n):
+            if end[contours[start + j, 1], contours[start + j, 0]]:
+                if first < 0:
+                    first = j
+                else:
+                    second = j
+                    break
+        lo, size = 0, n  # no end: the contour as it is
+        if second >= 0:
+            lo, size = first, second - first + 1
+        elif first >= 0:
+            lo = first  # one end: turned to start there, n pixels
+        if size >= shortest:
+            for j in range(size):
+                at = start + (lo + j) % n
+                out[k + j, 0], out[k + j, 1] = contours[at, 0], contours[at, 1]
+            closed[count] = first < 0
+            k += size
+            count += 1
+            bounds[count] = k
+        start += n
+    return out[:k], bounds[:count + 1], closed[:count]
+
+
+@_compiled
+def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDArray[np.bool_],
+               polys: NDArray[np.int32], poly_bounds: NDArray[np.int64], shortest: int,
+               corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
+               ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """Each chain (``chains[bounds[c]:bounds[c + 1]]``, ``closed[c]``) cut at the
+    :func:`corner_cuts` of its polygon (``polys[poly_bounds[c]:poly_bounds[c + 1]]``; fewer
+    than 3 vertices: no cut), a closed chain turned to start at its first cut: the chains'
+    pixels so turned and the (A, 2) [start, stop) ranges of the arcs of at least
+    ``shortest`` pixels, in order; see :func:`~stackpick_sim.vision.segments.split_chain`."""
+    out = np.empty_like(chains)
+    ranges = np.empty((chains.shape[0] + bounds.shape[0], 2), np.int64)
+    count = 0
+    for c in range(bounds.shape[0] - 1):
+        lo, hi = bounds[c], bounds[c + 1]
+        n = hi - lo
+        chain = chains[lo:hi]
+        poly = polys[poly_bounds[c]:poly_bounds[c + 1]]
+        cuts = np.empty(0, np.int64)
+        if poly.shape[0] >= 3:
+            cuts = corner_cuts(chain, poly, closed[c], corner_deg, spike_deg, spike_ratio,
+                               signed_deg)
+        first = cuts[0] if closed[c] and cuts.shape[0] else 0
+        for j in range(n):
+            at = (first + j) % n
+            out[lo + j, 0], out[lo + j, 1] = chain[at, 0], chain[at, 1]
+        prev = 0
+        for j in range(cuts.shape[0] + 1):
+            stop = n if j == cuts.shape[0] else cuts[j] - first
+            if stop > prev and stop - prev >= shortest:
+                ranges[count, 0], ranges[count, 1] = lo + prev, lo + stop
+                count += 1
+            prev = max(prev, stop)
+    return out, ranges[:count]
+
+
+@_compiled
+def lying_pairs(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
+                starts: NDArray[np.int64], n_groups: int, fraction: float
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The (group, segment) pairs, in ``np.nonzero`` order of the (G, S) matrix, where at
+    least ``fraction`` of the segment's pixels (segment s: pixels ``starts[s]`` to
+    ``starts[s + 1] - 1``) appear among the (group, pixel) pairs (``pair_g``, ``pair_p``)
+    (each pair once; the share as the count over the size, in float64); see
+    :func:`~stackpick_sim.vision.merging._lying_segments`."""
+    n_seg = starts.shape[0] - 1
+    seg = np.empty(starts[n_seg], np.int64)
+    for s in range(n_seg):
+        for p in range(starts[s], starts[s + 1]):
+            seg[p] = s
+    hits = np.zeros((n_groups, n_seg), np.int64)
+    for k in range(pair_g.shape[0]):
+        hits[pair_g[k], seg[pair_p[k]]] += 1
+    count = 0
+    for g in range(n_groups):
+        for s in range(n_seg):
+            count += hits[g, s] / np.float64(starts[s + 1] - starts[s]) >= fraction
+    on_g, on_s = np.empty(count, np.int64), np.empty(count, np.int64)
+    k = 0
+    for g in range(n_groups):
+        for s in range(n_seg):
+            if hits[g, s] / np.float64(starts[s + 1] - starts[s]) >= fraction:
+                on_g[k], on_s[k] = g, s
+                k += 1
+    return on_g, on_s
+
+
+@_compiled
+def segments_rms(rows: NDArray[np.float64], points: NDArray[np.float64],
+                 starts: NDArray[np.int64], segments: NDArray[np.int64],
+                 per: NDArray[np.int64]) -> NDArray[np.float64]:  # pragma: no cover
+    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
+    sine), the RMS Sampson distance to it of the pixels of its ``per[e]`` segments (the next
+    ones of ``segments``; segment s: ``points[starts[s]:starts[s + 1]]``, (N, 2)), their
+    squares summed in that order; see :meth:`~stackpick_sim.vision.merging._Chains.rms`
+    (the same sums)."""
+    out = np.empty(rows.shape[1])
+    j = 0
+    for e in range(rows.shape[1]):
+        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
+        total = 0.0
+        count = 0
+        for _ in range(per[e]):
+            seg = segments[j]
+            j += 1
+            for k in range(starts[seg], starts[seg + 1]):
+                d = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+                total += d * d
+            count += starts[seg + 1] - starts[seg]
+        out[e] = math.sqrt(total / count)
+    return out
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel for the argument types the detector
     passes, on tiny inputs: run once after installing, so that parallel workers start on a
@@ -1232,7 +1602,15 @@ def warm_up() -> None:
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     bows(np.zeros((1, 2)), counts)
-    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col)
+    segments_rms(np.ones((6, 1)), np.zeros((1, 2)), np.array([0, 1], np.int64), counts - 1,
+                 counts)
+    lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
+                0.5)
+    bows(np.zeros((1, 2), np.int32), counts)
+    fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
+    ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
+               np.ones(1, np.bool_))
+    outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
@@ -1240,7 +1618,17 @@ def warm_up() -> None:
     band_points(np.ones((4, 1, 3)), fixed, fixed, fixed)
     circle_solutions(np.ones(6), np.ones(3), np.eye(3), np.ones(6), np.ones(4))
     table = np.zeros(256, np.uint8)
+    small = np.zeros((4, 4, 3), np.uint8)
+    belt_box(small, level_histogram(small)[0], 0, 1, 1.0)
+    grey = np.zeros((4, 4, 1), np.uint8)
+    belt_box(grey, level_histogram(grey)[0], 0, 1, 1.0)
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
+    grid = np.zeros((4, 4), np.uint8)
+    _, end, _ = junctions_cut(grid, *set_pixels(grid))
+    pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
+    chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
+               1.0)
+    stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)
     outline_columns(0.0, 0.0, 1.0, 1.0, 1.0, 0.0, fixed, fixed)

@@ -37,7 +37,6 @@ from stackpick_sim.vision.fitting import (
     ellipse_distances,
     ellipse_params,
     fit_ellipse,
-    grouped_distances,
     plausible,
     rms_residual,
     within_pairs,
@@ -122,8 +121,13 @@ def supported(ellipse: Ellipse, support: NDArray[np.uint8]) -> NDArray[np.bool_]
     return out
 
 
-def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArray[np.float64]:
-    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass."""
+def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8], radius: int = 0
+                   ) -> NDArray[np.float64]:
+    """(E,) share of each ellipse's :func:`supported` boundary samples, all in one pass; with
+    ``radius`` (px), ``support`` is the edge map itself and a sample counts when an edge
+    pixel lies within that radius (Chebyshev) of it: ``support_shares(e, edges,
+    SUPPORT_RADIUS_PX)`` equals ``support_shares(e, support_map(edges))`` without the
+    dilated map."""
     if not ellipses:
         return np.zeros(0)
     counts, rows = [], []
@@ -136,7 +140,7 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8]) -> NDArr
     return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
                                    np.array(rows, np.float64), np.array(counts, np.int64),
                                    np.concatenate([q[0] for q in circles]),
-                                   np.concatenate([q[1] for q in circles]))
+                                   np.concatenate([q[1] for q in circles]), radius)
 
 
 def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
@@ -380,19 +384,16 @@ class _Chains:
         # Each pair's pixels in ascending order (its segments ascending, each segment's
         # pixel range in turn): the order of the sums does not change.
         segs_all: list[int] = []
-        count = []
+        per = []
         for _, segs in pairs:
             ordered = sorted(set(segs))
             segs_all += ordered
-            count.append(sum(self.sizes[k] for k in ordered))
-        first = self.starts[segs_all]
-        lens = self.starts[np.array(segs_all) + 1] - first
-        at = np.arange(sum(count)) + (first - (lens.cumsum() - lens)).repeat(lens)
-        d = grouped_distances(ellipse_params([e for e, _ in pairs]), np.array(count),
-                              self.points[:, 0][at], self.points[:, 1][at])
-        which = np.arange(len(pairs)).repeat(count)
-        return np.sqrt(np.bincount(which, weights=d * d, minlength=len(pairs))
-                       / np.array(count)).tolist()
+            per.append(len(ordered))
+        # The distances and their sums per pair in one compiled pass.
+        rms = kernels.segments_rms(distance_rows(ellipse_params([e for e, _ in pairs])),
+                                   self.points, self.starts, np.array(segs_all, np.int64),
+                                   np.array(per, np.int64))
+        return cast("list[float]", rms.tolist())
 
 
 def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
@@ -415,13 +416,10 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
             g_rest, p_rest = rest
         g_on = np.concatenate([g_known, g_rest])
         p_on = np.concatenate([p_known, p_rest])
-    n_chains = len(table.sizes)
-    seg_id = np.arange(n_chains).repeat(table.sizes)
-    hits = np.bincount(g_on * n_chains + seg_id[p_on],
-                       minlength=len(groups) * n_chains).reshape(len(groups), n_chains)
-    frac = hits / np.array(table.sizes, np.float64)[None, :]
     lying: list[list[int]] = [[] for _ in groups]
-    on_g, on_s = (frac >= params.absorb_fraction).nonzero()
+    # The pairs' count per (group, segment) and the shares at the fraction, in one pass.
+    on_g, on_s = kernels.lying_pairs(g_on, p_on, table.starts, len(groups),
+                                     params.absorb_fraction)
     for g, s in zip(on_g.tolist(), on_s.tolist(), strict=True):
         lying[g].append(s)
     return lying
@@ -527,7 +525,8 @@ def _absorb_and_validate(chains: tuple[NDArray[np.int32], ...], members: list[li
     refits, refit_rms = _refits(chains, groups, extras, shape, fits_params)
     finals, residuals = _finals(groups, extras, refits, refit_rms, known_rms, table,
                                 fits_params.max_residual_px)
-    shares = support_shares([e for _, e in finals], support_map(edges)).tolist()
+    # The edge map's support read round each sample: no dilated map.
+    shares = support_shares([e for _, e in finals], edges, SUPPORT_RADIUS_PX).tolist()
     out = [MergedEllipse.of(e, tuple(segs), residuals[k], shares[k])
            for k, (segs, e) in enumerate(finals) if shares[k] >= params.min_support]
     out.sort(key=lambda m: -m.support)

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import RoiParams
+from stackpick_sim.vision import kernels
 
 #: The default settings (see RoiParams).
 DEFAULT = RoiParams()
@@ -86,38 +87,36 @@ def find_roi(image: NDArray[np.uint8], params: RoiParams = DEFAULT) -> Roi:
     """
     h, w = image.shape[:2]
     small = decimate(image, params.decimation)
-    level = (np.maximum(np.maximum(small[:, :, 0], small[:, :, 1]), small[:, :, 2])
-             if small.ndim == 3 else small)
-    if min(level.shape) < 3:
+    if min(small.shape[:2]) < 3:
         return Roi(u0=0, v0=0, u1=w, v1=h)
-    belt, belt_colour = belt_level(small, level, params)
-    fg = cv2.absdiff(level, np.full_like(level, belt)) > params.foreground_delta
-    # The box of the foreground pixels (boundingRect of a mask: no pixel list needed).
-    bu, bv, bw, bh = cv2.boundingRect(fg.view(np.uint8))
+    # (H, W, C), C-ordered and writable: the one argument type of the compiled passes.
+    small = small.reshape(small.shape[0], small.shape[1], -1)
+    if not (small.flags.c_contiguous and small.flags.writeable):
+        small = small.copy()
+    # The brightest channel and its histogram in one compiled pass; the belt's level from
+    # the smoothed histogram; then its colour and the foreground's box in a second pass.
+    level, counts = kernels.level_histogram(small)
+    belt = _mode(counts, params.belt_mode_window)
+    colour, near, (bu, bv, bw, bh) = kernels.belt_box(
+        small, level, belt, params.belt_colour_levels, params.foreground_delta)
+    channels = int(small.shape[2])
+    if near == 0:  # the smoothed peak between two close modes
+        belt_colour: tuple[float, ...] = (float(belt),) * channels
+    else:
+        belt_colour = tuple(colour.tolist())
     if bw == 0 or bh == 0:
         return Roi(u0=0, v0=0, u1=w, v1=h, belt=belt_colour)
     step, margin = params.decimation, params.margin_px
-    u0 = max(0, bu * step - margin)
-    v0 = max(0, bv * step - margin)
-    u1 = min(w, (bu + bw) * step + margin)
-    v1 = min(h, (bv + bh) * step + margin)
+    u0 = max(0, int(bu) * step - margin)
+    v0 = max(0, int(bv) * step - margin)
+    u1 = min(w, int(bu + bw) * step + margin)
+    v1 = min(h, int(bv + bh) * step + margin)
     return Roi(u0=u0, v0=v0, u1=u1, v1=v1, belt=belt_colour)
 
 
-def belt_level(small: NDArray[np.uint8], level: NDArray[np.uint8],
-               params: RoiParams = DEFAULT) -> tuple[int, tuple[float, ...]]:
-    """The belt's brightest-channel level in the small copy ``small`` (H, W[, C]) whose
-    brightest channel is ``level`` (H, W), and its colour (one value per channel): see the
-    module docstring."""
-    # OpenCV's histogram, range mask and masked mean: a numpy boolean-mask mean of the
-    # colours costs ~70 us here, these ~15 us together.
-    counts = cv2.calcHist([level], [0], None, [256], [0, 256]).ravel()
-    kernel = (_MODE_KERNEL if params.belt_mode_window == DEFAULT.belt_mode_window
-              else _mode_kernel(params.belt_mode_window))
-    belt = int(np.argmax(np.convolve(counts, kernel, mode="same")))
-    spread = params.belt_colour_levels
-    near = cv2.inRange(level, max(0, belt - spread), min(255, belt + spread))
-    channels = 1 if small.ndim == 2 else int(small.shape[2])
-    if cv2.countNonZero(near) == 0:  # the smoothed peak between two close modes
-        return belt, (float(belt),) * channels
-    return belt, tuple(float(c) for c in cv2.mean(small, mask=near)[:channels])
+def _mode(counts: NDArray[np.float64], window: int) -> int:
+    """The most common level of a 256-bin histogram ``counts`` smoothed over ``window``
+    levels (the first of equals)."""
+    kernel = _MODE_KERNEL if window == DEFAULT.belt_mode_window else _mode_kernel(window)
+    return int(np.argmax(np.convolve(counts, kernel, mode="same")))
+

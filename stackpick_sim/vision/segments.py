@@ -7,7 +7,8 @@ chain from one end to the other and back; the first half is the ordered chain), 
 are split again at corners, so a cylinder's straight side wall and the arc of its face that
 meet at a corner are never fitted together.
 
-Everything per pixel is done by OpenCV or numpy; Python loops run over segments only.
+Everything per pixel is done by OpenCV or compiled passes; no Python loop runs per segment
+but the polygon approximation's.
 """
 
 from __future__ import annotations
@@ -61,32 +62,6 @@ def find_junctions(edges: NDArray[np.uint8]) -> NDArray[np.bool_]:
     return (neighbour_count(edges) >= 3) & (edges > 0)
 
 
-def _order_chain(contour: NDArray[np.int32], is_end: NDArray[np.bool_]) -> NDArray[np.int32]:
-    """Ordered (N, 2) chain from an OpenCV contour of a one-pixel-wide curve.
-
-    ``contour`` is (M, 2) (u, v) and ``is_end`` (M,) marks end-point pixels. An open chain's
-    contour runs end -> end -> back: the chain is the stretch from its first end pixel to the
-    next; a closed one is already a loop.
-    """
-    return _order_by_ends(contour, is_end.nonzero()[0].tolist())
-
-
-def _order_by_ends(contour: NDArray[np.int32], ends: list[int]) -> NDArray[np.int32]:
-    """:func:`_order_chain` given the indices ``ends`` (ascending) of the end pixels."""
-    if not ends:
-        return contour
-    first = ends[0]
-    if len(ends) > 1:
-        return contour[first: ends[1] + 1]
-    return np.concatenate([contour[first:], contour[:first]])
-
-
-def _vertex_index(chain: NDArray[np.int32], vertex: NDArray[np.int32]) -> int:
-    """Index of the chain pixel equal to ``vertex`` (approxPolyDP keeps original points)."""
-    hits = ((chain[:, 0] == vertex[0]) & (chain[:, 1] == vertex[1])).nonzero()[0]
-    return int(hits[0])
-
-
 def split_chain(chain: NDArray[np.int32], closed: bool, params: SegmentParams = DEFAULT
                 ) -> list[NDArray[np.int32]]:
     """Split an ordered (N, 2) chain at corners and where its turning direction flips.
@@ -121,22 +96,21 @@ def split_chain(chain: NDArray[np.int32], closed: bool, params: SegmentParams = 
 
 
 def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
-                  params: SegmentParams = DEFAULT) -> EdgeSegments:
+                  params: SegmentParams = DEFAULT, pixels: NDArray[np.float64] | None = None
+                  ) -> EdgeSegments:
     """Split a (H, W) 0/1 one-pixel-wide edge map into ordered segments of at least
     ``params.min_chain_px``; with ``max_contours``, only the longest that many connected
-    pieces (in their order) are ordered and split (the cost of this stage is a Python pass
-    per piece)."""
+    pieces (in their order) are ordered and split. ``pixels``: the map's set pixels (M, 2)
+    (u, v) in row-major order when at hand (the edge stage lists them; pixels that are not
+    exactly those are ignored, and the map is read instead).
+
+    Three compiled passes around OpenCV's contour follower and polygon approximation: the
+    junctions cut out and the end points marked, the contours ordered from end to end, the
+    chains cut at their corners (:func:`split_chain`, all chains at once)."""
     shortest = params.min_chain_px
-    # Junctions, cut out: edge pixels with 3+ edge neighbours, i.e. a 3x3 sum (the pixel
-    # included) of 4+; end points of the map without them: a 3x3 sum of at most 2.
-    box = cv2.boxFilter(edges, cv2.CV_8U, (3, 3), normalize=False,
-                        borderType=cv2.BORDER_CONSTANT)
-    # 1 where the 3x3 sum is at most 3, ANDed with the 0/1 edges: the kept edge pixels, 0/1.
-    cut = cast("NDArray[np.uint8]", cv2.threshold(box, 3, 1, cv2.THRESH_BINARY_INV)[1])
-    cv2.bitwise_and(cut, edges, cut)
-    box = cv2.boxFilter(cut, cv2.CV_8U, (3, 3), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    edges = np.ascontiguousarray(edges, np.uint8)
+    cut, end = _junctions_cut(edges, pixels)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
-    chains: list[NDArray[np.int32]] = []
     if hierarchy is None:
         return EdgeSegments(chains=(), edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
@@ -149,24 +123,32 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
     if max_contours is not None and len(kept) > max_contours:
         longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
         kept = [kept[i] for i in sorted(longest[:max_contours])]
-    # The end-point test of all contour pixels at once (each is a kept pixel: only its 3x3
-    # sum is read), then each contour's share of it.
-    every = np.concatenate(kept)
-    is_end_px = box.ravel()[every[:, 1] * edges.shape[1] + every[:, 0]] <= 2
-    end_at = is_end_px.nonzero()[0].tolist()
-    k = 0
-    start = 0
-    for pts in kept:
-        stop = start + pts.shape[0]
-        ends = []
-        while k < len(end_at) and end_at[k] < stop:
-            ends.append(end_at[k] - start)
-            k += 1
-        start = stop
-        chain = _order_by_ends(pts, ends)
-        if chain.shape[0] < shortest:
-            continue  # its arcs would be shorter still
-        for arc in split_chain(chain, closed=not ends, params=params):
-            if arc.shape[0] >= shortest:
-                chains.append(arc)
-    return EdgeSegments(chains=tuple(chains), edges=edges)
+    ordered, bounds, closed = kernels.ordered_chains(
+        np.concatenate(kept), np.array([c.shape[0] for c in kept], np.int64), end, shortest)
+    # Each chain's polygon (OpenCV), then the cuts of all chains in one pass.
+    starts = bounds.tolist()
+    polys = [cast("NDArray[np.int32]", cv2.approxPolyDP(ordered[i:j].reshape(-1, 1, 2),
+                                                        params.poly_epsilon_px, shut))
+             for i, j, shut in zip(starts, starts[1:], closed.tolist(), strict=False)]
+    if not polys:
+        return EdgeSegments(chains=(), edges=edges)
+    turned, arcs = kernels.chain_arcs(
+        ordered, bounds, closed, np.concatenate(polys).reshape(-1, 2),
+        np.cumsum([0] + [q.shape[0] for q in polys], dtype=np.int64), shortest,
+        params.corner_angle_deg, params.spike_min_deg, params.spike_ratio,
+        params.min_signed_turn_deg)
+    return EdgeSegments(chains=tuple(turned[i:j] for i, j in arcs.tolist()), edges=edges)
+
+
+def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
+                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """:func:`~stackpick_sim.vision.kernels.junctions_cut` of the 0/1 map ``edges`` on its
+    set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's."""
+    if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
+        cut, end, valid = kernels.junctions_cut(edges, pixels[:, 1].astype(np.int64),
+                                                pixels[:, 0].astype(np.int64))
+        if valid:
+            return cut, end
+    rows, cols = kernels.set_pixels(edges)
+    cut, end, _ = kernels.junctions_cut(edges, rows, cols)
+    return cut, end
