@@ -101,6 +101,18 @@ def test_a_confirmed_track_keeps_its_face() -> None:
     assert vote.winner() is None
 
 
+def test_a_confirmed_track_keeps_its_face_through_a_run_of_wrong_frames() -> None:
+    # The look view confirms the tracked face once; then the approach's oblique views name
+    # a face partly under it, many frames in a row: the pick stays on the confirmed face.
+    vote = TopVote(BELT_V)
+    vote.start()
+    vote.add(_tracked_top(0.033), TRACKED_E)
+    for i in range(4 * RETARGET_VOTES):
+        vote.add(_rival_top(0.1 + 0.033 * i), TRACKED_E)
+    assert vote.rivals[0].votes == 4 * RETARGET_VOTES
+    assert vote.winner() is None
+
+
 def test_rivals_far_apart_are_counted_apart() -> None:
     vote = TopVote(BELT_V)
     vote.start()
@@ -127,7 +139,7 @@ class _Estimator:
         self.resets += 1
 
 
-#: Re-targets the PhaseLogic tests allow (the scenes' default is 0: never).
+#: Re-targets the PhaseLogic tests allow (the scenes' default is 1).
 MAX_RETARGETS = 2
 
 
@@ -180,8 +192,12 @@ def test_retargets_are_bounded() -> None:
     assert logic.phase == "approach" and ep.record.retargets == MAX_RETARGETS
 
 
-def test_no_retarget_by_default() -> None:
-    assert load_scene("paper", ()).episode.max_retargets == 0
+def test_retargets_are_on_by_default_and_off_on_the_fast_belt() -> None:
+    assert load_scene("paper", ()).episode.max_retargets == 1
+    assert load_scene("fast_belt", ()).episode.max_retargets == 0
+
+
+def test_no_retarget_when_the_scene_allows_none() -> None:
     logic, ep = _logic(max_retargets=0)
     for i in range(RETARGET_VOTES + 1):
         logic._count_vote(_rival_top(0.033 * (i + 1)))

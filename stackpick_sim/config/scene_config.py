@@ -441,6 +441,7 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "overtravel": (1e-4, 0.1, "m"),
     "face_height_agreement": (1e-4, 0.02, "m"),
     "normal_vote_height_tol": (1e-4, 0.1, "m"),
+    "tracked_depth_margin": (0.01, 0.9, "[0, 1]"),
     "grasp_dwell": (0.0, 2.0, "s"),
     "lift_height": (0.005, 0.5, "m"),
     "lift_speed": (0.01, 2.0, "m/s"),
@@ -475,11 +476,11 @@ class EpisodeCfg:
     0.001 to 0.1 s."""
     track_frames: int = 3
     """Detections fused before the approach starts (two initialise the filter); 2 to 30."""
-    max_retargets: int = 0
+    max_retargets: int = 1
     """Times an episode may drop its tracked face for one that later frames voted top
-    (stackpick_sim/episodes/topvote.py); 0: never. Off by default: on unseen seeds nearly
-    every re-target moved between two true top faces, and on the 0.3 m/s belt the pause
-    cost picks (docs/detector.md, "Which face is picked"). 0 to 3."""
+    (stackpick_sim/episodes/topvote.py): a first detection that named a face lying under
+    another is outvoted by the frames after it. 0: never (the arm stops for the new
+    detection: on a fast belt the pause can cost the pick). 0 to 3."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose
@@ -526,6 +527,13 @@ class EpisodeCfg:
     against the bellows' 20 deg). A placeholder, three times ``face_height_agreement``:
     the right fits' heights scatter by a few tenths of a millimetre, the wall's read 4-20 mm
     too high. 0.0001 to 0.1 m."""
+    tracked_depth_margin: float = 0.25
+    """Once a face is tracked, the detector expects the top face at the tracked face's
+    predicted depth times 1 +- this share, [0, 1] (at the look pose: the whole pile's depth
+    range). Ellipses too small or too large for a face in that range are not fitted, and the
+    pose takes the face radius whose implied depth fits it best. Too narrow refuses the
+    tracked face when the predicted depth is off (monocular heights read up to ~20 mm too
+    high, ~10 % of the servo standoff); too wide lets the other radius in. 0.01 to 0.9."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""

@@ -41,8 +41,6 @@ FloatArray = NDArray[np.float64]
 
 #: The tracking mode's default outline search (see OutlineTrackingParams).
 DEFAULT_OUTLINE = OutlineTrackingParams()
-#: Once a face is tracked its depth is predicted; the detector is told this range around it.
-TRACKED_DEPTH_MARGIN = 0.25
 
 
 def scene_detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
@@ -62,12 +60,12 @@ def detector_config(cfg: SceneConfig, intrinsics: CameraIntrinsics,
                     hints: Hints) -> DetectorConfig:
     """What the scene and the track tell the vision pipeline: the scene's settings
     (:func:`scene_detector_config`) and the depth range of the face (at the look pose, or
-    around the tracked one)."""
+    around the tracked one: ``episode.tracked_depth_margin``)."""
     if hints.expected_depth_m is None:  # at the look pose
         depth = face_depth_range(cfg.camera.look_height, cfg.objects.max_face_height)
     else:
-        d = hints.expected_depth_m
-        depth = (d * (1 - TRACKED_DEPTH_MARGIN), d * (1 + TRACKED_DEPTH_MARGIN))
+        d, margin = hints.expected_depth_m, cfg.episode.tracked_depth_margin
+        depth = (d * (1 - margin), d * (1 + margin))
     return scene_detector_config(cfg, intrinsics, (max(depth[0], 1e-3), max(depth[1], 2e-3)))
 
 

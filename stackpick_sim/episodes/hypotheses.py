@@ -14,8 +14,17 @@ from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import NIS_SWITCH_MARGIN, TargetEstimator, TargetState
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.detector import object_kinds
 
 FloatArray = NDArray[np.float64]
+
+#: The hypothesis of the kind read from the face's colour acts while its last fused
+#: measurement is at most this much older than the latest of any hypothesis, s: half the
+#: phases' longest blind time (MAX_BLIND_S), a few frames at camera rates.
+KIND_FOLLOW_S = 0.2
+#: The built-in detectors whose posed face's radius is its kind read from its colour, where
+#: the scene's kinds differ in colour (a plug-in's radius may come from anything).
+COLOUR_READING_DETECTORS = ("ours", "rht", "findellipses")
 
 
 class RadiusHypotheses:
@@ -27,14 +36,27 @@ class RadiusHypotheses:
     once the camera moves, only the right height keeps the track on a straight line
     (parallax), so the hypothesis with the smallest summed innovation (NIS) is used. The
     same interface as TargetEstimator.
+
+    Where the scene's kinds differ in colour (``by_colour``), the detector reads each posed
+    face's kind from its colour, a reading that does not depend on the outline's size. The
+    parallax does: the fits of the approaching camera's views take in a side wall (too
+    large) or a can's recessed panel (too small), and the hypothesis whose radius matches
+    the wrong size, or one that has moved to another face of that size (a larger face under
+    a small lid), wins on NIS. So there the kind the readings of the tracked face name most
+    often acts while its hypothesis follows the face; NIS chooses only when it has lost it.
     """
 
     def __init__(self, cfg: SceneConfig, intrinsics: CameraIntrinsics, *, oracle: bool,
-                 radii: tuple[float, ...], frame: str | None = None) -> None:
+                 radii: tuple[float, ...], frame: str | None = None,
+                 by_colour: bool = False) -> None:
         self._radii = radii
         self._args = (cfg, intrinsics, oracle)
         self.frame = frame or cfg.episode.tracker_frame
         self.name = self.frame
+        self.by_colour = by_colour
+        """Whether the detector's radius of a posed face is a reading of its kind's colour."""
+        self.readings: dict[float, int] = {}
+        """How often the detector read each hypothesis' radius on the tracked face."""
         self.hypotheses = self._fresh()
         self.active = self.hypotheses[0]
 
@@ -47,12 +69,41 @@ class RadiusHypotheses:
         """Forget the face: back to the state before :meth:`start`."""
         self.hypotheses = self._fresh()
         self.active = self.hypotheses[0]
+        self.readings = {}
 
     def start(self, obs: Observation, cand: Candidate) -> None:
         """Start every hypothesis on the first detection; the detector's radius acts first."""
         for h, r in zip(self.hypotheses, self._radii, strict=True):
             h.start(obs, cand, r)
-        self.active = min(self.hypotheses, key=lambda h: abs((h.radius or 0) - cand.radius))
+        self.active = self._nearest(cand.radius)
+        self.readings = {}
+        self._read(cand)
+
+    def _nearest(self, radius: float) -> TargetEstimator:
+        return min(self.hypotheses, key=lambda h: abs((h.radius or 0) - radius))
+
+    def _read(self, cand: Candidate | None) -> None:
+        """Count the detector's radius of ``cand`` if it is a posed face."""
+        if cand is None or cand.centre_cam is None or cand.radius <= 0:
+            return
+        radius = self._nearest(cand.radius).radius or 0.0
+        self.readings[radius] = self.readings.get(radius, 0) + 1
+
+    def _read_kind(self) -> TargetEstimator | None:
+        """The hypothesis of the radius read most often (ties: the active's, then the
+        earliest read), if the kinds differ in colour and it still follows the face: not
+        lost, and fused within KIND_FOLLOW_S of the latest fused measurement."""
+        if not self.by_colour or not self.readings:
+            return None
+        order = list(self.readings)
+        radius = max(order, key=lambda r: (self.readings[r], r == self.active.radius,
+                                           -order.index(r)))
+        h = next(h for h in self.hypotheses if h.radius == radius)
+        latest = max((g.last_fused_time or 0.0) for g in self.hypotheses)
+        if (not h.initialised or h.lost
+                or (h.last_fused_time or 0.0) < latest - KIND_FOLLOW_S):
+            return None
+        return h
 
     def offer(self, obs: Observation) -> bool:
         """Fuse ``obs`` into every hypothesis; switch to the most consistent one.
@@ -65,6 +116,8 @@ class RadiusHypotheses:
         would stop accruing NIS and soon look better than the right one, which goes on
         paying for every measurement's noise. Only a hypothesis that fused at least as
         recently as the active one may take over: one that lost the face is no alternative.
+        Where the kinds differ in colour, the kind read most often acts instead while its
+        hypothesis follows the face (see the class docstring).
         """
         before = [h.nis for h in self.hypotheses]
         used = [h.offer(obs) for h in self.hypotheses]
@@ -76,6 +129,12 @@ class RadiusHypotheses:
             for h, a in zip(self.hypotheses, associated, strict=True):
                 if not a and h.missed_last:
                     h.nis += h.tracker.config.gate_chi2
+        if self.by_colour and used[self.hypotheses.index(self.active)]:
+            self._read(self.active.last_candidate)
+        read = self._read_kind()
+        if read is not None:
+            self.active = read
+            return used[self.hypotheses.index(read)]
         latest = self.active.last_fused_time or 0.0
         alive = [h for h in self.hypotheses
                  if h.initialised and (h.last_fused_time or 0.0) >= latest - 1e-9]
@@ -130,10 +189,17 @@ class RadiusHypotheses:
 def kalman_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics, exact: bool,
                      frame: str) -> RadiusHypotheses:
     """The built-in tracker in ``frame``: one radius hypothesis per object kind, or the exact
-    detector's own radius (``exact``: ground truth, trusted as such)."""
+    detector's own radius (``exact``: ground truth, trusted as such); the kind read from the
+    colour acts where the scene's kinds differ in colour and the episode's detector reads it
+    (COLOUR_READING_DETECTORS)."""
     radii = sorted({t.radius for t in cfg.object_types.values()}, reverse=True)
+    types = [cfg.object_types[name] for name in cfg.objects.types]
+    colours = object_kinds([(t.radius, t.rgba[:3], t.height) for t in types])[1]
+    by_colour = (colours is not None and not exact
+                 and cfg.episode.detector in COLOUR_READING_DETECTORS)
     return RadiusHypotheses(cfg, intrinsics, oracle=exact,
-                            radii=(0.0,) if exact else tuple(radii), frame=frame)
+                            radii=(0.0,) if exact else tuple(radii), frame=frame,
+                            by_colour=by_colour)
 
 
 def belt_estimator(cfg: SceneConfig, intrinsics: CameraIntrinsics,

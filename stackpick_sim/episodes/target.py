@@ -225,6 +225,8 @@ class TargetEstimator:
         """Sum of the measurements' normalised innovations squared (capped at the gate)."""
         self.missed_last = False
         """The last :meth:`offer` found faces in the frame but none to associate."""
+        self.last_candidate: Candidate | None = None
+        """The candidate of the latest measurement fused (None before the first)."""
 
     @property
     def initialised(self) -> bool:
@@ -479,6 +481,7 @@ class TargetEstimator:
             self._rejected = []
         if accepted:
             self._last = (obs.capture_time, z)
+            self.last_candidate = cand
             self.fused += 1
             self.last_fused_time = obs.capture_time
             if not first and pixel_std is None:  # a pose fitted on a partial outline is not

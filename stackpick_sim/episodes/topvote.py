@@ -14,14 +14,14 @@ belt moves the pile, the approach changes the view), so the later frames vote:
   apart by their face centres on the belt (world x, y less the belt's nominal travel);
 * a frame without a posed top face, or without the tracked face, does not vote.
 
-Once a rival has at least :data:`RETARGET_VOTES` votes and more than the tracked face (whose
-first detection counts as one), the detector has consistently seen that face as the top and
-the tracked one as not: the episode detects again, taking the rival's face
-(:class:`~stackpick_sim.episodes.phases.PhaseLogic`), if the scene allows re-targets
-(``episode.max_retargets``, default 0: on unseen seeds nearly every re-target moved between
-two true top faces, see the README). Votes accumulate over the whole track,
-so a track confirmed over many frames is not dropped when the detector later alternates
-between two true top faces.
+Once a rival has at least :data:`RETARGET_VOTES` votes while no frame after the first
+detection named the tracked face top, the first detection was the detector's outlier (a
+face lying under another, named top in one frame): the episode detects again, taking the
+rival's face (:class:`~stackpick_sim.episodes.phases.PhaseLogic`), as often as the scene
+allows (``episode.max_retargets``). A tracked face that a later frame confirmed keeps the
+pick: the approach's oblique views can name a lower face top for many frames in a row after
+the look view confirmed the tracked one, and the detector may alternate between two true
+top faces.
 """
 
 from __future__ import annotations
@@ -145,9 +145,10 @@ class TopVote:
         return self.rivals[min(near)[1]] if near else None
 
     def winner(self) -> Rival | None:
-        """The rival that outvoted the tracked face (RETARGET_VOTES and more votes), or None;
-        ties between rivals go to the first seen."""
+        """The rival that outvoted an unconfirmed tracked face (at least RETARGET_VOTES
+        votes, while the tracked face has only its first detection's), or None; ties between
+        rivals go to the first seen."""
         best = max(self.rivals, key=lambda r: r.votes, default=None)
-        if best is None or best.votes < RETARGET_VOTES or best.votes <= self.tracked:
+        if best is None or best.votes < RETARGET_VOTES or self.tracked > 1:
             return None
         return best
