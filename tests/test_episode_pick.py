@@ -18,7 +18,7 @@ from stackpick_sim.control.reach import (
     descent_tilt_share,
     tilted_axis,
 )
-from stackpick_sim.episodes import pick
+from stackpick_sim.episodes import hypotheses, pick
 from stackpick_sim.episodes.arm import ArmController
 from stackpick_sim.episodes.episode import run_episode
 from stackpick_sim.episodes.hypotheses import RadiusHypotheses
@@ -635,10 +635,12 @@ def test_a_face_read_too_high_by_the_approach_views_is_still_picked() -> None:
 @pytest.mark.parametrize("search", [True, False])
 def test_a_can_read_as_a_smaller_lid_is_met_below_its_believed_height(
         search: bool, monkeypatch: pytest.MonkeyPatch) -> None:
-    # Realistic scene, seed 70043, our detector: a can's 30 mm lid tracked as a 25 mm printed
-    # lid, so 18 mm higher than it is (a monocular pose is known up to scale). The descent
-    # goes on as deep as a can would lie and meets the lid; stopping at the believed height
-    # plus the overtravel it ends above it.
+    # Realistic scene, seed 70043, our detector, the kind left to the parallax (as for a
+    # detector whose radius is no reading of the kind's colour): a can's 30 mm lid is tracked
+    # as a 25 mm printed lid, so 18 mm higher than it is (a monocular pose is known up to
+    # scale). The descent goes on as deep as a can would lie and meets the lid; stopping at
+    # the believed height plus the overtravel it ends above it.
+    monkeypatch.setattr(hypotheses, "COLOUR_READING_DETECTORS", ())
     if not search:
         monkeypatch.setattr(pick, "larger_kind_drop", lambda radius, radii, depth: 0.0)
     rec = run_episode(generate_scene(load_scene("realistic", []), 70043))
@@ -649,6 +651,16 @@ def test_a_can_read_as_a_smaller_lid_is_met_below_its_believed_height(
         assert rec.failure == "missed_grasp" and "passed the predicted face" in \
             rec.failure_detail
         assert rec.lip_height_mm is not None and rec.lip_height_mm > 5.0
+
+
+@pytest.mark.slow
+def test_the_kind_read_from_the_colour_keeps_a_can_a_can() -> None:
+    # The same episode with the kind read from the face's colour, as our detector reads it:
+    # the parallax of the approach's fits (a can fitted on its recessed panel) no longer
+    # hands the track to the printed lid's radius, and the can is picked as a can.
+    rec = run_episode(generate_scene(load_scene("realistic", []), 70043))
+    assert rec.target_kind == "can" and rec.believed_kinds == ["can"]
+    assert rec.success, f"{rec.failure}: {rec.failure_detail}"
 
 
 def test_a_second_detection_off_the_face_does_not_start_the_track() -> None:

@@ -4,9 +4,10 @@ NIS (scripted hypotheses, no rendering)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.episodes.hypotheses import KIND_FOLLOW_S, RadiusHypotheses, kalman_estimator
+from stackpick_sim.episodes.hypotheses import RadiusHypotheses, kalman_estimator
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.geometry import CameraIntrinsics
 
@@ -48,12 +49,13 @@ def _obs(t: float) -> Observation:
                        candidates=(), detection=None, image=None)
 
 
-def _hypotheses(by_colour: bool) -> tuple[RadiusHypotheses, _Scripted, _Scripted]:
+def _hypotheses(by_colour: bool, overrides: tuple[str, ...] = ()
+                ) -> tuple[RadiusHypotheses, _Scripted, _Scripted]:
     """The small lid's hypothesis pays more NIS per frame than the large one (the approach's
     fits take in the lid's side wall: too large for its radius); both fuse the lid, whose
     colour the detector reads as the small kind."""
-    hyps = RadiusHypotheses(load_scene("realistic", ()), K, oracle=False, radii=(LARGE, SMALL),
-                            by_colour=by_colour)
+    hyps = RadiusHypotheses(load_scene("realistic", overrides), K, oracle=False,
+                            radii=(LARGE, SMALL), by_colour=by_colour)
     large, small = _Scripted(LARGE, 1.0), _Scripted(SMALL, 6.0)
     hyps.hypotheses = [large, small]  # type: ignore[list-item]
     hyps.active = small  # type: ignore[assignment]
@@ -72,13 +74,15 @@ def test_the_kind_read_from_the_colour_acts_while_it_follows_the_face() -> None:
     assert large.nis + 50.0 < small.nis  # the parallax alone would have switched
 
 
-def test_the_parallax_decides_once_the_colour_kind_lost_the_face() -> None:
-    hyps, _, small = _hypotheses(by_colour=True)
+@pytest.mark.parametrize("follow", [0.2, 0.5])
+def test_the_parallax_decides_once_the_colour_kind_lost_the_face(follow: float) -> None:
+    hyps, _, small = _hypotheses(by_colour=True,
+                                 overrides=(f"episode.kind_follow_time={follow}",))
     for i in range(1, 4):
         hyps.offer(_obs(i * FRAME_DT))
     small.fuses = None  # its prediction drifted off the face: it no longer associates
     last = t = 3 * FRAME_DT
-    while t + FRAME_DT - last <= KIND_FOLLOW_S:
+    while t + FRAME_DT - last <= follow:
         t += FRAME_DT
         hyps.offer(_obs(t))
         assert hyps.radius == SMALL  # a few missed frames are not a lost face

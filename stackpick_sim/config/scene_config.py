@@ -442,6 +442,7 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "face_height_agreement": (1e-4, 0.02, "m"),
     "normal_vote_height_tol": (1e-4, 0.1, "m"),
     "tracked_depth_margin": (0.01, 0.9, "[0, 1]"),
+    "kind_follow_time": (0.0, 2.0, "s"),
     "grasp_dwell": (0.0, 2.0, "s"),
     "lift_height": (0.005, 0.5, "m"),
     "lift_speed": (0.01, 2.0, "m/s"),
@@ -534,6 +535,12 @@ class EpisodeCfg:
     pose takes the face radius whose implied depth fits it best. Too narrow refuses the
     tracked face when the predicted depth is off (monocular heights read up to ~20 mm too
     high, ~10 % of the servo standoff); too wide lets the other radius in. 0.01 to 0.9."""
+    kind_follow_time: float = 0.2
+    """Where the scene's kinds differ in colour, the radius hypothesis of the kind the
+    detector read most often on the tracked face acts while its last fused measurement is at
+    most this much older than the latest of any hypothesis, s; after that it has lost the
+    face and the parallax (NIS) chooses. Half the phases' longest blind time: a few missed
+    frames at camera rates are not a lost face. 0 to 2 s."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""

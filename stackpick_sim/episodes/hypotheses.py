@@ -18,10 +18,6 @@ from stackpick_sim.vision.detector import object_kinds
 
 FloatArray = NDArray[np.float64]
 
-#: The hypothesis of the kind read from the face's colour acts while its last fused
-#: measurement is at most this much older than the latest of any hypothesis, s: half the
-#: phases' longest blind time (MAX_BLIND_S), a few frames at camera rates.
-KIND_FOLLOW_S = 0.2
 #: The built-in detectors whose posed face's radius is its kind read from its colour, where
 #: the scene's kinds differ in colour (a plug-in's radius may come from anything).
 COLOUR_READING_DETECTORS = ("ours", "rht", "findellipses")
@@ -92,7 +88,7 @@ class RadiusHypotheses:
     def _read_kind(self) -> TargetEstimator | None:
         """The hypothesis of the radius read most often (ties: the active's, then the
         earliest read), if the kinds differ in colour and it still follows the face: not
-        lost, and fused within KIND_FOLLOW_S of the latest fused measurement."""
+        lost, and fused within ``episode.kind_follow_time`` of the latest fused measurement."""
         if not self.by_colour or not self.readings:
             return None
         order = list(self.readings)
@@ -101,7 +97,7 @@ class RadiusHypotheses:
         h = next(h for h in self.hypotheses if h.radius == radius)
         latest = max((g.last_fused_time or 0.0) for g in self.hypotheses)
         if (not h.initialised or h.lost
-                or (h.last_fused_time or 0.0) < latest - KIND_FOLLOW_S):
+                or (h.last_fused_time or 0.0) < latest - self._args[0].episode.kind_follow_time):
             return None
         return h
 
