@@ -117,27 +117,32 @@ class RadiusHypotheses:
         """
         before = [h.nis for h in self.hypotheses]
         used = [h.offer(obs) for h in self.hypotheses]
-        # A hypothesis associated the frame if it fused it or gated it out (which raised its
-        # NIS); one that found nothing near its prediction pays as much as a gated one.
+        self._charge_unassociated(before, used)
+        if self.by_colour and used[self.hypotheses.index(self.active)]:
+            self._read(self.active.last_candidate)
+        read = self._read_kind()
+        self.active = read if read is not None else self._least_nis()
+        return used[self.hypotheses.index(self.active)]
+
+    def _charge_unassociated(self, before: list[float], used: list[bool]) -> None:
+        """A hypothesis associated the frame if it fused it (``used``) or gated it out (its
+        NIS rose from ``before``); where another did, one that found nothing near its
+        prediction pays as much as a gated one."""
         associated = [u or h.nis > b for h, u, b in zip(self.hypotheses, used, before,
                                                         strict=True)]
         if any(associated):
             for h, a in zip(self.hypotheses, associated, strict=True):
                 if not a and h.missed_last:
                     h.nis += h.tracker.config.gate_chi2
-        if self.by_colour and used[self.hypotheses.index(self.active)]:
-            self._read(self.active.last_candidate)
-        read = self._read_kind()
-        if read is not None:
-            self.active = read
-            return used[self.hypotheses.index(read)]
+
+    def _least_nis(self) -> TargetEstimator:
+        """The hypothesis that acts by NIS: the active one unless one that fused at least as
+        recently has NIS_SWITCH_MARGIN less."""
         latest = self.active.last_fused_time or 0.0
         alive = [h for h in self.hypotheses
                  if h.initialised and (h.last_fused_time or 0.0) >= latest - 1e-9]
         best = min(alive, key=lambda h: (h.nis, h is not self.active), default=self.active)
-        if best.nis + NIS_SWITCH_MARGIN < self.active.nis:
-            self.active = best
-        return used[self.hypotheses.index(self.active)]
+        return best if best.nis + NIS_SWITCH_MARGIN < self.active.nis else self.active
 
     def state(self, t: float, world_T_cam_now: FloatArray) -> TargetState:
         """The active hypothesis' prediction at ``t`` s."""
