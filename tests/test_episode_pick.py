@@ -656,8 +656,8 @@ def test_a_can_read_as_a_smaller_lid_is_met_below_its_believed_height(
 @pytest.mark.slow
 def test_the_kind_read_from_the_colour_keeps_a_can_a_can() -> None:
     # The same episode with the kind read from the face's colour, as our detector reads it:
-    # the parallax of the approach's fits (a can fitted on its recessed panel) no longer
-    # hands the track to the printed lid's radius, and the can is picked as a can.
+    # the parallax of the approach's fits (a can fitted on its recessed panel) does not hand
+    # the track to the printed lid's radius, and the can is picked as a can.
     rec = run_episode(generate_scene(load_scene("realistic", []), 70043))
     assert rec.target_kind == "can" and rec.believed_kinds == ["can"]
     assert rec.success, f"{rec.failure}: {rec.failure_detail}"
