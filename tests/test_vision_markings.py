@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from painted import painted
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.scene_config import VisionCfg
@@ -32,20 +33,7 @@ FACE = Ellipse(cx=160, cy=120, a=40, b=40, angle_deg=0)
 def _image(layers: list[tuple[Ellipse, tuple[float, float, float], bool]]) -> np.ndarray:
     """RGB frame: dark belt, then each (ellipse, colour, ring) painted in order: a filled
     face, or with ``ring`` a 2 px line (a printed or embossed ring) on what lies under it."""
-    rng = np.random.default_rng(4)
-    image = np.full((*SHAPE, 3), 30.0)
-    for ellipse, colour, ring in layers:
-        if ring:
-            outer = Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=ellipse.a + 1, b=ellipse.b + 1,
-                            angle_deg=ellipse.angle_deg)
-            inner = Ellipse(cx=ellipse.cx, cy=ellipse.cy, a=ellipse.a - 1, b=ellipse.b - 1,
-                            angle_deg=ellipse.angle_deg)
-            mask = outer.mask(SHAPE) & ~inner.mask(SHAPE)
-        else:
-            mask = ellipse.mask(SHAPE)
-        image[mask] = 255.0 * np.asarray(colour)
-    image += rng.normal(0.0, 1.5, image.shape)
-    return np.clip(np.round(image), 0, 255).astype(np.uint8)
+    return painted(SHAPE, layers, seed=4)
 
 
 def _top_iou(image: np.ndarray, truth: Ellipse, config: DetectorConfig = CONFIG) -> float:

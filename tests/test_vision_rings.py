@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from painted import painted
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.config.scene_config import VisionCfg
@@ -34,12 +35,7 @@ HOLE = Ellipse(cx=130, cy=115, a=14, b=11.5, angle_deg=20)
 
 def _image(layers: list[tuple[Ellipse, tuple[float, float, float]]]) -> np.ndarray:
     """RGB frame: dark belt, then each (ellipse, colour) painted filled, in order."""
-    rng = np.random.default_rng(7)
-    image = np.full((*SHAPE, 3), 30.0)
-    for ellipse, colour in layers:
-        image[ellipse.mask(SHAPE)] = 255.0 * np.asarray(colour)
-    image += rng.normal(0.0, 1.5, image.shape)
-    return np.clip(np.round(image), 0, 255).astype(np.uint8)
+    return painted(SHAPE, layers, seed=7)
 
 
 def _points(image: np.ndarray) -> np.ndarray:
