@@ -443,6 +443,9 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "normal_vote_height_tol": (1e-4, 0.1, "m"),
     "tracked_depth_margin": (0.01, 0.9, "[0, 1]"),
     "kind_follow_time": (0.0, 2.0, "s"),
+    "belt_velocity_std": (1e-4, 0.5, "m/s"),
+    "belt_velocity_time": (0.0, 5.0, "s"),
+    "belt_velocity_gate": (0.1, 100.0, "(chi^2, 2 dof)"),
     "grasp_dwell": (0.0, 2.0, "s"),
     "lift_height": (0.005, 0.5, "m"),
     "lift_speed": (0.01, 2.0, "m/s"),
@@ -541,6 +544,27 @@ class EpisodeCfg:
     most this much older than the latest of any hypothesis, s; after that it has lost the
     face and the parallax (NIS) chooses. Half the phases' longest blind time: a few missed
     frames at camera rates are not a lost face. 0 to 2 s."""
+    belt_velocity_std: float = 0.01
+    """Std of a tracked face's velocity about the belt's nominal one (``conveyor.speed``,
+    along +y), m/s, the belt-frame tracker's prior: fused with the two-point start and held
+    for ``belt_velocity_time`` (at least ``conveyor.speed_jitter``). The belt's own speed
+    noise is ~2 mm/s on the paper scene; a face creeps or settles in its pile (+20 mm/s for
+    about 0.1 s measured there). The start alone gives ~20 mm/s (0.5 px centre noise a frame
+    apart). 0.0001 to 0.5 m/s."""
+    belt_velocity_time: float = 0.2
+    """Time constant with which the tracked velocity's deviation from the belt's relaxes
+    between measurements, s (0: the prior acts at the start only). A face's own motion on
+    the belt (settling in its pile, +20 mm/s for about 0.1 s on the paper scene) dies out
+    as the belt's friction carries it; a velocity that fits biased by the image border or a
+    grazing view pulled off the belt's (12-17 mm/s in the late approach on the realistic
+    scene) is not carried into the blind descent (0.5 s, a 6-8 mm lip offset). Twice the
+    settling time. 0 to 5 s."""
+    belt_velocity_gate: float = 5.99
+    """The held prior's innovation test, chi^2 (2 dof): while the velocity of the same
+    filter without the prior lies farther than this (Mahalanobis^2, its covariance plus
+    ``belt_velocity_std``^2) from the belt's, the face moves on its own (slides, topples)
+    and the tracker follows the measurements alone. 5.99: 95 % of a face riding the belt
+    pass; at the default std a velocity about 25 mm/s off the belt's fails. 0.1 to 100."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""
