@@ -192,7 +192,7 @@ class TargetEstimator:
                 accel_psd=self._accel_psd, prior_velocity=(0.0, cfg.conveyor.speed),
                 prior_velocity_std=max(cfg.conveyor.speed_jitter, cfg.episode.belt_velocity_std),
                 prior_velocity_time=cfg.episode.belt_velocity_time,
-                prior_velocity_gate=cfg.episode.belt_velocity_gate)
+                prior_velocity_evidence=cfg.episode.belt_velocity_evidence)
         else:  # q in px^2/s^3 at the look depth; each step rescales it to its own depth
             scale = focal / cfg.camera.look_height
             config = TrackerConfig.image(accel_psd=self._accel_psd * scale**2,

@@ -48,6 +48,9 @@ BELT_JITTER_TIME = 0.5
 PIXEL_NOISE_STD = 0.5
 #: Mahalanobis gate, chi^2 with 2 dof at 99.9 %: a true measurement is rejected once in 1000.
 GATE_CHI2 = 13.8155
+#: Log-likelihood ratio (nats) past which the measurements say an object left its prior
+#: velocity: ln 1000, one false alarm in about a thousand measurements of a true prior.
+PRIOR_EVIDENCE = 6.9
 #: Reason prefix of a two-point start refused because the pair's velocity disagrees with the
 #: prior velocity: the newer measurement is kept as the next start's first.
 PRIOR_RESTART = "initialising: pair off the prior velocity"
@@ -85,11 +88,12 @@ class TrackerConfig:
     measurements the velocity's deviation from ``prior_velocity`` relaxes towards zero with
     this time constant (an object carried by the belt, whose own motion -- settling in its
     pile, a nudge -- dies out), so a velocity that measurement bias pulled off the prior
-    does not carry on into a blind extrapolation. An innovation test keeps it from gluing
-    an object that truly moves on its own: a second filter runs on the same measurements
-    without the relaxation, and while its velocity lies outside ``prior_velocity_gate``
-    (chi^2, 2 dof) of the prior (its covariance plus ``prior_velocity_std``^2) the tracker
-    takes that filter's state and the relaxation stops.
+    does not carry on into a blind extrapolation, and a few biased measurements in a row
+    are gated out rather than taken for a changed motion. An innovation test keeps it from
+    gluing an object that truly moves on its own: a second filter runs on the same
+    measurements without the relaxation; once the measurements are
+    ``prior_velocity_evidence`` (nats, log-likelihood ratio, summed with a floor at 0: a
+    CUSUM) more likely under it, the tracker is that filter for the rest of the track.
     """
 
     frame: TrackerFrame = "belt"
@@ -101,7 +105,7 @@ class TrackerConfig:
     prior_velocity: tuple[float, float] | None = None
     prior_velocity_std: float = 0.0
     prior_velocity_time: float = 0.0
-    prior_velocity_gate: float = GATE_CHI2
+    prior_velocity_evidence: float = PRIOR_EVIDENCE
 
     def __post_init__(self) -> None:
         if self.frame not in ("belt", "image"):
@@ -117,28 +121,29 @@ class TrackerConfig:
                 and np.isfinite(self.prior_velocity_std) and self.prior_velocity_std > 0.0):
             raise ConfigError(f"need a finite (vx, vy) prior_velocity and prior_velocity_std "
                               f"> 0; got {self.prior_velocity}, {self.prior_velocity_std}")
-        if not (self.prior_velocity_time >= 0.0 and self.prior_velocity_gate > 0.0):
-            raise ConfigError(f"need prior_velocity_time >= 0 s and prior_velocity_gate > 0; "
-                              f"got {self.prior_velocity_time}, {self.prior_velocity_gate}")
+        if not (self.prior_velocity_time >= 0.0 and self.prior_velocity_evidence > 0.0):
+            raise ConfigError(f"need prior_velocity_time >= 0 s and prior_velocity_evidence > "
+                              f"0; got {self.prior_velocity_time}, "
+                              f"{self.prior_velocity_evidence}")
 
     @classmethod
     def belt(cls, *, depth: float, focal_px: float, pixel_std: float = PIXEL_NOISE_STD,
              accel_psd: float | None = None, max_speed: float = 1.0,
              prior_velocity: tuple[float, float] | None = None,
              prior_velocity_std: float = 0.0, prior_velocity_time: float = 0.0,
-             prior_velocity_gate: float = GATE_CHI2) -> TrackerConfig:
+             prior_velocity_evidence: float = PRIOR_EVIDENCE) -> TrackerConfig:
         """Belt-frame config: R from ``pixel_std`` px at ``depth`` m and focal ``focal_px`` px.
 
         ``accel_psd`` defaults to :func:`belt_accel_psd` (m^2/s^3); ``max_speed`` m/s;
-        ``prior_velocity`` (m/s) e.g. the belt's, with ``prior_velocity_std`` m/s, held for
-        ``prior_velocity_time`` s under the test ``prior_velocity_gate`` (see the class).
+        ``prior_velocity`` (m/s) e.g. the belt's, with ``prior_velocity_std`` m/s, held with
+        ``prior_velocity_time`` s under the test ``prior_velocity_evidence`` (see the class).
         """
         q = belt_accel_psd() if accel_psd is None else accel_psd
         return cls(frame="belt", accel_psd=q, measurement_std=pixel_std * depth / focal_px,
                    max_speed=max_speed, prior_velocity=prior_velocity,
                    prior_velocity_std=prior_velocity_std,
                    prior_velocity_time=prior_velocity_time,
-                   prior_velocity_gate=prior_velocity_gate)
+                   prior_velocity_evidence=prior_velocity_evidence)
 
     @classmethod
     def image(cls, *, accel_psd: float, pixel_std: float = PIXEL_NOISE_STD,
@@ -275,14 +280,15 @@ class ConstantVelocityTracker:
                 self._free.update(zv.reshape(2, 1), R=rv)
                 if self.on_prior:
                     self._test_prior(0.5 * (d2 + log_det - d2_free - log_det_free))
-                if not self.on_prior:  # the tracker has the free state, this measurement in
-                    self.consecutive_rejections = 0
-                    return UpdateResult(True, "fused (off the prior velocity)", d2)
+            if not self.on_prior:  # off the prior the tracker is the free filter
+                self._kf.x, self._kf.P = self._free.x.copy(), self._free.P.copy()
+                d2 = d2_free
         if d2 > self.config.gate_chi2:
             self.consecutive_rejections += 1
             return UpdateResult(False, f"gated: Mahalanobis^2 {d2:.1f} > {self.config.gate_chi2}",
                                 d2)
-        self._kf.update(zv.reshape(2, 1), R=rv)
+        if self.on_prior or self._free is None:
+            self._kf.update(zv.reshape(2, 1), R=rv)
         self.consecutive_rejections = 0
         return UpdateResult(True, "fused", d2)
 
@@ -305,14 +311,11 @@ class ConstantVelocityTracker:
     def _test_prior(self, log_ratio: float) -> None:
         """The innovation test of the held prior (a CUSUM, Page 1954): ``log_ratio`` is how
         much less likely the latest measurement is under the filter held to the prior than
-        under the free one; summed, floored at 0, past ``prior_velocity_gate`` the object
+        under the free one; summed, floored at 0, past ``prior_velocity_evidence`` the object
         moves on its own: the tracker takes the free state, for the rest of the track."""
         assert self._free is not None
         self._evidence = max(0.0, self._evidence + log_ratio)
-        if self._evidence > self.config.prior_velocity_gate:
-            self.on_prior = False
-            self._kf.x = self._free.x.copy()
-            self._kf.P = self._free.P.copy()
+        self.on_prior = self._evidence <= self.config.prior_velocity_evidence
 
     def advance(self, t: float, accel_psd: float | None = None) -> bool:
         """Predict the state forward to ``t`` s without a measurement; False if ``t`` is older.
