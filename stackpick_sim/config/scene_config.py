@@ -560,13 +560,14 @@ class EpisodeCfg:
     scene) is not carried into the blind descent (0.5 s, a 6-8 mm lip offset). Twice the
     settling time. 0 to 5 s."""
     belt_velocity_evidence: float = 6.9
-    """The held prior's innovation test: a second filter runs on the same measurements
+    """The held prior's innovation test: another filter runs on the same measurements
     without the relaxation; once the measurements are this much more likely under it than
     under the held filter (log-likelihood ratio, nats, summed with a floor at 0: a CUSUM),
     the face moves on its own (slides, topples) and the tracker follows the measurements
-    alone for the rest of the track. 6.9 = ln 1000: a face riding the belt sets it off about
-    once in a thousand measurements (tracks last a few dozen); a face sliding at 20 mm/s
-    off the belt's velocity sets it off within about 0.2 s. 0.1 to 100."""
+    alone for the rest of the track. 6.9 = ln 1000: a face riding the belt sets it off less
+    than once in a thousand measurements (tracks last a few dozen); one sliding across the
+    belt at 20 mm/s sets it off within about 0.25 s (0.5 px centre noise at 0.3 m, 30 Hz).
+    0.1 to 100."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""
