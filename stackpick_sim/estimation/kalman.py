@@ -372,7 +372,9 @@ class ConstantVelocityTracker:
     def predict_at(self, t: float) -> Prediction:
         """Position, velocity and covariance extrapolated to ``t`` s (Eq. 4); no state change.
 
-        ``t`` may be before the last measurement (extrapolating backwards). Raises
+        Forward, a velocity held to the prior (:attr:`on_prior`) relaxes towards it as in
+        :func:`relaxed_transition`. ``t`` may be before the last measurement (extrapolating
+        backwards, at constant velocity). Raises
         EstimationError before initialisation.
         """
         if self._time is None:
