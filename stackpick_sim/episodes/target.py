@@ -19,7 +19,11 @@ Noise (documented in :mod:`stackpick_sim.estimation.kalman`): the belt's speed i
 every ``conveyor.jitter_period`` s with std ``conveyor.speed_jitter``; a speed jumping by
 ``sigma sqrt(2)`` every ``T`` s diffuses like white acceleration of density
 ``2 sigma^2 / T`` (:func:`belt_accel_psd` with ``tau = T``). R is the detector's pixel noise
-mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (image).
+mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (image). The
+belt frame holds the belt's nominal velocity as a prior: fused with the two-point start,
+then relaxed towards between measurements unless the measurements show the face moving on
+its own (``episode.belt_velocity_std``, ``belt_velocity_time``, ``belt_velocity_evidence``;
+:class:`~stackpick_sim.estimation.kalman.TrackerConfig`).
 """
 
 from __future__ import annotations
