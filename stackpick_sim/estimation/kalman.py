@@ -233,7 +233,8 @@ class ConstantVelocityTracker:
             self._free.H = _H.copy()
         self.on_prior = True
         """Whether the velocity relaxes to the prior: the innovation test has not failed
-        since the track started (always True without a held prior)."""
+        since the track started, nor has a :meth:`restart` taken a changed motion (always
+        True without a held prior)."""
         self._evidence = 0.0
         """The innovation test's CUSUM of log-likelihood ratios (:meth:`_test_prior`)."""
         self._default_r = np.eye(2) * config.measurement_std**2
@@ -365,9 +366,14 @@ class ConstantVelocityTracker:
         self.consecutive_rejections = 0
         self._initialise(t0, np.asarray(z0, dtype=float), np.asarray(r0, dtype=float))
         # The caller has checked the pair (three collinear detections, or the image frame's
-        # own start): it is the new motion even when the belt's prior disagrees.
-        return self._initialise(t1, np.asarray(z1, dtype=float), np.asarray(r1, dtype=float),
-                                check_prior=False)
+        # own start): it is the new motion even when the belt's prior disagrees, and a held
+        # prior is not held on to for the rest of the track.
+        result = self._initialise(t1, np.asarray(z1, dtype=float), np.asarray(r1, dtype=float),
+                                  check_prior=False)
+        if self._free is not None and result:
+            self._free.x, self._free.P = self._kf.x.copy(), self._kf.P.copy()
+            self.on_prior = False
+        return result
 
     def predict_at(self, t: float) -> Prediction:
         """Position, velocity and covariance extrapolated to ``t`` s (Eq. 4); no state change.
