@@ -573,6 +573,26 @@ def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
         assert got == want and 0 < got[1] + got[2] < m
 
 
+def test_points_rms_and_chain_hits_match_the_array_forms(rng: np.random.Generator) -> None:
+    """rms_residual's and chains_on's compiled passes: numpy's mean of the squared
+    distances (pairwise sums, on every block size) and np.bincount of the near pixels'
+    chains, on int32 pixels and float64 points alike."""
+    cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
+    c, s = np.cos(t), np.sin(t)
+    for m in (1, 5, 8, 9, 64, 129, 300, 1001):
+        phi = rng.uniform(0, 2 * np.pi, m)
+        u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
+        pixels = np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
+                         ).astype(np.int32)
+        owner = np.sort(rng.integers(0, 5, m)).astype(np.int64)
+        for points in (pixels, pixels + rng.uniform(-0.5, 0.5, (m, 2))):
+            d = kernels.point_distances(points.astype(np.float64), cx, cy, a, b, c, s)
+            assert kernels.points_rms(points, cx, cy, a, b, c, s) == float(
+                np.sqrt(np.mean(d * d)))
+            assert np.array_equal(kernels.chain_hits(points, owner, 6, cx, cy, a, b, c, s, 4.0),
+                                  np.bincount(owner[d < 4.0], minlength=6))
+
+
 def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
                           gx: NDArray[np.int16], gy: NDArray[np.int16],
                           offsets: NDArray[np.float64], threshold: float, innermost: bool

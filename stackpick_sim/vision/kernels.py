@@ -98,6 +98,36 @@ def point_distances(points: NDArray[np.float64], cx: float, cy: float, a: float,
 
 
 @_compiled
+def points_rms(points: NDArray, cx: float, cy: float, a: float, b: float, c: float, s: float
+               ) -> float:  # pragma: no cover - compiled
+    """The RMS Sampson distance of (N, 2) ``points`` (N > 0; int32 pixels, or float64) to the
+    ellipse (cx, cy, a, b) of angle cosine and sine (c, s), as ``sqrt(mean(d * d))`` of
+    :func:`point_distances` (numpy's pairwise sum: the same value); see
+    :func:`~stackpick_sim.vision.fitting.rms_residual`."""
+    m = points.shape[0]
+    sq = np.empty(m)
+    for k in range(m):
+        d = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+        sq[k] = d * d
+    return math.sqrt(_pairwise_sum(sq) / m)
+
+
+@_compiled
+def chain_hits(pixels: NDArray, owner: NDArray[np.int64], n_chains: int, cx: float,
+               cy: float, a: float, b: float, c: float, s: float, tol_px: float
+               ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Per chain (``n_chains``), how many of its pixels (rows of the (N, 2) ``pixels``, int32
+    or float64, whose chains ``owner`` (N,) gives) lie closer than ``tol_px`` (Sampson) to the
+    ellipse (cx, cy, a, b) of angle cosine and sine (c, s): ``np.bincount`` of the owners of
+    the near pixels; see :func:`~stackpick_sim.vision.regroup.chains_on`."""
+    hits = np.zeros(n_chains, np.int64)
+    for k in range(pixels.shape[0]):
+        if _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s) < tol_px:
+            hits[owner[k]] += 1
+    return hits
+
+
+@_compiled
 def _block_sum(x: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
     """numpy's sum of a block of at most 128 elements ``x[lo:lo + n]``: in order below 8,
     else eight partial sums combined pairwise, then the remainder in order."""
@@ -1592,6 +1622,9 @@ def warm_up() -> None:
     outline_samples(np.ones((1, 6)), counts, col, col)
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
+    for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
+        points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+        chain_hits(pts, np.zeros(1, np.int64), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
