@@ -593,6 +593,18 @@ def test_points_rms_and_chain_hits_match_the_array_forms(rng: np.random.Generato
                                   np.bincount(owner[d < 4.0], minlength=6))
 
 
+def test_stride_magnitudes_match_the_strided_float32_form(rng: np.random.Generator) -> None:
+    """The edge statistics' sample: every 4th row and column's float32 magnitude over the
+    Sobel gain, as the array expression gives it, on sizes not a multiple of the stride."""
+    for h, w in ((1, 1), (3, 7), (60, 80), (61, 83)):
+        dx = rng.integers(-4080, 4081, (h, w)).astype(np.int16)
+        dy = rng.integers(-4080, 4081, (h, w)).astype(np.int16)
+        sx, sy = dx[::4, ::4].astype(np.float32), dy[::4, ::4].astype(np.float32)
+        want = np.sqrt(sx * sx + sy * sy).ravel() / 8.0
+        got = kernels.stride_magnitudes(dx, dy, 4, 8.0)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
 def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
                           gx: NDArray[np.int16], gy: NDArray[np.int16],
                           offsets: NDArray[np.float64], threshold: float, innermost: bool

@@ -128,6 +128,26 @@ def chain_hits(pixels: NDArray, owner: NDArray[np.int64], n_chains: int, cx: flo
 
 
 @_compiled
+def stride_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int, gain: float
+                      ) -> NDArray[np.float32]:  # pragma: no cover - compiled
+    """The gradient magnitudes over ``gain`` of every ``stride``-th row and column of (H, W)
+    Sobel gradients, row-major, in float32: ``np.sqrt(sx * sx + sy * sy).ravel() / gain`` of
+    the float32 samples ``sx``, ``sy`` (the same float32 operations); see
+    :func:`~stackpick_sim.vision.edges.adaptive_thresholds`."""
+    h, w = dx.shape
+    cols = (w + stride - 1) // stride
+    out = np.empty(((h + stride - 1) // stride) * cols, np.float32)
+    g = np.float32(gain)
+    k = 0
+    for r in range(0, h, stride):
+        for c in range(0, w, stride):
+            x, y = np.float32(dx[r, c]), np.float32(dy[r, c])
+            out[k] = np.sqrt(x * x + y * y) / g
+            k += 1
+    return out
+
+
+@_compiled
 def _block_sum(x: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
     """numpy's sum of a block of at most 128 elements ``x[lo:lo + n]``: in order below 8,
     else eight partial sums combined pairwise, then the remainder in order."""
@@ -1622,6 +1642,7 @@ def warm_up() -> None:
     outline_samples(np.ones((1, 6)), counts, col, col)
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
+    stride_magnitudes(img, img, 4, 8.0)
     for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
         chain_hits(pts, np.zeros(1, np.int64), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
