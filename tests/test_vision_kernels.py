@@ -593,6 +593,25 @@ def test_points_rms_and_chain_hits_match_the_array_forms(rng: np.random.Generato
                                   np.bincount(owner[d < 4.0], minlength=6))
 
 
+def test_chain_hits_screen_drops_no_near_pixel(rng: np.random.Generator) -> None:
+    """chain_hits measures only the pixels in the box of the ellipse scaled to where the
+    Sampson distance can reach the tolerance: the counts stay np.bincount's of every pixel's
+    test, for pixels anywhere, on thin and round ellipses and small and large tolerances."""
+    for a, b, tol in ((40.0, 12.0, 2.0), (60.0, 0.8, 3.0), (25.0, 25.0, 0.5), (9.0, 4.0, 30.0)):
+        cx, cy, t = 80.0, 60.0, float(rng.uniform(0, np.pi))
+        c, s = np.cos(t), np.sin(t)
+        phi, r = rng.uniform(0, 2 * np.pi, 3000), rng.uniform(0.5, 4.0, 3000)
+        u, v = a * r * np.cos(phi), b * r * np.sin(phi)
+        ring = np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
+        points = np.concatenate([ring, rng.uniform(-200, 300, (3000, 2))])
+        owner = rng.integers(0, 9, points.shape[0]).astype(np.int64)
+        for pts in (np.rint(points).astype(np.int32), points):
+            d = kernels.point_distances(pts.astype(np.float64), cx, cy, a, b, c, s)
+            assert 0 < np.count_nonzero(d < tol) < d.size
+            assert np.array_equal(kernels.chain_hits(pts, owner, 9, cx, cy, a, b, c, s, tol),
+                                  np.bincount(owner[d < tol], minlength=9))
+
+
 def test_stride_magnitudes_match_the_strided_float32_form(rng: np.random.Generator) -> None:
     """The edge statistics' sample: every 4th row and column's float32 magnitude over the
     Sobel gain, as the array expression gives it, on sizes not a multiple of the stride."""

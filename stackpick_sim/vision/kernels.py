@@ -119,12 +119,33 @@ def chain_hits(pixels: NDArray, owner: NDArray[np.int64], n_chains: int, cx: flo
     """Per chain (``n_chains``), how many of its pixels (rows of the (N, 2) ``pixels``, int32
     or float64, whose chains ``owner`` (N,) gives) lie closer than ``tol_px`` (Sampson) to the
     ellipse (cx, cy, a, b) of angle cosine and sine (c, s): ``np.bincount`` of the owners of
-    the near pixels; see :func:`~stackpick_sim.vision.regroup.chains_on`."""
+    the near pixels; see :func:`~stackpick_sim.vision.regroup.chains_on`.
+
+    Only the pixels within the bounding box of the ellipse scaled by :func:`_near_scale`
+    (and a pixel more) are measured: the others lie farther off (the Sampson distance of a
+    point at scale r >= 1 is at least min(a, b) (r - 1 / r) / 2)."""
     hits = np.zeros(n_chains, np.int64)
+    scale = _near_scale(tol_px, min(a, b))
+    reach_u = math.hypot(a * c, b * s) * scale + 1.0
+    reach_v = math.hypot(a * s, b * c) * scale + 1.0
     for k in range(pixels.shape[0]):
-        if _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s) < tol_px:
+        du, dv = pixels[k, 0] - cx, pixels[k, 1] - cy
+        if abs(du) <= reach_u and abs(dv) <= reach_v and _sampson(du, dv, a, b, c, s) < tol_px:
             hits[owner[k]] += 1
     return hits
+
+
+@_compiled
+def _near_scale(tol_px: float, minor: float) -> float:  # pragma: no cover - compiled
+    """A scale r of an ellipse of semi-minor axis ``minor`` beyond which no point has a
+    Sampson distance below ``tol_px``: the root of min(a, b) (r - 1 / r) / 2 = tol_px, with a
+    margin of a millionth (inf for a degenerate axis). The Sampson distance |Q| / |grad Q| of
+    Q = x^2 + y^2 - 1 (x, y in units of the axes, r^2 = x^2 + y^2) has |grad Q| <= 2 r /
+    min(a, b), so at r >= 1 it is at least min(a, b) (r^2 - 1) / (2 r)."""
+    if not minor > 0.0:
+        return math.inf
+    t = tol_px / minor
+    return (t + math.sqrt(t * t + 1.0)) * (1.0 + 1e-6)
 
 
 @_compiled
