@@ -131,7 +131,8 @@ def total_percentiles(results: list[dict]) -> dict[str, float]:
 
 def slowest_frames(results: list[dict], seeds: list[int], count: int) -> list[str]:
     """Table rows of the ``count`` frames with the largest whole-pipeline time (the fastest
-    repeat, then the median over rounds): seed, then each stage's time (ms) in that repeat."""
+    repeat of each round, then the median round, the slower of two): seed, then each stage's
+    time (ms) in that repeat."""
     per_frame = []
     for k, seed in enumerate(seeds):
         fastest = [min(res["times"][k], key=lambda r: r.get("total", 0.0)) for res in results]
@@ -203,7 +204,7 @@ def main() -> int:
               f"{old_tail[q] / max(new_tail[q], 1e-9):.2f} |")
     if args.slowest:
         print(f"\nThe {args.slowest} slowest frames of the working tree (the fastest repeat, "
-              "median over rounds), CPU ms:\n")
+              "median round), CPU ms:\n")
         print("| seed | " + " | ".join(STAGES) + " |")
         print("|" + "---|" * (len(STAGES) + 1))
         print("\n".join(slowest_frames(work, timed, args.slowest)))
