@@ -84,12 +84,14 @@ def save_frames(data: Path, seeds: list[int], out: Path, scene: str = "paper") -
     from stackpick_sim.config.loader import load_scene
     from stackpick_sim.vision.benchmark.frames import iter_dataset
 
-    frames = [{"image": f.image_rgb, "depth_range_m": f.depth_range_m, "kinds": f.kinds,
-               "intrinsics": dataclasses.asdict(f.intrinsics), "seed": f.seed}
-              for f in iter_dataset(data, seeds, load_scene(scene))]
+    frames, timed = [], []
+    for f in iter_dataset(data, seeds, load_scene(scene)):
+        frames.append({"image": f.image_rgb, "depth_range_m": f.depth_range_m,
+                       "kinds": f.kinds, "intrinsics": dataclasses.asdict(f.intrinsics)})
+        timed.append(f.seed)
     with open(out, "wb") as fh:
         pickle.dump(frames, fh)
-    return [f["seed"] for f in frames]
+    return timed
 
 
 def export(ref: str, into: Path) -> Path:
