@@ -1284,11 +1284,14 @@ def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray
     mag = np.empty(k)
     out = np.empty((n, 2))
     count = 0
+    rows = np.empty(window, np.int64)  # the window's rows (wrapped) of sample i
     for i in range(n):
+        for t in range(window):
+            rows[t] = (i + t - half) % n
         for j in range(k):
             total = 0.0
             for t in range(window):
-                total += g[(i + t - half) % n, j] * weight
+                total += g[rows[t], j] * weight
             mag[j] = abs(total) / gain
         best = _contrast_pick(mag, threshold, innermost)
         if mag[best] >= threshold:
