@@ -16,7 +16,7 @@ from stackpick_sim.episodes.pick import ArmPhases, Command
 from stackpick_sim.episodes.record import ERROR_REASON, FAILURES, PHASES
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
-from stackpick_sim.episodes.topvote import TopVote, posed_top
+from stackpick_sim.episodes.topvote import Rival, TopVote, VoteRules, posed_top
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle
 from stackpick_sim.pipeline import Hints
@@ -79,10 +79,13 @@ class PhaseLogic(ArmPhases):
         self._search_from = 0.0
         """How far down the line of sight the grasp holds the face, m."""
         self._redetections = 0
-        self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))
+        cfg = episode.scene.cell.cfg
+        self._vote = TopVote(np.array([0.0, cfg.conveyor.speed]), VoteRules(
+            size_tolerance=cfg.episode.vote_size_tolerance,
+            over_height=cfg.episode.retarget_over_height))
         self._retargets = 0
-        self._wanted: np.ndarray | None = None
-        """(2,) belt position of the face a re-target detects again (topvote), or None."""
+        self._wanted: Rival | None = None
+        """The face a re-target detects again (topvote), or None."""
         self._at_floor = 0.0
         self._floor = 0.0
         self._last_lateral = 0.0
@@ -240,12 +243,13 @@ class PhaseLogic(ArmPhases):
         if (self.phase not in VOTING_PHASES
                 or self._retargets >= self.ep.scene.cell.cfg.episode.max_retargets):
             return False
-        winner = self._vote.winner()
+        winner = self._vote.winner(self.ep.estimator.face_z if self.ep.estimator.initialised
+                                   else None)
         if winner is None:
             return False
         self._retargets += 1
         self.ep.record.retargets = self._retargets
-        self._wanted = winner.position
+        self._wanted = winner
         self.ep.estimator.reset()
         self._enter("detect", t)
         return True
