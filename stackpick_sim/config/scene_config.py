@@ -493,10 +493,13 @@ class EpisodeCfg:
     per cent, and by the ratio of two kinds' radii (17-20 %) while the track holds the wrong
     kind. 0.01 to 1."""
     retarget_over_height: float = 0.010
-    """A rival face that later frames name top more often than the tracked face (at least
-    three frames) takes the pick if it lies at least this high above the tracked face, m
-    (stackpick_sim/episodes/topvote.py): the tracked face lies under it. PLACEHOLDER.
-    0 to 0.1 m."""
+    """A rival face that later frames name top more often than the tracked face (and in at
+    least three frames) takes the pick if it lies at least this high above the tracked face,
+    m (stackpick_sim/episodes/topvote.py): the tracked face lies under it. A face resting on
+    the tracked object lies about its own object's height above it (the realistic scene's
+    kinds are 25-30 mm tall; the detector's poses put such faces 30-45 mm above), while
+    a lower face, which lies a whole object's height below the tracked one, reads at most
+    ~20 mm too high (a fit that takes in its side wall). 0 to 0.1 m."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose

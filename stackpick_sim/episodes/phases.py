@@ -37,7 +37,7 @@ MAX_REDETECTIONS = 2
 TRACK_FADING_FRAMES = 1.5
 #: Phases whose frames vote on the top face (:mod:`stackpick_sim.episodes.topvote`): the arm
 #: is not yet committed to the face. A rival face that outvotes the tracked one is taken
-#: instead, at most ``episode.max_retargets`` times (default 0: never); the detection after a
+#: instead, at most ``episode.max_retargets`` times (0: never); the detection after a
 #: re-target waits up to RETARGET_WAIT_FRAMES frame periods for the detector to name the
 #: rival top again (three frames: latency and one missed frame), then takes whatever it
 #: names top.
