@@ -4,6 +4,7 @@ episode's re-target (fabricated observations, no rendering)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
 
@@ -17,13 +18,16 @@ from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.topvote import (
     RETARGET_VOTES,
     SAME_FACE_M,
+    Disc,
     TopVote,
     VoteRules,
     belt_position,
     frame_vote,
+    lies_over,
 )
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.pipeline import TargetState
 
 #: The camera 0.3 m above the belt, axes along the world's (the vote needs only a pose).
 WORLD_T_CAM = np.eye(4)
@@ -99,6 +103,10 @@ def test_a_smaller_face_on_the_tracked_one_is_a_rival() -> None:
                       RULES.size_tolerance) == "tracked"
 
 
+#: The tracked face as a disc in the camera's frame (radius 30 mm, level).
+TRACKED_DISC = Disc(centre=TRACKED_C, normal=np.array([0.0, 0.0, 1.0]), radius=0.03)
+
+
 def _confirmed_then(rival: Callable[[float], Observation], rival_frames: int,
                     tracked_frames: int = 2) -> TopVote:
     """A vote whose tracked face was confirmed ``tracked_frames`` times, then outvoted by
@@ -106,10 +114,25 @@ def _confirmed_then(rival: Callable[[float], Observation], rival_frames: int,
     vote = TopVote(BELT_V, RULES)
     vote.start()
     for i in range(tracked_frames):
-        vote.add(_tracked_top(0.033 * (i + 1)), TRACKED_E)
+        vote.add(_tracked_top(0.033 * (i + 1)), TRACKED_E, TRACKED_DISC)
     for i in range(rival_frames):
-        vote.add(rival(0.2 + 0.033 * i), TRACKED_E)
+        t = 0.2 + 0.033 * i
+        moved = TRACKED_C + np.array([*(BELT_V * t), 0.0])
+        vote.add(rival(t), TRACKED_E, replace(TRACKED_DISC, centre=moved))
     return vote
+
+
+def test_a_disc_lies_over_another_where_they_overlap() -> None:
+    level = np.array([0.0, 0.0, 1.0])
+    tracked = Disc(centre=np.array([0.0, 0.0, 0.25]), normal=level, radius=0.03)
+    near = Disc(centre=np.array([0.04, 0.0, 0.24]), normal=level, radius=0.03)
+    assert lies_over(near, tracked) and not lies_over(tracked, near)
+    beside = Disc(centre=np.array([0.08, 0.0, 0.24]), normal=level, radius=0.03)
+    assert not lies_over(beside, tracked)  # no line of sight meets both
+    # A tracked face tilted up towards the other one: where they overlap it is the nearer,
+    # though the other face's centre lies nearer the camera than its own.
+    tilted = replace(tracked, normal=np.array([0.6, 0.0, 0.8]))
+    assert not lies_over(near, tilted) and lies_over(tilted, near)
 
 
 def test_a_face_above_outvotes_a_confirmed_track() -> None:
@@ -124,6 +147,16 @@ def test_a_face_above_outvotes_a_confirmed_track() -> None:
     # by oblique views, or another true top beside it) keep the pick.
     assert vote.winner(TRACKED_Z + 0.03 - RULES.over_height + 1e-4) is None
     assert vote.winner(None) is None
+
+
+def test_a_higher_face_that_does_not_lie_over_the_track_does_not_outvote_it() -> None:
+    vote = TopVote(BELT_V, RULES)
+    vote.start()
+    vote.add(_tracked_top(0.033), TRACKED_E, TRACKED_DISC)
+    for i in range(6):  # no tracked face known in the camera's frame: never over it
+        vote.add(_on_top(0.1 + 0.033 * i), TRACKED_E, None)
+    assert vote.rivals[0].votes == 6 and vote.rivals[0].over == 0
+    assert vote.winner(TRACKED_Z) is None
 
 
 def test_a_face_beside_at_the_same_height_does_not_outvote_a_confirmed_track() -> None:
@@ -195,12 +228,19 @@ class _Estimator:
 
     face_z = TRACKED_Z
     initialised = True
+    radius = TRACKED_DISC.radius
 
     def __init__(self) -> None:
         self.resets = 0
 
     def expected_ellipse(self, obs: Observation) -> Ellipse:
         return TRACKED_E
+
+    def state(self, t: float, world_T_cam: np.ndarray) -> TargetState:
+        """The tracked face, carried by the belt (world frame)."""
+        centre = WORLD_T_CAM[:3, :3] @ TRACKED_C + WORLD_T_CAM[:3, 3] + [*BELT_V * t, 0.0]
+        return TargetState(centre=centre, velocity=np.array([*BELT_V, 0.0]),
+                           normal=np.array([0.0, 0.0, 1.0]))
 
     def reset(self) -> None:
         self.resets += 1

@@ -16,7 +16,7 @@ from stackpick_sim.episodes.pick import ArmPhases, Command
 from stackpick_sim.episodes.record import ERROR_REASON, FAILURES, PHASES
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
-from stackpick_sim.episodes.topvote import Rival, TopVote, VoteRules, posed_top
+from stackpick_sim.episodes.topvote import Disc, Rival, TopVote, VoteRules, posed_top
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle
 from stackpick_sim.pipeline import Hints
@@ -231,7 +231,18 @@ class PhaseLogic(ArmPhases):
         if (self.phase in VOTING_PHASES and not self.ep.sensor.detector.exact
                 and self.ep.scene.cell.cfg.episode.max_retargets > 0 and obs.candidates
                 and expected is not None):
-            self._vote.add(obs, expected(obs))
+            self._vote.add(obs, expected(obs), self._tracked_disc(obs))
+
+    def _tracked_disc(self, obs: Observation) -> Disc | None:
+        """The tracked face at ``obs``'s capture, in its camera's frame (None before the
+        filter is set or the radius known)."""
+        est = self.ep.estimator
+        if not est.initialised or not est.radius:
+            return None
+        state = est.state(obs.capture_time, obs.world_T_cam)
+        r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        return Disc(centre=r.T @ (state.centre - p), normal=r.T @ state.normal,
+                    radius=float(est.radius))
 
     def _retarget_if_outvoted(self, t: float) -> bool:
         """Detect again, arm still, if a rival face outvoted the tracked one; True if so.

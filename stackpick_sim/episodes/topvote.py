@@ -25,11 +25,14 @@ A rival takes the pick (:meth:`TopVote.winner`) in two cases:
 * it has at least :data:`RETARGET_VOTES` votes while no frame after the first detection
   named the tracked face top: the first detection was the detector's outlier (a face lying
   under another, named top in one frame);
-* it has at least :data:`RETARGET_VOTES` votes, more than the tracked face, and its face
-  lies at least ``episode.retarget_over_height`` above the tracked face: the tracked face
-  lies under it, or under the object it rests on. As the camera approaches, the nearer
-  views see the pile better than the look view, and the detector names the face above
-  top in most of them.
+* it has at least :data:`RETARGET_VOTES` votes, more than the tracked face, its face lies
+  at least ``episode.retarget_over_height`` above the tracked face, and in most of its
+  votes it lies nearer the camera than the tracked face where the two overlap along the
+  camera's lines of sight (:func:`lies_over`): the tracked face lies under it, or under
+  the object it rests on. As the camera approaches, the nearer views see the pile better
+  than the look view, and the detector names the face above top in most of them. Height
+  alone does not tell: a roll leaning on a can has its face centre lower than the can's,
+  whose face it covers in part.
 
 The episode then detects again, taking the rival's face
 (:class:`~stackpick_sim.episodes.phases.PhaseLogic`), as often as the scene allows
@@ -77,6 +80,52 @@ class VoteRules:
     one, m (``episode.retarget_over_height``)."""
 
 
+@dataclass(frozen=True, kw_only=True)
+class Disc:
+    """A face as a disc in a camera's frame (OpenCV axes, the camera at the origin)."""
+
+    centre: FloatArray
+    """(3,) face centre, m."""
+    normal: FloatArray
+    """(3,) unit face normal (either sense)."""
+    radius: float
+    """Face radius, m."""
+
+
+#: Points of a disc the occlusion test samples: rings (at these shares of the radius) of
+#: DISC_SPOKES points each, and the centre.
+DISC_RINGS = (0.3, 0.6, 0.9)
+DISC_SPOKES = 12
+
+
+def disc_points(d: Disc) -> FloatArray:
+    """(N, 3) points on disc ``d``: its centre and DISC_RINGS rings of DISC_SPOKES."""
+    n = d.normal / float(np.linalg.norm(d.normal))
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= float(np.linalg.norm(u))
+    v = np.cross(n, u)
+    ang = np.linspace(0.0, 2.0 * np.pi, DISC_SPOKES, endpoint=False)
+    rings = [d.centre + d.radius * f * (np.outer(np.cos(ang), u) + np.outer(np.sin(ang), v))
+             for f in DISC_RINGS]
+    return np.vstack([d.centre[None, :], *rings])
+
+
+def lies_over(top: Disc, under: Disc) -> bool:
+    """Whether disc ``top`` lies nearer the camera than disc ``under`` where they overlap
+    along the camera's lines of sight: of the points of ``top`` (:func:`disc_points`) whose
+    line of sight meets ``under``, more than half meet it beyond the point. False when the
+    two do not overlap."""
+    p = disc_points(top)
+    along = p @ under.normal
+    safe = np.where(np.abs(along) > 1e-12, along, 1.0)
+    scale = np.where(np.abs(along) > 1e-12, float(under.centre @ under.normal) / safe, -1.0)
+    hit = p * scale[:, None]  # where each point's line of sight meets under's plane
+    inside = (scale > 0.0) & (np.linalg.norm(hit - under.centre, axis=1) <= under.radius)
+    if not inside.any():
+        return False
+    return bool(np.mean(scale[inside] > 1.0) > 0.5)
+
+
 @dataclass(kw_only=True)
 class Rival:
     """Another face the detector named top while the tracked face was in view."""
@@ -85,6 +134,8 @@ class Rival:
     """(2,) its face centre on the belt: world (x, y) less the belt's travel since t = 0, m."""
     height: float
     """Mean height of its face centre over its votes, world z, m (the detector's poses)."""
+    over: int = 0
+    """Its votes in which it lay over the tracked face (:func:`lies_over`)."""
     votes: int = 1
 
 
@@ -153,26 +204,32 @@ class TopVote:
         self.tracked = 1
         self.rivals = []
 
-    def add(self, obs: Observation, expected: Ellipse | None) -> None:
+    def add(self, obs: Observation, expected: Ellipse | None,
+            tracked: Disc | None = None) -> None:
         """Count the vote of ``obs`` (:func:`frame_vote`; ``expected``: the tracked face's
-        predicted ellipse in its image)."""
+        predicted ellipse in its image; ``tracked``: the tracked face in its camera's frame,
+        None when not known)."""
         vote = frame_vote(obs, expected, self.rules.size_tolerance)
         if vote == "tracked":
             self.tracked += 1
         elif vote == "rival":
             top = posed_top(obs)
-            assert top is not None
+            assert top is not None and top.centre_cam is not None
+            assert top.normal_cam is not None
+            over = tracked is not None and lies_over(
+                Disc(centre=top.centre_cam, normal=top.normal_cam, radius=top.radius), tracked)
             self._count_rival(belt_position(top, obs, self.belt_velocity),
-                              face_height(top, obs))
+                              face_height(top, obs), over)
 
-    def _count_rival(self, position: FloatArray, height: float) -> None:
+    def _count_rival(self, position: FloatArray, height: float, over: bool) -> None:
         rival = self.nearest(position)
         if rival is None:
-            self.rivals.append(Rival(position=position, height=height))
+            self.rivals.append(Rival(position=position, height=height, over=int(over)))
         else:  # the running mean follows a face whose belt position drifts with the jitter
             n = rival.votes
             rival.position = (rival.position * n + position) / (n + 1)
             rival.height = (rival.height * n + height) / (n + 1)
+            rival.over += int(over)
             rival.votes += 1
 
     def is_face(self, cand: Candidate, obs: Observation, rival: Rival) -> bool:
@@ -197,10 +254,12 @@ class TopVote:
 
         An unconfirmed tracked face (only its first detection's vote) loses to any rival
         with RETARGET_VOTES votes; a confirmed one only to a rival with as many, more than
-        its own, whose face lies ``rules.over_height`` or more above it.
+        its own, whose face lies ``rules.over_height`` or more above it and lay over it in
+        most of its votes.
         """
         enough = [r for r in self.rivals if r.votes >= RETARGET_VOTES]
         if self.tracked > 1:
             enough = [r for r in enough if r.votes > self.tracked and tracked_height is not None
-                      and r.height >= tracked_height + self.rules.over_height]
+                      and r.height >= tracked_height + self.rules.over_height
+                      and 2 * r.over > r.votes]
         return max(enough, key=lambda r: r.votes, default=None)
