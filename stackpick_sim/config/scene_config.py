@@ -494,8 +494,9 @@ class EpisodeCfg:
     kind. 0.01 to 1."""
     retarget_over_height: float = 0.010
     """A rival face that later frames name top more often than the tracked face (and in at
-    least three frames) takes the pick if it lies at least this high above the tracked face,
-    m (stackpick_sim/episodes/topvote.py): the tracked face lies under it. A face resting on
+    least three frames), lying over it along the camera's lines of sight, takes the pick if
+    it lies at least this high above the tracked face, m
+    (stackpick_sim/episodes/topvote.py): the tracked face lies under it. A face resting on
     the tracked object lies about its own object's height above it (the realistic scene's
     kinds are 25-30 mm tall; the detector's poses put such faces 30-45 mm above), while
     a lower face, which lies a whole object's height below the tracked one, reads at most
