@@ -27,12 +27,12 @@ A rival takes the pick (:meth:`TopVote.winner`) in two cases:
   under another, named top in one frame);
 * it has at least :data:`RETARGET_VOTES` votes, more than the tracked face, its face lies
   at least ``episode.retarget_over_height`` above the tracked face, and in most of its
-  votes the tracked face did not lie over it (nearer the camera where the two overlap
-  along the camera's lines of sight, :func:`lies_over`): the tracked face lies under it, or
-  under the object it rests on. As the camera approaches, the nearer views see the pile
-  better than the look view, and the detector names the face above top in most of them.
-  Height alone does not tell: a roll leaning on a can has its face centre lower than the
-  can's, whose face it covers in part.
+  votes it lies nearer the camera than the tracked face where the two overlap along the
+  camera's lines of sight (:func:`lies_over`): the tracked face lies under it, or under
+  the object it rests on. As the camera approaches, the nearer views see the pile better
+  than the look view, and the detector names the face above top in most of them. Height
+  alone does not tell: a roll leaning on a can has its face centre lower than the can's,
+  whose face it covers in part.
 
 The episode then detects again, taking the rival's face
 (:class:`~stackpick_sim.episodes.phases.PhaseLogic`), as often as the scene allows
@@ -134,8 +134,8 @@ class Rival:
     """(2,) its face centre on the belt: world (x, y) less the belt's travel since t = 0, m."""
     height: float
     """Mean height of its face centre over its votes, world z, m (the detector's poses)."""
-    under: int = 0
-    """Its votes in which the tracked face lay over it (:func:`lies_over`)."""
+    over: int = 0
+    """Its votes in which it lay over the tracked face (:func:`lies_over`)."""
     votes: int = 1
 
 
@@ -216,20 +216,20 @@ class TopVote:
             top = posed_top(obs)
             assert top is not None and top.centre_cam is not None
             assert top.normal_cam is not None
-            under = tracked is not None and lies_over(
-                tracked, Disc(centre=top.centre_cam, normal=top.normal_cam, radius=top.radius))
+            over = tracked is not None and lies_over(
+                Disc(centre=top.centre_cam, normal=top.normal_cam, radius=top.radius), tracked)
             self._count_rival(belt_position(top, obs, self.belt_velocity),
-                              face_height(top, obs), under)
+                              face_height(top, obs), over)
 
-    def _count_rival(self, position: FloatArray, height: float, under: bool) -> None:
+    def _count_rival(self, position: FloatArray, height: float, over: bool) -> None:
         rival = self.nearest(position)
         if rival is None:
-            self.rivals.append(Rival(position=position, height=height, under=int(under)))
+            self.rivals.append(Rival(position=position, height=height, over=int(over)))
         else:  # the running mean follows a face whose belt position drifts with the jitter
             n = rival.votes
             rival.position = (rival.position * n + position) / (n + 1)
             rival.height = (rival.height * n + height) / (n + 1)
-            rival.under += int(under)
+            rival.over += int(over)
             rival.votes += 1
 
     def is_face(self, cand: Candidate, obs: Observation, rival: Rival) -> bool:
@@ -254,12 +254,12 @@ class TopVote:
 
         An unconfirmed tracked face (only its first detection's vote) loses to any rival
         with RETARGET_VOTES votes; a confirmed one only to a rival with as many, more than
-        its own, whose face lies ``rules.over_height`` or more above it and which the tracked
-        face did not lie over in most of its votes.
+        its own, whose face lies ``rules.over_height`` or more above it and lay over it in
+        most of its votes.
         """
         enough = [r for r in self.rivals if r.votes >= RETARGET_VOTES]
         if self.tracked > 1:
             enough = [r for r in enough if r.votes > self.tracked and tracked_height is not None
                       and r.height >= tracked_height + self.rules.over_height
-                      and 2 * r.under <= r.votes]
+                      and 2 * r.over > r.votes]
         return max(enough, key=lambda r: r.votes, default=None)
