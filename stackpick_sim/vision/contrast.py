@@ -268,3 +268,18 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
             return None
         current = fit
     return current
+
+
+def widest_inset_px(outer: Ellipse, inner: Ellipse) -> float:
+    """How far (px) ``outer``'s outline reaches beyond ``inner`` at most, measured along the
+    rays from ``inner``'s centre (negative when it lies wholly inside): the width of the
+    widest sliver a fit ``outer`` takes in beyond a face ``inner``."""
+    pts, _ = outline(outer)
+    th = math.radians(inner.angle_deg)
+    c, s = math.cos(th), math.sin(th)
+    dx, dy = pts[:, 0] - inner.cx, pts[:, 1] - inner.cy
+    # The point's distance from the centre times (1 - 1/r), r its ellipse "radius" in
+    # inner's axes: the distance along the ray beyond inner's outline.
+    r = np.hypot((c * dx + s * dy) / inner.a, (c * dy - s * dx) / inner.b)
+    beyond = np.hypot(dx, dy) * (1.0 - 1.0 / np.maximum(r, 1e-9))
+    return float(beyond.max())
