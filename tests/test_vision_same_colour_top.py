@@ -118,7 +118,7 @@ def test_a_tracked_face_with_a_soft_outline_keeps_its_fit() -> None:
     # The close view blurs the top face's outline (a = 28.6 px) over a few pixels; its inner
     # shoulder is a consistent edge 1-2.5 px inside. A refit on it keeps 0.92 of the area
     # (less than inner_refit_max_area) and moves the centre ~0.9 px, but leaves out no
-    # sliver 4 px wide: the fit stays, as with the inner refit off.
+    # sliver 6 px wide: the fit stays, as with the inner refit off.
     image = cv2.cvtColor(cv2.imread(str(TRACKED)), cv2.COLOR_BGR2RGB)
     config = scene_detector_config(load_scene("paper"), K, (0.19, 0.32))
     kept = detect(image, config).top_ellipse

@@ -511,12 +511,13 @@ class TopParams(Section):
     the refit to replace the chosen face: a refit on a well-fitted face's own edge keeps
     0.97-1.05 of its area (on rendered paper, grey and cluttered frames), so less than 0.95
     is a fit that took in a sliver beyond the face."""
-    inner_refit_min_inset_px: float = 4.0
+    inner_refit_min_inset_px: float = 6.0
     """Least width (px) of the sliver the inner refit must leave out for it to replace the
     chosen face (the fit reaching this far beyond the refit somewhere): the slivers of lower
-    faces a fit takes in beyond a top face of their colour are 5-20 px wide, while a
-    well-fitted face's outline blurred over a few pixels (a close, tracked view) shows a
-    faint inner shoulder 1-2.5 px inside it, on which the refit shrinks a face of semi-axes
+    faces a fit takes in beyond a top face of their colour are 8-16 px wide where the edge
+    map misses the top face's boundary, while a well-fitted face's outline blurred over a
+    few pixels (a close, tracked view) shows a faint inner shoulder 1-5 px inside it (the
+    most along an oblique view's near rim), on which the refit shrinks a face of semi-axes
     under ~40 px by more than ``inner_refit_max_area`` allows and moves its centre (on
     rendered cluttered and grey frames and a paper pick episode's tracked frames)."""
     hidden_min_support: float = 0.6
