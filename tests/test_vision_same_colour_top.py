@@ -41,7 +41,7 @@ def _frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
     return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
 
 
-#: The top rule with the inner refit on (the default) and off.
+#: The top rule with the inner refit on and off (the default).
 INNER = TopParams(inner_refit=True)
 PLAIN = TopParams(inner_refit=False)
 
@@ -120,7 +120,8 @@ def test_a_tracked_face_with_a_soft_outline_keeps_its_fit() -> None:
     # (less than inner_refit_max_area) and moves the centre ~0.9 px, but leaves out no
     # sliver 6 px wide: the fit stays, as with the inner refit off.
     image = cv2.cvtColor(cv2.imread(str(TRACKED)), cv2.COLOR_BGR2RGB)
-    config = scene_detector_config(load_scene("paper"), K, (0.19, 0.32))
+    config = scene_detector_config(load_scene("paper", ["vision.top.inner_refit=true"]), K,
+                                   (0.19, 0.32))
     kept = detect(image, config).top_ellipse
     plain = detect(image, replace(config, top=replace(config.top, inner_refit=False))
                    ).top_ellipse

@@ -233,7 +233,8 @@ REFIT_DEFAULT = TopParams()
 
 
 def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False,
-                      params: TopParams = REFIT_DEFAULT) -> Ellipse | None:
+                      params: TopParams = REFIT_DEFAULT, *, inner_reach_px: int | None = None,
+                      rounds: int | None = None) -> Ellipse | None:
     """Refit ``ellipse`` on the strongest consistent edge within ``params.contrast_reach_px``
     across each outline sample, or None when less than ``params.contrast_min_share`` of the
     outline shows one (in ``params.contrast_rounds`` rounds).
@@ -246,14 +247,17 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     passes the threshold instead of the strongest: a top face over a lower face of its own
     colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
     on both outlines is too large. The search then reaches ``params.contrast_inner_reach_px``
-    inward.
+    inward (``inner_reach_px``, when given: the inner refit's reach). ``rounds``, when given,
+    stands for ``params.contrast_rounds`` (both without building another TopParams, whose
+    range checks cost several times the refit's round).
     """
     current = ellipse
     reach = params.contrast_reach_px
-    inward = params.contrast_inner_reach_px if innermost else reach
+    inward = ((params.contrast_inner_reach_px if inner_reach_px is None else inner_reach_px)
+              if innermost else reach)
     offsets = np.arange(-inward, reach + 1, dtype=np.float64)
     threshold = contrast_threshold(image)
-    for _ in range(params.contrast_rounds):
+    for _ in range(params.contrast_rounds if rounds is None else rounds):
         pts, normals = outline(current)
         # The offsets' gradients, their windowed means and each sample's pick, in one
         # compiled pass (kernels.contrast_peaks: the same values as the array form).

@@ -437,13 +437,14 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
     grad = state.edges("top")
     # Round by round (each re-centres on the last): a round that leaves more than
     # inner_refit_max_area of the fit's area (most faces) ends the refit, at half its cost.
-    one = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px,
-                  contrast_rounds=1)
-    refit = refit_on_contrast(fit, grad, True, one)
-    for _ in range(config.top.contrast_rounds - 1):
-        if refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b:
+    top = config.top
+    refit = refit_on_contrast(fit, grad, True, top, inner_reach_px=top.inner_refit_reach_px,
+                              rounds=1)
+    for _ in range(top.contrast_rounds - 1):
+        if refit is None or refit.a * refit.b > top.inner_refit_max_area * fit.a * fit.b:
             break
-        refit = refit_on_contrast(refit, grad, True, one)
+        refit = refit_on_contrast(refit, grad, True, top,
+                                  inner_reach_px=top.inner_refit_reach_px, rounds=1)
     gate = state.gate
     if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
             or widest_inset_px(fit, refit) < config.top.inner_refit_min_inset_px
