@@ -8,8 +8,8 @@ episode's tracked frame on which the inner refit must keep a well-fitted face.""
 
 from __future__ import annotations
 
-from dataclasses import replace
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
