@@ -1,7 +1,7 @@
 """Per-stage time of the detector against a baseline commit, as ratios, on the same frames.
 
     python benchmarks/bench_vision_stages.py --data DATA --seeds 0:400 \\
-        [--scene paper] [--baseline main] [--rounds 3] [--repeats 3]
+        [--scene paper] [--baseline main] [--rounds 3] [--repeats 3] [--slowest N]
 
 The baseline commit's ``stackpick_sim`` is exported to a temporary directory; the baseline and
 the working tree then run in alternation (``--rounds`` times each), each in its own process
@@ -10,8 +10,10 @@ timing every frame ``--repeats`` times. Stage times are the detector's own
 machine shared with other jobs, preemption then adds nothing, while the ratios stay those of
 the work done. Per frame the fastest repeat counts; the table gives medians over the frames
 and rounds and the ratio baseline / working tree; a second table gives the p50, p95, p99 and
-maximum over frames (and rounds) of the whole pipeline's time per frame. The outputs
-(ellipses, top, pose) of the two are compared as well: a speed-up should not change them.
+maximum over frames (and rounds) of the whole pipeline's time per frame; ``--slowest N``
+lists the working tree's N slowest frames stage by stage (the tail's seeds, to profile).
+The outputs (ellipses, top, pose) of the two are compared as well: a speed-up should not
+change them.
 
 DATA is a ``stackpick dataset --scene SCENE --seeds 0:400`` directory (``--scene``: the
 same scene, whose object kinds the detector is given). Time on seeds outside
@@ -76,18 +78,20 @@ with open(out, "wb") as f:
 """
 
 
-def save_frames(data: Path, seeds: list[int], out: Path, scene: str = "paper") -> int:
+def save_frames(data: Path, seeds: list[int], out: Path, scene: str = "paper") -> list[int]:
     """The frames of a data set of ``scene`` as plain values (readable by any version of
-    the package), pickled to ``out``; returns how many."""
+    the package), pickled to ``out``; returns their seeds, in order."""
     from stackpick_sim.config.loader import load_scene
     from stackpick_sim.vision.benchmark.frames import iter_dataset
 
-    frames = [{"image": f.image_rgb, "depth_range_m": f.depth_range_m, "kinds": f.kinds,
-               "intrinsics": dataclasses.asdict(f.intrinsics)}
-              for f in iter_dataset(data, seeds, load_scene(scene))]
+    frames, timed = [], []
+    for f in iter_dataset(data, seeds, load_scene(scene)):
+        frames.append({"image": f.image_rgb, "depth_range_m": f.depth_range_m,
+                       "kinds": f.kinds, "intrinsics": dataclasses.asdict(f.intrinsics)})
+        timed.append(f.seed)
     with open(out, "wb") as fh:
         pickle.dump(frames, fh)
-    return len(frames)
+    return timed
 
 
 def export(ref: str, into: Path) -> Path:
@@ -127,6 +131,20 @@ def total_percentiles(results: list[dict]) -> dict[str, float]:
     return {"p50": p50, "p95": p95, "p99": p99, "max": top}
 
 
+def slowest_frames(results: list[dict], seeds: list[int], count: int) -> list[str]:
+    """Table rows of the ``count`` frames with the largest whole-pipeline time (the fastest
+    repeat of each round, then the median round, the slower of two): seed, then each stage's
+    time (ms) in that repeat."""
+    per_frame = []
+    for k, seed in enumerate(seeds):
+        fastest = [min(res["times"][k], key=lambda r: r.get("total", 0.0)) for res in results]
+        fastest.sort(key=lambda r: r.get("total", 0.0))
+        per_frame.append((seed, fastest[len(fastest) // 2]))
+    per_frame.sort(key=lambda f: -f[1].get("total", 0.0))
+    return [f"| {seed} | " + " | ".join(f"{t.get(s, 0.0):.3f}" for s in STAGES) + " |"
+            for seed, t in per_frame[:count]]
+
+
 def differences(a: list, b: list) -> str:
     """How the outputs of two runs differ (counts and largest differences)."""
     count = top = 0
@@ -156,11 +174,14 @@ def main() -> int:
     p.add_argument("--baseline", default="main", help="git ref of the baseline (default main)")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--slowest", type=int, default=0, metavar="N",
+                   help="also list the N slowest frames of the working tree, stage by stage")
     args = p.parse_args()
     seeds = parse_seeds(args.seeds)
     with tempfile.TemporaryDirectory() as tmp:
         frames = Path(tmp) / "frames.pkl"
-        if save_frames(args.data, seeds, frames, args.scene) == 0:
+        timed = save_frames(args.data, seeds, frames, args.scene)
+        if not timed:
             print(f"no frames of seeds {args.seeds} in {args.data}", file=sys.stderr)
             return 1
         base_root = export(args.baseline, Path(tmp))
@@ -183,6 +204,12 @@ def main() -> int:
     for q in old_tail:
         print(f"| {q} | {old_tail[q]:.3f} | {new_tail[q]:.3f} | "
               f"{old_tail[q] / max(new_tail[q], 1e-9):.2f} |")
+    if args.slowest:
+        print(f"\nThe {args.slowest} slowest frames of the working tree (the fastest repeat, "
+              "median round), CPU ms:\n")
+        print("| seed | " + " | ".join(STAGES) + " |")
+        print("|" + "---|" * (len(STAGES) + 1))
+        print("\n".join(slowest_frames(work, timed, args.slowest)))
     print("\n" + differences(base[0]["outputs"], work[0]["outputs"]))
     return 0
 

@@ -573,6 +573,57 @@ def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
         assert got == want and 0 < got[1] + got[2] < m
 
 
+def test_points_rms_and_chain_hits_match_the_array_forms(rng: np.random.Generator) -> None:
+    """rms_residual's and chains_on's compiled passes: numpy's mean of the squared
+    distances (pairwise sums, on every block size) and np.bincount of the near pixels'
+    chains, on int32 pixels and float64 points alike."""
+    cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
+    c, s = np.cos(t), np.sin(t)
+    for m in (1, 5, 8, 9, 64, 129, 300, 1001):
+        phi = rng.uniform(0, 2 * np.pi, m)
+        u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
+        pixels = np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
+                         ).astype(np.int32)
+        owner = np.sort(rng.integers(0, 5, m)).astype(np.int64)
+        for points in (pixels, pixels + rng.uniform(-0.5, 0.5, (m, 2))):
+            d = kernels.point_distances(points.astype(np.float64), cx, cy, a, b, c, s)
+            assert kernels.points_rms(points, cx, cy, a, b, c, s) == float(
+                np.sqrt(np.mean(d * d)))
+            assert np.array_equal(kernels.chain_hits(points, owner, 6, cx, cy, a, b, c, s, 4.0),
+                                  np.bincount(owner[d < 4.0], minlength=6))
+
+
+def test_chain_hits_screen_drops_no_near_pixel(rng: np.random.Generator) -> None:
+    """chain_hits measures only the pixels in the box of the ellipse scaled to where the
+    Sampson distance can reach the tolerance: the counts stay np.bincount's of every pixel's
+    test, for pixels anywhere, on thin and round ellipses and small and large tolerances."""
+    for a, b, tol in ((40.0, 12.0, 2.0), (60.0, 0.8, 3.0), (25.0, 25.0, 0.5), (9.0, 4.0, 30.0)):
+        cx, cy, t = 80.0, 60.0, float(rng.uniform(0, np.pi))
+        c, s = np.cos(t), np.sin(t)
+        phi, r = rng.uniform(0, 2 * np.pi, 3000), rng.uniform(0.5, 4.0, 3000)
+        u, v = a * r * np.cos(phi), b * r * np.sin(phi)
+        ring = np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
+        points = np.concatenate([ring, rng.uniform(-200, 300, (3000, 2))])
+        owner = rng.integers(0, 9, points.shape[0]).astype(np.int64)
+        for pts in (np.rint(points).astype(np.int32), points):
+            d = kernels.point_distances(pts.astype(np.float64), cx, cy, a, b, c, s)
+            assert 0 < np.count_nonzero(d < tol) < d.size
+            assert np.array_equal(kernels.chain_hits(pts, owner, 9, cx, cy, a, b, c, s, tol),
+                                  np.bincount(owner[d < tol], minlength=9))
+
+
+def test_stride_magnitudes_match_the_strided_float32_form(rng: np.random.Generator) -> None:
+    """The edge statistics' sample: every 4th row and column's float32 magnitude over the
+    Sobel gain, as the array expression gives it, on sizes not a multiple of the stride."""
+    for h, w in ((1, 1), (3, 7), (60, 80), (61, 83)):
+        dx = rng.integers(-4080, 4081, (h, w)).astype(np.int16)
+        dy = rng.integers(-4080, 4081, (h, w)).astype(np.int16)
+        sx, sy = dx[::4, ::4].astype(np.float32), dy[::4, ::4].astype(np.float32)
+        want = np.sqrt(sx * sx + sy * sy).ravel() / 8.0
+        got = kernels.stride_magnitudes(dx, dy, 4, 8.0)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
 def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
                           gx: NDArray[np.int16], gy: NDArray[np.int16],
                           offsets: NDArray[np.float64], threshold: float, innermost: bool

@@ -71,6 +71,18 @@ def outline(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64]]
     return pts, normals
 
 
+def outline_columns(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                               NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`outline` of ``ellipse`` (the same values) as four (n,) columns: points u, v
+    and unit outward normals nu, nv, in one compiled pass (kernels.outline_columns: the same
+    arithmetic as the array form)."""
+    n = max(16, math.ceil(perimeter_px(ellipse)))
+    th = math.radians(ellipse.angle_deg)
+    ct, st = unit_circle(n)
+    return kernels.outline_columns(ellipse.cx, ellipse.cy, ellipse.a, ellipse.b,
+                                   math.cos(th), math.sin(th), ct, st)
+
+
 def contrast_profile(ellipse: Ellipse, image: EdgeImage,
                      samples: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
                      ) -> NDArray[np.float64]:
@@ -258,14 +270,12 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     offsets = np.arange(-inward, reach + 1, dtype=np.float64)
     threshold = contrast_threshold(image)
     for _ in range(params.contrast_rounds if rounds is None else rounds):
-        pts, normals = outline(current)
+        pu, pv, nu, nv = outline_columns(current)
         # The offsets' gradients, their windowed means and each sample's pick, in one
         # compiled pass (kernels.contrast_peaks: the same values as the array form).
-        found = kernels.contrast_peaks(
-            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
-            np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
-            image.gx, image.gy, offsets, WINDOW_SAMPLES, SOBEL_GAIN, threshold, innermost)
-        if found.shape[0] < params.contrast_min_share * pts.shape[0]:
+        found = kernels.contrast_peaks(pu, pv, nu, nv, image.gx, image.gy, offsets,
+                                       WINDOW_SAMPLES, SOBEL_GAIN, threshold, innermost)
+        if found.shape[0] < params.contrast_min_share * pu.shape[0]:
             return None
         fit = fit_ellipse(found)
         if fit is None:

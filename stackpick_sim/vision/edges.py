@@ -122,9 +122,7 @@ def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16],
     """(low, high) Canny thresholds in Sobel units for gradients (H, W) int16 dx, dy, and the
     noise level (median magnitude, grey levels/px), by the ``params``' rule."""
     floor, low_ratio = params.min_high_threshold, params.low_ratio
-    sx = dx[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
-    sy = dy[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
-    mag = np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN
+    mag = _sampled_magnitudes(dx, dy)
     if mag.size == 0:
         return floor * low_ratio * SOBEL_GAIN, floor * SOBEL_GAIN, 0.0
     k50, k99 = mag.size // 2, min(mag.size - 1, int(0.99 * mag.size))
@@ -135,12 +133,19 @@ def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16],
     return low_ratio * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
 
 
+def _sampled_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> NDArray[np.float32]:
+    """The statistics' sample: the float32 gradient magnitudes (grey levels/px) of every
+    STATS_STRIDE-th row and column, row-major, in one compiled pass (kernels.
+    stride_magnitudes: ``np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN`` of the float32
+    samples, the same values); a fresh array the caller may reorder."""
+    return kernels.stride_magnitudes(np.ascontiguousarray(dx), np.ascontiguousarray(dy),
+                                     STATS_STRIDE, SOBEL_GAIN)
+
+
 def noise_level(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> float:
     """The noise level of :func:`adaptive_thresholds` alone (the same value, one order
     statistic instead of two)."""
-    sx = dx[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
-    sy = dy[::STATS_STRIDE, ::STATS_STRIDE].astype(np.float32)
-    mag = np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN
+    mag = _sampled_magnitudes(dx, dy)
     if mag.size == 0:
         return 0.0
     k50 = mag.size // 2

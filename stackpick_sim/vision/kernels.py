@@ -98,6 +98,77 @@ def point_distances(points: NDArray[np.float64], cx: float, cy: float, a: float,
 
 
 @_compiled
+def points_rms(points: NDArray, cx: float, cy: float, a: float, b: float, c: float, s: float
+               ) -> float:  # pragma: no cover - compiled
+    """The RMS Sampson distance of (N, 2) ``points`` (N > 0; int32 pixels, or float64) to the
+    ellipse (cx, cy, a, b) of angle cosine and sine (c, s), as ``sqrt(mean(d * d))`` of
+    :func:`point_distances` (numpy's pairwise sum: the same value); see
+    :func:`~stackpick_sim.vision.fitting.rms_residual`."""
+    m = points.shape[0]
+    sq = np.empty(m)
+    for k in range(m):
+        d = _sampson(points[k, 0] - cx, points[k, 1] - cy, a, b, c, s)
+        sq[k] = d * d
+    return math.sqrt(_pairwise_sum(sq) / m)
+
+
+@_compiled
+def chain_hits(pixels: NDArray, owner: NDArray[np.int64], n_chains: int, cx: float,
+               cy: float, a: float, b: float, c: float, s: float, tol_px: float
+               ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Per chain (``n_chains``), how many of its pixels (rows of the (N, 2) ``pixels``, int32
+    or float64, whose chains ``owner`` (N,) gives) lie closer than ``tol_px`` (Sampson) to the
+    ellipse (cx, cy, a, b) of angle cosine and sine (c, s): ``np.bincount`` of the owners of
+    the near pixels; see :func:`~stackpick_sim.vision.regroup.chains_on`.
+
+    Only the pixels within the bounding box of the ellipse scaled by :func:`_near_scale`
+    (and a pixel more) are measured: the others lie farther off (the Sampson distance of a
+    point at scale r >= 1 is at least min(a, b) (r - 1 / r) / 2)."""
+    hits = np.zeros(n_chains, np.int64)
+    scale = _near_scale(tol_px, min(a, b))
+    reach_u = math.hypot(a * c, b * s) * scale + 1.0
+    reach_v = math.hypot(a * s, b * c) * scale + 1.0
+    for k in range(pixels.shape[0]):
+        du, dv = pixels[k, 0] - cx, pixels[k, 1] - cy
+        if abs(du) <= reach_u and abs(dv) <= reach_v and _sampson(du, dv, a, b, c, s) < tol_px:
+            hits[owner[k]] += 1
+    return hits
+
+
+@_compiled
+def _near_scale(tol_px: float, minor: float) -> float:  # pragma: no cover - compiled
+    """A scale r of an ellipse of semi-minor axis ``minor`` beyond which no point has a
+    Sampson distance below ``tol_px``: the root of min(a, b) (r - 1 / r) / 2 = tol_px, with a
+    margin of a millionth (inf for a degenerate axis). The Sampson distance |Q| / |grad Q| of
+    Q = x^2 + y^2 - 1 (x, y in units of the axes, r^2 = x^2 + y^2) has |grad Q| <= 2 r /
+    min(a, b), so at r >= 1 it is at least min(a, b) (r^2 - 1) / (2 r)."""
+    if not minor > 0.0:
+        return math.inf
+    t = tol_px / minor
+    return (t + math.sqrt(t * t + 1.0)) * (1.0 + 1e-6)
+
+
+@_compiled
+def stride_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int, gain: float
+                      ) -> NDArray[np.float32]:  # pragma: no cover - compiled
+    """The gradient magnitudes over ``gain`` of every ``stride``-th row and column of (H, W)
+    Sobel gradients, row-major, in float32: ``np.sqrt(sx * sx + sy * sy).ravel() / gain`` of
+    the float32 samples ``sx``, ``sy`` (the same float32 operations); see
+    :func:`~stackpick_sim.vision.edges.adaptive_thresholds`."""
+    h, w = dx.shape
+    cols = (w + stride - 1) // stride
+    out = np.empty(((h + stride - 1) // stride) * cols, np.float32)
+    g = np.float32(gain)
+    k = 0
+    for r in range(0, h, stride):
+        for c in range(0, w, stride):
+            x, y = np.float32(dx[r, c]), np.float32(dy[r, c])
+            out[k] = np.sqrt(x * x + y * y) / g
+            k += 1
+    return out
+
+
+@_compiled
 def _block_sum(x: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
     """numpy's sum of a block of at most 128 elements ``x[lo:lo + n]``: in order below 8,
     else eight partial sums combined pairwise, then the remainder in order."""
@@ -1213,11 +1284,14 @@ def contrast_peaks(pu: NDArray[np.float64], pv: NDArray[np.float64], nu: NDArray
     mag = np.empty(k)
     out = np.empty((n, 2))
     count = 0
+    rows = np.empty(window, np.int64)  # the window's rows (wrapped) of sample i
     for i in range(n):
+        for t in range(window):
+            rows[t] = (i + t - half) % n
         for j in range(k):
             total = 0.0
             for t in range(window):
-                total += g[(i + t - half) % n, j] * weight
+                total += g[rows[t], j] * weight
             mag[j] = abs(total) / gain
         best = _contrast_pick(mag, threshold, innermost)
         if mag[best] >= threshold:
@@ -1592,6 +1666,10 @@ def warm_up() -> None:
     outline_samples(np.ones((1, 6)), counts, col, col)
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
+    stride_magnitudes(img, img, 4, 8.0)
+    for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
+        points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+        chain_hits(pts, np.zeros(1, np.int64), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     project_outside(np.ones((3, 1, 1)), np.ones((1, 6)), 1.0, 1.0, 1.0, 1.0, 1.0)
     face_median(np.zeros((4, 4, 3), np.uint8), 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, col, col)
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
-from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
+from stackpick_sim.vision.contrast import contrast_threshold, outline_columns
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
@@ -268,7 +268,7 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     steps = np.arange(-reach, reach + 1e-9, step)  # the search offsets, px
     current = ellipse
     for round_ in range(params.profile_rounds):
-        pu, pv, nu, nv = _outline_columns(current)
+        pu, pv, nu, nv = outline_columns(current)
         n = pu.shape[0]
         # The (n, k) sample grid across the outline and each sample's peak, in one pass.
         peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, steps, step,
@@ -288,15 +288,3 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
                 fit = fit_ellipse(peaks[inliers]) or fit
         current = fit if plausible(fit, shape, fits_params) else current
     return current
-
-
-def _outline_columns(ellipse: Ellipse) -> tuple[NDArray[np.float64], NDArray[np.float64],
-                                                NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`~stackpick_sim.vision.contrast.outline` of ``ellipse`` (the same values) as
-    four (n,) columns: points u, v and unit outward normals nu, nv."""
-    n = max(16, math.ceil(perimeter_px(ellipse)))
-    th = math.radians(ellipse.angle_deg)
-    ct, st = unit_circle(n)
-    # One compiled pass (kernels.outline_columns: the same arithmetic as the array form).
-    return kernels.outline_columns(ellipse.cx, ellipse.cy, ellipse.a, ellipse.b,
-                                   math.cos(th), math.sin(th), ct, st)

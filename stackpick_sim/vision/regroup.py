@@ -44,7 +44,6 @@ from stackpick_sim.config.vision_params import MergeParams, StageSections
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels, kernels_top
 from stackpick_sim.vision.fitting import (
-    ellipse_distances,
     fit_ellipse,
     plausible,
     rms_residual,
@@ -76,8 +75,14 @@ def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int
     """Indices of the chains with ``params.absorb_fraction`` of their pixels within
     ``params.tolerance_px`` of ``ellipse``, given all chains' pixels concatenated (N, 2), the
     chain of each (N,) and the chains' lengths (C,) (one distance pass over all pixels)."""
-    near = ellipse_distances(ellipse, pixels) < params.tolerance_px
-    hits = np.bincount(owner[near], minlength=lengths.shape[0])
+    if pixels.dtype != np.int32 or not pixels.flags.c_contiguous:
+        pixels = np.ascontiguousarray(pixels, np.float64)
+    t = math.radians(ellipse.angle_deg)
+    # The near pixels counted per chain in one compiled pass (kernels.chain_hits: the
+    # distances of ellipse_distances, the counts of np.bincount).
+    hits = kernels.chain_hits(pixels, np.ascontiguousarray(owner, np.int64), lengths.shape[0],
+                              ellipse.cx, ellipse.cy, ellipse.a, ellipse.b, math.cos(t),
+                              math.sin(t), params.tolerance_px)
     return tuple(np.flatnonzero(hits >= params.absorb_fraction * lengths).tolist())
 
 

@@ -254,12 +254,34 @@ def cover_check(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         # Per triple: (this solution, the other) x (j's two solutions).
         pairs = np.array([(2 * row[i] + (s ^ other), 2 * row[j] + t) for i, s, j in known
                           for other in (0, 1) for t in (0, 1)], np.int64)
+        least = -params.rest_max_penetration_m
+        if _clear_on_coarse(bodies, pairs, least):
+            return [True] * len(triples)
         sep = contact(bodies.centres, bodies.normals, bodies.radii, bodies.heights, pairs)[0]
-        clear = (sep.reshape(-1, 2, 2).max(axis=2) >= -params.rest_max_penetration_m).tolist()
+        clear = (sep.reshape(-1, 2, 2).max(axis=2) >= least).tolist()
         verdict = {t: this or not other for t, (this, other) in zip(known, clear, strict=True)}
         return [verdict.get(t, True) for t in triples]
 
     return possible
+
+
+#: Slack (m) of :func:`_clear_on_coarse`: far beyond the rounding of a separation (~1e-16 m
+#: on these sizes), far below any setting's scale (millimetres).
+COARSE_SCREEN_SLACK_M = 1e-9
+
+
+def _clear_on_coarse(bodies: _Bodies, pairs: NDArray[np.int64], least: float) -> bool:
+    """Whether :func:`cover_check`'s verdicts are all "possible" on the coarse directions
+    alone: for every triple (its four rows of ``pairs``: this solution's two, then the other
+    solution's), this solution's cylinder is apart from face j's, or runs into it by less
+    than ``-least``, along some coarse direction for one of j's solutions (by
+    COARSE_SCREEN_SLACK_M). The separation is a maximum over the directions, which hold the
+    coarse ones, so the exact test finds it clear too; the exact test is spared (a cover the
+    solids allow is the common case)."""
+    coarse = _separations(bodies.centres, bodies.normals, bodies.radii, bodies.heights, pairs,
+                          *_direction_set(coarse=True)).max(axis=1)
+    this = coarse.reshape(-1, 2, 2)[:, 0, :].max(axis=1)
+    return bool(np.all(this >= least + COARSE_SCREEN_SLACK_M))
 
 
 @dataclass(frozen=True, kw_only=True)
