@@ -446,6 +446,8 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "belt_velocity_std": (1e-4, 0.5, "m/s"),
     "belt_velocity_time": (0.0, 5.0, "s"),
     "belt_velocity_evidence": (0.1, 100.0, "(nats)"),
+    "vote_size_tolerance": (0.01, 1.0, "[0, 1]"),
+    "retarget_over_height": (0.0, 0.1, "m"),
     "grasp_dwell": (0.0, 2.0, "s"),
     "lift_height": (0.005, 0.5, "m"),
     "lift_speed": (0.01, 2.0, "m/s"),
@@ -485,6 +487,23 @@ class EpisodeCfg:
     (stackpick_sim/episodes/topvote.py): a first detection that named a face lying under
     another is outvoted by the frames after it. 0: never (the arm stops for the new
     detection: on a fast belt the pause can cost the pick). 0 to 3."""
+    vote_size_tolerance: float = 0.25
+    """A frame's top face is the tracked face only if its ellipse's centre lies inside the
+    tracked face's predicted ellipse and its semi-major axis is within this share of the
+    predicted one's, [0, 1] (stackpick_sim/episodes/topvote.py): a smaller face lying on
+    the tracked one (a 25-35 mm lid on a 50 mm tape roll, 30-50 % smaller in the image) has
+    its centre inside too. The tracked face's own fits differ from the prediction by a few
+    per cent, and by the ratio of two kinds' radii (17-20 %) while the track holds the wrong
+    kind. 0.01 to 1."""
+    retarget_over_height: float = 0.010
+    """A rival face that later frames name top more often than the tracked face (and in at
+    least three frames), lying over it along the camera's lines of sight, takes the pick if
+    it lies at least this high above the tracked face, m
+    (stackpick_sim/episodes/topvote.py): the tracked face lies under it. A face resting on
+    the tracked object lies about its own object's height above it (the realistic scene's
+    kinds are 25-30 mm tall; the detector's poses put such faces 30-45 mm above), while
+    a lower face, which lies a whole object's height below the tracked one, reads at most
+    ~20 mm too high (a fit that takes in its side wall). 0 to 0.1 m."""
     standoff: float = 0.19
     """Distance tool tip to face centre along the face normal at the end of approach and
     servo, m: the largest face (r = 35 mm) must stay wholly in the 240 px tall image, whose

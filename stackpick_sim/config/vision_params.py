@@ -340,7 +340,7 @@ class TopParams(Section):
         "off_outline_px": (0.0, 20.0, "px"), "rest_kind_margin_m": (0.0, 0.1, "m"),
         "cover_extra_depths": (0.0, 5.0, "radii"), "perspective_enlargement": (0.5, 2.0, ""),
         "kind_min_chroma_distance": (0.0, 2.0, ""), "inner_refit_max_area": (0.0, 1.0, ""),
-        "inner_refit_reach_px": (1, 30, "px")}
+        "inner_refit_reach_px": (1, 30, "px"), "inner_refit_min_inset_px": (0.0, 30.0, "px")}
 
     min_support: float = 0.9
     """Share [0, 1] of its outline along which an unoccluded face must show consistent edge
@@ -498,10 +498,10 @@ class TopParams(Section):
     (``inner_refit_max_area``) that passes the rule too replaces it: a top face over lower
     faces of its colour and shade is fitted round slivers of them on their strong
     silhouette, its own boundary with them a faint step of a few grey levels inside the fit
-    that the edge map misses. Off by default: on single frames it finds such faces without
-    changing any other choice (rendered paper, grey, cluttered and realistic frames), but in
-    a pick episode's tracked frames it can shrink a well-fitted face onto a faint inner edge
-    and move the pick off the face's centre."""
+    that the edge map misses. A refit leaving out no sliver (``inner_refit_min_inset_px``)
+    is a well-fitted face's own soft rim and changes nothing. Off by default for its cost: a
+    contrast refit of every chosen face, ~0.2 ms a frame (7 % of a paper-scene frame's
+    detection); the cluttered scene, whose piles lay such faces more often, turns it on."""
     inner_refit_reach_px: int = 20
     """Inward search reach (px) of the inner refit: the slivers of lower faces a fit takes in
     beyond a top face of their colour are as wide as the faces' offset plus the difference of
@@ -513,6 +513,15 @@ class TopParams(Section):
     the refit to replace the chosen face: a refit on a well-fitted face's own edge keeps
     0.97-1.05 of its area (on rendered paper, grey and cluttered frames), so less than 0.95
     is a fit that took in a sliver beyond the face."""
+    inner_refit_min_inset_px: float = 6.0
+    """Least width (px) of the sliver the inner refit must leave out for it to replace the
+    chosen face (the fit reaching this far beyond the refit somewhere): the slivers of lower
+    faces a fit takes in beyond a top face of their colour are 8-16 px wide where the edge
+    map misses the top face's boundary, while a well-fitted face's outline blurred over a
+    few pixels (a close, tracked view) shows a faint inner shoulder 1-5 px inside it (the
+    most along an oblique view's near rim), on which the refit shrinks a face of semi-axes
+    under ~40 px by more than ``inner_refit_max_area`` allows and moves its centre (on
+    rendered cluttered and grey frames and a paper pick episode's tracked frames)."""
     hidden_min_support: float = 0.6
     """Share [0, 1] of its outline a face cut short with nothing crossing it must show for the
     hidden-face check: a face at least half visible, as the scoring counts faces (far rims

@@ -16,7 +16,7 @@ from stackpick_sim.episodes.pick import ArmPhases, Command
 from stackpick_sim.episodes.record import ERROR_REASON, FAILURES, PHASES
 from stackpick_sim.episodes.sensing import Candidate, Observation, ellipse_inside
 from stackpick_sim.episodes.target import EDGE_MARGIN_PX
-from stackpick_sim.episodes.topvote import TopVote, posed_top
+from stackpick_sim.episodes.topvote import Disc, Rival, TopVote, VoteRules, posed_top
 from stackpick_sim.exceptions import EpisodeError
 from stackpick_sim.geometry import Ellipse, project_circle
 from stackpick_sim.pipeline import Hints
@@ -37,7 +37,7 @@ MAX_REDETECTIONS = 2
 TRACK_FADING_FRAMES = 1.5
 #: Phases whose frames vote on the top face (:mod:`stackpick_sim.episodes.topvote`): the arm
 #: is not yet committed to the face. A rival face that outvotes the tracked one is taken
-#: instead, at most ``episode.max_retargets`` times (default 0: never); the detection after a
+#: instead, at most ``episode.max_retargets`` times (0: never); the detection after a
 #: re-target waits up to RETARGET_WAIT_FRAMES frame periods for the detector to name the
 #: rival top again (three frames: latency and one missed frame), then takes whatever it
 #: names top.
@@ -79,10 +79,13 @@ class PhaseLogic(ArmPhases):
         self._search_from = 0.0
         """How far down the line of sight the grasp holds the face, m."""
         self._redetections = 0
-        self._vote = TopVote(np.array([0.0, episode.scene.cell.cfg.conveyor.speed]))
+        cfg = episode.scene.cell.cfg
+        self._vote = TopVote(np.array([0.0, cfg.conveyor.speed]), VoteRules(
+            size_tolerance=cfg.episode.vote_size_tolerance,
+            over_height=cfg.episode.retarget_over_height))
         self._retargets = 0
-        self._wanted: np.ndarray | None = None
-        """(2,) belt position of the face a re-target detects again (topvote), or None."""
+        self._wanted: Rival | None = None
+        """The face a re-target detects again (topvote), or None."""
         self._at_floor = 0.0
         self._floor = 0.0
         self._last_lateral = 0.0
@@ -228,7 +231,18 @@ class PhaseLogic(ArmPhases):
         if (self.phase in VOTING_PHASES and not self.ep.sensor.detector.exact
                 and self.ep.scene.cell.cfg.episode.max_retargets > 0 and obs.candidates
                 and expected is not None):
-            self._vote.add(obs, expected(obs))
+            self._vote.add(obs, expected(obs), self._tracked_disc(obs))
+
+    def _tracked_disc(self, obs: Observation) -> Disc | None:
+        """The tracked face at ``obs``'s capture, in its camera's frame (None before the
+        filter is set or the radius known)."""
+        est = self.ep.estimator
+        if not est.initialised or not est.radius:
+            return None
+        state = est.state(obs.capture_time, obs.world_T_cam)
+        r, p = obs.world_T_cam[:3, :3], obs.world_T_cam[:3, 3]
+        return Disc(centre=r.T @ (state.centre - p), normal=r.T @ state.normal,
+                    radius=float(est.radius))
 
     def _retarget_if_outvoted(self, t: float) -> bool:
         """Detect again, arm still, if a rival face outvoted the tracked one; True if so.
@@ -240,12 +254,13 @@ class PhaseLogic(ArmPhases):
         if (self.phase not in VOTING_PHASES
                 or self._retargets >= self.ep.scene.cell.cfg.episode.max_retargets):
             return False
-        winner = self._vote.winner()
+        winner = self._vote.winner(self.ep.estimator.face_z if self.ep.estimator.initialised
+                                   else None)
         if winner is None:
             return False
         self._retargets += 1
         self.ep.record.retargets = self._retargets
-        self._wanted = winner.position
+        self._wanted = winner
         self.ep.estimator.reset()
         self._enter("detect", t)
         return True

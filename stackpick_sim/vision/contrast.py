@@ -245,7 +245,8 @@ REFIT_DEFAULT = TopParams()
 
 
 def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = False,
-                      params: TopParams = REFIT_DEFAULT) -> Ellipse | None:
+                      params: TopParams = REFIT_DEFAULT, *, inner_reach_px: int | None = None,
+                      rounds: int | None = None) -> Ellipse | None:
     """Refit ``ellipse`` on the strongest consistent edge within ``params.contrast_reach_px``
     across each outline sample, or None when less than ``params.contrast_min_share`` of the
     outline shows one (in ``params.contrast_rounds`` rounds).
@@ -258,14 +259,17 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
     passes the threshold instead of the strongest: a top face over a lower face of its own
     colour ends at a faint boundary just inside the lower face's strong silhouette, and a fit
     on both outlines is too large. The search then reaches ``params.contrast_inner_reach_px``
-    inward.
+    inward (``inner_reach_px``, when given: the inner refit's reach). ``rounds``, when given,
+    stands for ``params.contrast_rounds`` (both without building another TopParams, whose
+    range checks cost several times the refit's round).
     """
     current = ellipse
     reach = params.contrast_reach_px
-    inward = params.contrast_inner_reach_px if innermost else reach
+    inward = ((params.contrast_inner_reach_px if inner_reach_px is None else inner_reach_px)
+              if innermost else reach)
     offsets = np.arange(-inward, reach + 1, dtype=np.float64)
     threshold = contrast_threshold(image)
-    for _ in range(params.contrast_rounds):
+    for _ in range(params.contrast_rounds if rounds is None else rounds):
         pu, pv, nu, nv = outline_columns(current)
         # The offsets' gradients, their windowed means and each sample's pick, in one
         # compiled pass (kernels.contrast_peaks: the same values as the array form).
@@ -278,3 +282,18 @@ def refit_on_contrast(ellipse: Ellipse, image: EdgeImage, innermost: bool = Fals
             return None
         current = fit
     return current
+
+
+def widest_inset_px(outer: Ellipse, inner: Ellipse) -> float:
+    """How far (px) ``outer``'s outline reaches beyond ``inner`` at most, measured along the
+    rays from ``inner``'s centre (negative when it lies wholly inside): the width of the
+    widest sliver a fit ``outer`` takes in beyond a face ``inner``."""
+    pts, _ = outline(outer)
+    th = math.radians(inner.angle_deg)
+    c, s = math.cos(th), math.sin(th)
+    dx, dy = pts[:, 0] - inner.cx, pts[:, 1] - inner.cy
+    # The point's distance from the centre times (1 - 1/r), r its ellipse "radius" in
+    # inner's axes: the distance along the ray beyond inner's outline.
+    r = np.hypot((c * dx + s * dy) / inner.a, (c * dy - s * dx) / inner.b)
+    beyond = np.hypot(dx, dy) * (1.0 - 1.0 / np.maximum(r, 1e-9))
+    return float(beyond.max())

@@ -43,7 +43,7 @@ from stackpick_sim.config.vision_params import (
 )
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision.contrast import refit_on_contrast
+from stackpick_sim.vision.contrast import refit_on_contrast, widest_inset_px
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import (
     MIN_SIDE_PX,
@@ -422,6 +422,8 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
     """The chosen face refitted on its innermost consistent edge (:func:`~stackpick_sim.
     vision.contrast.refit_on_contrast`, reaching ``top.inner_refit_reach_px`` inward) when it
     passed the rule outright and the refit is clearly smaller (``top.inner_refit_max_area``),
+    leaves out a sliver of a lower face (the fit reaching at least
+    ``top.inner_refit_min_inset_px`` beyond it somewhere: not the face's own soft rim),
     plausible, within the size gate and passes the rule too: a top face over lower faces of
     its colour and shade, fitted round slivers of them on their strong silhouette (its own
     boundary with them a faint step inside the fit that the edge map misses, so no edge
@@ -435,15 +437,17 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
     grad = state.edges("top")
     # Round by round (each re-centres on the last): a round that leaves more than
     # inner_refit_max_area of the fit's area (most faces) ends the refit, at half its cost.
-    one = replace(config.top, contrast_inner_reach_px=config.top.inner_refit_reach_px,
-                  contrast_rounds=1)
-    refit = refit_on_contrast(fit, grad, True, one)
-    for _ in range(config.top.contrast_rounds - 1):
-        if refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b:
+    top = config.top
+    refit = refit_on_contrast(fit, grad, True, top, inner_reach_px=top.inner_refit_reach_px,
+                              rounds=1)
+    for _ in range(top.contrast_rounds - 1):
+        if refit is None or refit.a * refit.b > top.inner_refit_max_area * fit.a * fit.b:
             break
-        refit = refit_on_contrast(refit, grad, True, one)
+        refit = refit_on_contrast(refit, grad, True, top,
+                                  inner_reach_px=top.inner_refit_reach_px, rounds=1)
     gate = state.gate
     if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
+            or widest_inset_px(fit, refit) < config.top.inner_refit_min_inset_px
             or not plausible(refit, state.crop, config.fits)
             or (gate is not None and not gate[0] <= refit.a <= gate[1])):
         return merged, choice
