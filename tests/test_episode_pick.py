@@ -639,11 +639,14 @@ def test_a_can_read_as_a_smaller_lid_is_met_below_its_believed_height(
     # detector whose radius is no reading of the kind's colour): a can's 30 mm lid is tracked
     # as a 25 mm printed lid, so 18 mm higher than it is (a monocular pose is known up to
     # scale). The descent goes on as deep as a can would lie and meets the lid; stopping at
-    # the believed height plus the overtravel it ends above it.
+    # the believed height plus the overtravel it ends above it. The tracker holds the belt's
+    # velocity only at its start (belt_velocity_time = 0): held, the parallax tells the two
+    # heights apart on this seed and the can is tracked as a can.
     monkeypatch.setattr(hypotheses, "COLOUR_READING_DETECTORS", ())
     if not search:
         monkeypatch.setattr(pick, "larger_kind_drop", lambda radius, radii, depth: 0.0)
-    rec = run_episode(generate_scene(load_scene("realistic", []), 70043))
+    rec = run_episode(generate_scene(load_scene("realistic", ["episode.belt_velocity_time=0"]),
+                                     70043))
     assert rec.target_kind == "can" and rec.believed_kinds == ["printed_small"]
     if search:
         assert rec.success, f"{rec.failure}: {rec.failure_detail}"

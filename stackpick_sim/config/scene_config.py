@@ -443,6 +443,9 @@ EPISODE_RANGES: dict[str, tuple[float, float, str]] = {
     "normal_vote_height_tol": (1e-4, 0.1, "m"),
     "tracked_depth_margin": (0.01, 0.9, "[0, 1]"),
     "kind_follow_time": (0.0, 2.0, "s"),
+    "belt_velocity_std": (1e-4, 0.5, "m/s"),
+    "belt_velocity_time": (0.0, 5.0, "s"),
+    "belt_velocity_evidence": (0.1, 100.0, "(nats)"),
     "vote_size_tolerance": (0.01, 1.0, "[0, 1]"),
     "retarget_over_height": (0.0, 0.1, "m"),
     "grasp_dwell": (0.0, 2.0, "s"),
@@ -560,6 +563,30 @@ class EpisodeCfg:
     most this much older than the latest of any hypothesis, s; after that it has lost the
     face and the parallax (NIS) chooses. Half the phases' longest blind time: a few missed
     frames at camera rates are not a lost face. 0 to 2 s."""
+    belt_velocity_std: float = 0.01
+    """Std of a tracked face's velocity about the belt's nominal one (``conveyor.speed``,
+    along +y), m/s, the belt-frame tracker's prior: fused with the two-point start and held
+    for ``belt_velocity_time`` (at least ``conveyor.speed_jitter``). The belt's own speed
+    noise is ~2 mm/s on the paper scene; a face creeps or settles in its pile (+20 mm/s for
+    about 0.1 s measured there). The start alone gives ~20 mm/s (0.5 px centre noise a frame
+    apart). 0.0001 to 0.5 m/s."""
+    belt_velocity_time: float = 0.2
+    """Time constant with which the tracked velocity's deviation from the belt's relaxes
+    between measurements, s (0: the prior acts at the start only). A face's own motion on
+    the belt (settling in its pile, +20 mm/s for about 0.1 s on the paper scene) dies out
+    as the belt's friction carries it; a velocity that fits biased by the image border or a
+    grazing view pulled off the belt's (12-17 mm/s in the late approach on the realistic
+    scene) is not carried into the blind descent (0.5 s, a 6-8 mm lip offset). Twice the
+    settling time. 0 to 5 s."""
+    belt_velocity_evidence: float = 6.9
+    """The held prior's innovation test: another filter runs on the same measurements
+    without the relaxation; once the measurements are this much more likely under it than
+    under the held filter (log-likelihood ratio, nats, summed with a floor at 0: a CUSUM),
+    the face moves on its own (slides, topples) and the tracker follows the measurements
+    alone for the rest of the track. 6.9 = ln 1000: a face riding the belt sets it off less
+    than once in a thousand measurements (tracks last a few dozen); one sliding across the
+    belt at 20 mm/s sets it off within about 0.25 s (0.5 px centre noise at 0.3 m, 30 Hz).
+    0.1 to 100."""
     grasp_dwell: float = 0.06
     """Time the suction is on before lifting, s; 0 to 2 s (a vacuum cup seals in tens to a
     few hundred milliseconds)."""

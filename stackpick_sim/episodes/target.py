@@ -19,7 +19,11 @@ Noise (documented in :mod:`stackpick_sim.estimation.kalman`): the belt's speed i
 every ``conveyor.jitter_period`` s with std ``conveyor.speed_jitter``; a speed jumping by
 ``sigma sqrt(2)`` every ``T`` s diffuses like white acceleration of density
 ``2 sigma^2 / T`` (:func:`belt_accel_psd` with ``tau = T``). R is the detector's pixel noise
-mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (image).
+mapped through the plane back-projection Jacobian (belt) or ``sigma_px^2 I`` (image). The
+belt frame holds the belt's nominal velocity as a prior: fused with the two-point start,
+then relaxed towards between measurements unless the measurements show the face moving on
+its own (``episode.belt_velocity_std``, ``belt_velocity_time``, ``belt_velocity_evidence``;
+:class:`~stackpick_sim.estimation.kalman.TrackerConfig`).
 """
 
 from __future__ import annotations
@@ -69,12 +73,6 @@ FACE_Z_WINDOW = 9
 #: on the belt or settle in its pile, which the configured jitter does not cover.
 #: Placeholder, not identified.
 MIN_SPEED_JITTER = 5e-4
-#: Std of an object's velocity about the belt's nominal one when the track starts, m/s: the
-#: belt's own speed noise is ~2 mm/s (paper scene), but an object can creep or settle in its
-#: pile (+20 mm/s measured on the paper scene). Placeholder, not identified. The two-point start
-#: alone gives ~20 mm/s (0.5 px centre noise a frame apart); two different ellipses of one
-#: face in the first two frames (3 mm apart) give 90 mm/s.
-BELT_VELOCITY_PRIOR_STD = 0.01
 #: Fastest plausible image speed of a face, px/s, for the image frame's two-point start
 #: (the camera's motion is compensated; 1 m/s at the closest ~0.05 m depth, f ~ 290 px).
 IMAGE_MAX_SPEED = 6000.0
@@ -196,7 +194,9 @@ class TargetEstimator:
             config = TrackerConfig.belt(
                 depth=cfg.camera.look_height, focal_px=focal, pixel_std=self.pixel_std,
                 accel_psd=self._accel_psd, prior_velocity=(0.0, cfg.conveyor.speed),
-                prior_velocity_std=max(cfg.conveyor.speed_jitter, BELT_VELOCITY_PRIOR_STD))
+                prior_velocity_std=max(cfg.conveyor.speed_jitter, cfg.episode.belt_velocity_std),
+                prior_velocity_time=cfg.episode.belt_velocity_time,
+                prior_velocity_evidence=cfg.episode.belt_velocity_evidence)
         else:  # q in px^2/s^3 at the look depth; each step rescales it to its own depth
             scale = focal / cfg.camera.look_height
             config = TrackerConfig.image(accel_psd=self._accel_psd * scale**2,

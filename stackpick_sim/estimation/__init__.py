@@ -17,6 +17,7 @@ from stackpick_sim.estimation.kalman import (
     UpdateResult,
     belt_accel_psd,
     process_noise,
+    relaxed_transition,
     transition,
 )
 from stackpick_sim.exceptions import EstimationError
@@ -35,6 +36,7 @@ __all__ = [
     "plane_backprojection_jacobian",
     "process_noise",
     "project_to_pixels",
+    "relaxed_transition",
     "transfer_via_plane",
     "transition",
 ]

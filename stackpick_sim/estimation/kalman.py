@@ -48,6 +48,9 @@ BELT_JITTER_TIME = 0.5
 PIXEL_NOISE_STD = 0.5
 #: Mahalanobis gate, chi^2 with 2 dof at 99.9 %: a true measurement is rejected once in 1000.
 GATE_CHI2 = 13.8155
+#: Log-likelihood ratio (nats) past which the measurements say an object left its prior
+#: velocity: ln 1000, one false alarm in about a thousand measurements of a true prior.
+PRIOR_EVIDENCE = 6.9
 #: Reason prefix of a two-point start refused because the pair's velocity disagrees with the
 #: prior velocity: the newer measurement is kept as the next start's first.
 PRIOR_RESTART = "initialising: pair off the prior velocity"
@@ -80,6 +83,17 @@ class TrackerConfig:
     of known speed): fused with the velocity of every two-point start, restarts included.
     A first pair whose velocity lies outside ``gate_chi2`` of it (the pair's covariance plus
     the prior's) is not used: one of the two was not the face; the older is dropped.
+
+    ``prior_velocity_time`` (s, 0: off) keeps the prior after the start: between
+    measurements the velocity's deviation from ``prior_velocity`` relaxes towards zero with
+    this time constant (an object carried by the belt, whose own motion -- settling in its
+    pile, a nudge -- dies out), so a velocity that measurement bias pulled off the prior
+    does not carry on into a blind extrapolation, and a few biased measurements in a row
+    are gated out rather than taken for a changed motion. An innovation test keeps it from
+    gluing an object that truly moves on its own: a second filter runs on the same
+    measurements without the relaxation; once the measurements are
+    ``prior_velocity_evidence`` (nats, log-likelihood ratio, summed with a floor at 0: a
+    CUSUM) more likely under it, the tracker is that filter for the rest of the track.
     """
 
     frame: TrackerFrame = "belt"
@@ -90,6 +104,8 @@ class TrackerConfig:
     max_consecutive_rejections: int = MAX_CONSECUTIVE_REJECTIONS
     prior_velocity: tuple[float, float] | None = None
     prior_velocity_std: float = 0.0
+    prior_velocity_time: float = 0.0
+    prior_velocity_evidence: float = PRIOR_EVIDENCE
 
     def __post_init__(self) -> None:
         if self.frame not in ("belt", "image"):
@@ -105,21 +121,29 @@ class TrackerConfig:
                 and np.isfinite(self.prior_velocity_std) and self.prior_velocity_std > 0.0):
             raise ConfigError(f"need a finite (vx, vy) prior_velocity and prior_velocity_std "
                               f"> 0; got {self.prior_velocity}, {self.prior_velocity_std}")
+        if not (self.prior_velocity_time >= 0.0 and self.prior_velocity_evidence > 0.0):
+            raise ConfigError(f"need prior_velocity_time >= 0 s and prior_velocity_evidence > "
+                              f"0; got {self.prior_velocity_time}, "
+                              f"{self.prior_velocity_evidence}")
 
     @classmethod
     def belt(cls, *, depth: float, focal_px: float, pixel_std: float = PIXEL_NOISE_STD,
              accel_psd: float | None = None, max_speed: float = 1.0,
              prior_velocity: tuple[float, float] | None = None,
-             prior_velocity_std: float = 0.0) -> TrackerConfig:
+             prior_velocity_std: float = 0.0, prior_velocity_time: float = 0.0,
+             prior_velocity_evidence: float = PRIOR_EVIDENCE) -> TrackerConfig:
         """Belt-frame config: R from ``pixel_std`` px at ``depth`` m and focal ``focal_px`` px.
 
         ``accel_psd`` defaults to :func:`belt_accel_psd` (m^2/s^3); ``max_speed`` m/s;
-        ``prior_velocity`` (m/s) e.g. the belt's, with ``prior_velocity_std`` m/s.
+        ``prior_velocity`` (m/s) e.g. the belt's, with ``prior_velocity_std`` m/s, held with
+        ``prior_velocity_time`` s under the test ``prior_velocity_evidence`` (see the class).
         """
         q = belt_accel_psd() if accel_psd is None else accel_psd
         return cls(frame="belt", accel_psd=q, measurement_std=pixel_std * depth / focal_px,
                    max_speed=max_speed, prior_velocity=prior_velocity,
-                   prior_velocity_std=prior_velocity_std)
+                   prior_velocity_std=prior_velocity_std,
+                   prior_velocity_time=prior_velocity_time,
+                   prior_velocity_evidence=prior_velocity_evidence)
 
     @classmethod
     def image(cls, *, accel_psd: float, pixel_std: float = PIXEL_NOISE_STD,
@@ -156,6 +180,23 @@ def transition(dt: float) -> FloatArray:
     return f
 
 
+def relaxed_transition(dt: float, prior_velocity: FloatArray,
+                       time: float) -> tuple[FloatArray, FloatArray]:
+    """(4, 4) F and (4,) offset c over ``dt`` s of a velocity relaxing to ``prior_velocity``.
+
+    The velocity's deviation ``u`` from the (2,) prior decays as ``exp(-t / time)`` (``time``
+    s > 0): ``v' = v_p + a u`` and ``x' = x + v_p dt + time (1 - a) u`` with
+    ``a = exp(-dt / time)``; the state moves as ``s' = F s + c``.
+    """
+    a = float(np.exp(-dt / time))
+    b = time * (1.0 - a)
+    f = np.eye(4)
+    f[0, 2] = f[1, 3] = b
+    f[2, 2] = f[3, 3] = a
+    vp = np.asarray(prior_velocity, dtype=float).reshape(2)
+    return f, np.concatenate([(dt - b) * vp, (1.0 - a) * vp])
+
+
 def process_noise(dt: float, accel_psd: float) -> FloatArray:
     """(4, 4) Q over ``dt`` s for white acceleration of density ``accel_psd`` on each axis."""
     q = np.zeros((4, 4))
@@ -169,6 +210,14 @@ def process_noise(dt: float, accel_psd: float) -> FloatArray:
 _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
+def _innovation(kf: KalmanFilter, z: FloatArray, r: FloatArray) -> tuple[float, float]:
+    """Squared Mahalanobis distance of measurement ``z`` (2,) from ``kf``'s predicted one
+    (covariance R ``r``), and the log-determinant of the innovation covariance."""
+    innovation = z - _H @ kf.x.reshape(4)
+    s = _H @ kf.P @ _H.T + r
+    return float(innovation @ np.linalg.solve(s, innovation)), float(np.linalg.slogdet(s)[1])
+
+
 class ConstantVelocityTracker:
     """filterpy KalmanFilter with irregular dt, two-point start, gating and lost-track count."""
 
@@ -176,6 +225,18 @@ class ConstantVelocityTracker:
         self.config = config
         self._kf = KalmanFilter(dim_x=4, dim_z=2)
         self._kf.H = _H.copy()
+        self._free: KalmanFilter | None = None
+        """With a held prior (``prior_velocity_time``): the same filter without the
+        relaxation, for the innovation test."""
+        if config.prior_velocity is not None and config.prior_velocity_time > 0.0:
+            self._free = KalmanFilter(dim_x=4, dim_z=2)
+            self._free.H = _H.copy()
+        self.on_prior = True
+        """Whether the velocity relaxes to the prior: the innovation test has not failed
+        since the track started, nor has a :meth:`restart` taken a changed motion (always
+        True without a held prior)."""
+        self._evidence = 0.0
+        """The innovation test's CUSUM of log-likelihood ratios (:meth:`_test_prior`)."""
         self._default_r = np.eye(2) * config.measurement_std**2
         self._first: tuple[float, FloatArray, FloatArray] | None = None
         self._time: float | None = None
@@ -211,18 +272,51 @@ class ConstantVelocityTracker:
         dt = t - self._time
         if dt < 0.0:
             return UpdateResult(False, f"stale: captured at {t:.4f} s, state at {self._time:.4f} s")
-        self._kf.predict(F=transition(dt), Q=process_noise(dt, self.config.accel_psd))
+        self._predict(dt, self.config.accel_psd)
         self._time = t
-        innovation = zv - _H @ self._kf.x.reshape(4)
-        s = _H @ self._kf.P @ _H.T + rv
-        d2 = float(innovation @ np.linalg.solve(s, innovation))
+        d2, log_det = _innovation(self._kf, zv, rv)
+        if self._free is not None:
+            d2_free, log_det_free = _innovation(self._free, zv, rv)
+            if d2_free <= self.config.gate_chi2:
+                self._free.update(zv.reshape(2, 1), R=rv)
+                if self.on_prior:
+                    self._test_prior(0.5 * (d2 + log_det - d2_free - log_det_free))
+            if not self.on_prior:  # off the prior the tracker is the free filter
+                self._kf.x, self._kf.P = self._free.x.copy(), self._free.P.copy()
+                d2 = d2_free
         if d2 > self.config.gate_chi2:
             self.consecutive_rejections += 1
             return UpdateResult(False, f"gated: Mahalanobis^2 {d2:.1f} > {self.config.gate_chi2}",
                                 d2)
-        self._kf.update(zv.reshape(2, 1), R=rv)
+        if self.on_prior or self._free is None:
+            self._kf.update(zv.reshape(2, 1), R=rv)
         self.consecutive_rejections = 0
         return UpdateResult(True, "fused", d2)
+
+    def _predict(self, dt: float, accel_psd: float) -> None:
+        """Both filters forward by ``dt`` s >= 0; the tracker's relaxes to the prior while
+        :attr:`on_prior`."""
+        q = process_noise(dt, accel_psd)
+        if self._free is None:
+            self._kf.predict(F=transition(dt), Q=q)
+            return
+        self._free.predict(F=transition(dt), Q=q)
+        if self.on_prior:
+            assert self.config.prior_velocity is not None
+            f, c = relaxed_transition(dt, np.asarray(self.config.prior_velocity),
+                                      self.config.prior_velocity_time)
+            self._kf.predict(u=c.reshape(4, 1), B=np.eye(4), F=f, Q=q)
+        else:
+            self._kf.predict(F=transition(dt), Q=q)
+
+    def _test_prior(self, log_ratio: float) -> None:
+        """The innovation test of the held prior (a CUSUM, Page 1954): ``log_ratio`` is how
+        much less likely the latest measurement is under the filter held to the prior than
+        under the free one; summed, floored at 0, past ``prior_velocity_evidence`` the object
+        moves on its own: the tracker takes the free state, for the rest of the track."""
+        assert self._free is not None
+        self._evidence = max(0.0, self._evidence + log_ratio)
+        self.on_prior = self._evidence <= self.config.prior_velocity_evidence
 
     def advance(self, t: float, accel_psd: float | None = None) -> bool:
         """Predict the state forward to ``t`` s without a measurement; False if ``t`` is older.
@@ -235,8 +329,7 @@ class ConstantVelocityTracker:
         dt = t - self._time
         if dt < 0.0:
             return False
-        q = self.config.accel_psd if accel_psd is None else accel_psd
-        self._kf.predict(F=transition(dt), Q=process_noise(dt, q))
+        self._predict(dt, self.config.accel_psd if accel_psd is None else accel_psd)
         self._time = t
         return True
 
@@ -256,6 +349,10 @@ class ConstantVelocityTracker:
         self._kf.x = np.concatenate([np.asarray(position, dtype=float).reshape(2),
                                      j @ x[2:]]).reshape(4, 1)
         self._kf.P = t @ self._kf.P @ t.T
+        if self._free is not None:
+            xf = self._free.x.reshape(4)
+            self._free.x = np.concatenate([self._kf.x.reshape(4)[:2], j @ xf[2:]]).reshape(4, 1)
+            self._free.P = t @ self._free.P @ t.T
 
     def restart(self, t0: float, z0: FloatArray, r0: FloatArray, t1: float, z1: FloatArray,
                 r1: FloatArray) -> UpdateResult:
@@ -269,21 +366,33 @@ class ConstantVelocityTracker:
         self.consecutive_rejections = 0
         self._initialise(t0, np.asarray(z0, dtype=float), np.asarray(r0, dtype=float))
         # The caller has checked the pair (three collinear detections, or the image frame's
-        # own start): it is the new motion even when the belt's prior disagrees.
-        return self._initialise(t1, np.asarray(z1, dtype=float), np.asarray(r1, dtype=float),
-                                check_prior=False)
+        # own start): it is the new motion even when the belt's prior disagrees, and a held
+        # prior is not held on to for the rest of the track.
+        result = self._initialise(t1, np.asarray(z1, dtype=float), np.asarray(r1, dtype=float),
+                                  check_prior=False)
+        if self._free is not None and result:
+            self._free.x, self._free.P = self._kf.x.copy(), self._kf.P.copy()
+            self.on_prior = False
+        return result
 
     def predict_at(self, t: float) -> Prediction:
         """Position, velocity and covariance extrapolated to ``t`` s (Eq. 4); no state change.
 
-        ``t`` may be before the last measurement (extrapolating backwards). Raises
+        Forward, a velocity held to the prior (:attr:`on_prior`) relaxes towards it as in
+        :func:`relaxed_transition`. ``t`` may be before the last measurement (extrapolating
+        backwards, at constant velocity). Raises
         EstimationError before initialisation.
         """
         if self._time is None:
             raise EstimationError("predict_at needs an initialised tracker (two measurements)")
-        f = transition(t - self._time)
-        x = f @ self._kf.x.reshape(4)
-        p = f @ self._kf.P @ f.T + process_noise(abs(t - self._time), self.config.accel_psd)
+        dt = t - self._time
+        f, c = transition(dt), np.zeros(4)
+        if self._free is not None and self.on_prior and dt > 0.0:
+            assert self.config.prior_velocity is not None
+            f, c = relaxed_transition(dt, np.asarray(self.config.prior_velocity),
+                                      self.config.prior_velocity_time)
+        x = f @ self._kf.x.reshape(4) + c
+        p = f @ self._kf.P @ f.T + process_noise(abs(dt), self.config.accel_psd)
         return Prediction(x[:2].copy(), x[2:].copy(), p)
 
     def _initialise(self, t: float, z: FloatArray, r: FloatArray, *,
@@ -326,6 +435,7 @@ class ConstantVelocityTracker:
                 return UpdateResult(False, f"{PRIOR_RESTART}: implied {np.round(v, 4)}, prior "
                                            f"{prior_v}, Mahalanobis^2 {d2:.1f} > "
                                            f"{self.config.gate_chi2}; restarted from this one")
+        measured = (np.concatenate([z, v]), p.copy())  # the free filter's start: no prior
         if prior_v is not None:
             # Two detections a frame apart give the speed to ~20 mm/s (belt frame); the belt
             # knows it far better. A velocity measurement, fused once.
@@ -338,6 +448,11 @@ class ConstantVelocityTracker:
             z, v = x[:2], x[2:]
         self._kf.x = np.concatenate([z, v]).reshape(4, 1)
         self._kf.P = p
+        if self._free is not None:
+            self._free.x = measured[0].reshape(4, 1)
+            self._free.P = measured[1]
+            self.on_prior = True
+            self._evidence = 0.0
         self._time = t
         self._first = None
         return UpdateResult(True, "initialised from two measurements")
