@@ -556,15 +556,21 @@ def test_point_distances_match_the_array_form(rng: np.random.Generator) -> None:
     assert np.array_equal(kernels.point_distances(points, cx, cy, a, b, c, s), want)
 
 
+def _pixels_about(rng: np.random.Generator, m: int, cx: float, cy: float, a: float,
+                  b: float, t: float) -> np.ndarray:
+    """(m, 2) int32 pixels scattered about an ellipse (4 px normal noise on each axis of its
+    frame): some within a few pixels' tolerance of it, some not."""
+    c, s = np.cos(t), np.sin(t)
+    phi = rng.uniform(0, 2 * np.pi, m)
+    u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
+    return np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])).astype(np.int32)
+
+
 def test_pair_lies_matches_the_array_form(rng: np.random.Generator) -> None:
     cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
     c, s = np.cos(t), np.sin(t)
     for m in (5, 7, 8, 9, 64, 129, 300, 1001):
-        # Pixels scattered about the ellipse: some within the tolerance, some not.
-        phi = rng.uniform(0, 2 * np.pi, m)
-        u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
-        points = np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
-                         ).astype(np.int32)
+        points = _pixels_about(rng, m, cx, cy, a, b, t)
         n = m // 3
         d = kernels.point_distances(points.astype(np.float64), cx, cy, a, b, c, s)
         want = (float(np.sqrt(np.mean(d * d))), int(np.count_nonzero(d[:n] < 4.0)),
@@ -580,10 +586,7 @@ def test_points_rms_and_chain_hits_match_the_array_forms(rng: np.random.Generato
     cx, cy, a, b, t = 50.0, 40.0, 30.0, 12.0, 0.7
     c, s = np.cos(t), np.sin(t)
     for m in (1, 5, 8, 9, 64, 129, 300, 1001):
-        phi = rng.uniform(0, 2 * np.pi, m)
-        u, v = a * np.cos(phi) + rng.normal(0, 4, m), b * np.sin(phi) + rng.normal(0, 4, m)
-        pixels = np.rint(np.column_stack([cx + c * u - s * v, cy + s * u + c * v])
-                         ).astype(np.int32)
+        pixels = _pixels_about(rng, m, cx, cy, a, b, t)
         owner = np.sort(rng.integers(0, 5, m)).astype(np.int64)
         for points in (pixels, pixels + rng.uniform(-0.5, 0.5, (m, 2))):
             d = kernels.point_distances(points.astype(np.float64), cx, cy, a, b, c, s)
