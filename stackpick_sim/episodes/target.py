@@ -299,26 +299,8 @@ class TargetEstimator:
         shift = None
         if expected is not None and self.correct_centres:
             shift = np.asarray(expected[1] - np.array([expected[0].cx, expected[0].cy]))
-        scored = []
-        for cand in obs.candidates:
-            e = cand.ellipse
-            cut = e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX)
-            if cut and (e is None or expected is None or not self._usable_cut(e)):
-                continue  # a face cut by the image border gives a biased ellipse
-            tolerance = CUT_SIZE_TOLERANCE if cut else SIZE_TOLERANCE
-            if (e is not None and expected is not None
-                    and abs(e.a - expected[0].a) > tolerance * expected[0].a):
-                continue  # not the tracked face's size: a smaller face, a wall, a fragment
-            # Before the filter is set the normal is one view's (two-fold ambiguous): a
-            # candidate with a pose of its own keeps its own centre.
-            if (shift is not None and cand.ellipse is not None
-                    and (self.tracker.initialised or cand.centre_cam is None)):
-                cand = replace(cand, pixel=np.array([cand.ellipse.cx, cand.ellipse.cy]) + shift)
-            try:
-                z = self._measurement(obs, cand.pixel)
-            except EstimationError:
-                continue
-            scored.append((float(np.linalg.norm(z - predicted)), cut, cand))
+        scored = [score for cand in obs.candidates
+                  if (score := self._scored(obs, cand, expected, shift, predicted)) is not None]
         if not scored:
             return False
         distance, cut, best = min(scored, key=lambda s: s[0])
@@ -330,6 +312,35 @@ class TargetEstimator:
             self.missed_last = True
             return False  # another object's face: neither a measurement nor a rejection
         return self._fuse(obs, best, CUT_STD_FACTOR * self.pixel_std if cut else None)
+
+    def _scored(self, obs: Observation, cand: Candidate,
+                expected: tuple[Ellipse, FloatArray] | None, shift: FloatArray | None,
+                predicted: FloatArray) -> tuple[float, bool, Candidate] | None:
+        """``cand``'s distance from the ``predicted`` measurement, whether the image border
+        cuts its ellipse, and the candidate as measured (its centre moved by ``shift``, px,
+        to the image of the face centre); None if it cannot be the tracked face.
+
+        ``expected``: the tracked face's ellipse and centre pixel in ``obs``
+        (:meth:`expected_ellipse`), or None.
+        """
+        e = cand.ellipse
+        cut = e is not None and not ellipse_inside(e, self.k, EDGE_MARGIN_PX)
+        if cut and (e is None or expected is None or not self._usable_cut(e)):
+            return None  # a face cut by the image border gives a biased ellipse
+        tolerance = CUT_SIZE_TOLERANCE if cut else SIZE_TOLERANCE
+        if (e is not None and expected is not None
+                and abs(e.a - expected[0].a) > tolerance * expected[0].a):
+            return None  # not the tracked face's size: a smaller face, a wall, a fragment
+        # Before the filter is set the normal is one view's (two-fold ambiguous): a
+        # candidate with a pose of its own keeps its own centre.
+        if (shift is not None and e is not None
+                and (self.tracker.initialised or cand.centre_cam is None)):
+            cand = replace(cand, pixel=np.array([e.cx, e.cy]) + shift)
+        try:
+            z = self._measurement(obs, cand.pixel)
+        except EstimationError:
+            return None
+        return float(np.linalg.norm(z - predicted)), cut, cand
 
     def expected_ellipse(self, obs: Observation) -> tuple[Ellipse, FloatArray] | None:
         """The tracked face as ``obs``'s camera should see it: its ellipse and the (2,) pixel
