@@ -200,6 +200,17 @@ def test_outline_tracking_settings_reach_the_search() -> None:
     assert "\n" not in str(err.value)
 
 
+def _face_over_wall(face: Ellipse, wall: np.ndarray, wall_rgb: tuple[int, int, int],
+                    face_rgb: tuple[int, int, int]) -> np.ndarray:
+    """A dark frame with the (N, 2) wall pixels painted 3 px wide in ``wall_rgb`` and
+    ``face`` over them in ``face_rgb``."""
+    image = np.full((*SHAPE, 3), 30, np.uint8)
+    for u, v in np.rint(wall).astype(int):
+        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = wall_rgb
+    image[face.mask(SHAPE)] = face_rgb
+    return image
+
+
 def test_the_wall_band_test_follows_its_brightness_margin() -> None:
     # A face tilted 20 deg over a "wall" as bright as the face itself: a wall of a face
     # tilted 20 deg is at most tan(20 deg) + margin = 0.66 as bright, unless the margin
@@ -207,12 +218,9 @@ def test_the_wall_band_test_follows_its_brightness_margin() -> None:
     face = project_circle(np.array([0.0, 0.0, 0.28]), normal_from_tilt(20.0, 0.0), 0.035, K)
     sol = circle_poses(face, K, 1.0)[0]
     band = band_points(sol.normal_cam, sol.centre_cam, face, K)
-    image = np.full((*SHAPE, 3), 30, np.uint8)
-    orange = np.array([217, 153, 64], np.uint8)
-    for u, v in np.rint(band).astype(int):
-        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = orange
-    image[face.mask(SHAPE)] = orange
-    colour = orange.astype(np.float64)
+    orange = (217, 153, 64)
+    image = _face_over_wall(face, band, orange, orange)
+    colour = np.array(orange, np.float64)
     strict = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour)
     loose = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour,
                           params=PoseParams(band_brightness_margin=2.0))
@@ -268,10 +276,7 @@ def test_the_wall_band_follows_its_depths_and_margin() -> None:
     # A wall drawn from the face's rim to 0.7 radii deep, at a wall's brightness.
     deep = band_points(sol.normal_cam, sol.centre_cam, face, K,
                        tuple(np.linspace(0.05, 0.7, 14)), 0.0)
-    image = np.full((*SHAPE, 3), 30, np.uint8)
-    for u, v in np.rint(deep).astype(int):
-        image[max(0, v - 1):v + 2, max(0, u - 1):u + 2] = (109, 77, 32)
-    image[face.mask(SHAPE)] = (217, 153, 64)
+    image = _face_over_wall(face, deep, (109, 77, 32), (217, 153, 64))
     colour = np.array([217.0, 153.0, 64.0])
     on = wall_evidence(sol.normal_cam, sol.centre_cam, face, K, image, colour)
     assert on.samples > 0 and on.share > 0.8
