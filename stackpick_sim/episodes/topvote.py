@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.episodes.sensing import Candidate, Observation
 from stackpick_sim.episodes.target import ASSOCIATION_MAX
-from stackpick_sim.geometry import Ellipse
+from stackpick_sim.geometry import Ellipse, plane_basis
 
 FloatArray = NDArray[np.float64]
 
@@ -100,10 +100,7 @@ DISC_SPOKES = 12
 
 def disc_points(d: Disc) -> FloatArray:
     """(N, 3) points on disc ``d``: its centre and DISC_RINGS rings of DISC_SPOKES."""
-    n = d.normal / float(np.linalg.norm(d.normal))
-    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= float(np.linalg.norm(u))
-    v = np.cross(n, u)
+    u, v = plane_basis(d.normal)
     ang = np.linspace(0.0, 2.0 * np.pi, DISC_SPOKES, endpoint=False)
     rings = [d.centre + d.radius * f * (np.outer(np.cos(ang), u) + np.outer(np.sin(ang), v))
              for f in DISC_RINGS]
