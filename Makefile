@@ -50,6 +50,7 @@ browser:
 	  fi; }
 
 demo: $(STAMP) gl-check
+	rm -rf $(DEMO_OUT)
 	$(BIN)/stackpick run --scene paper --seeds 0:10 --out $(DEMO_OUT) --quiet
 
 # Lint and the gate run first so that pytest's summary stays the last line of the output.
