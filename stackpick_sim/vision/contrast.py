@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import TopParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import fit_ellipse
 
@@ -185,8 +185,13 @@ class Outlines:
         return index
 
 
-def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
-    """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
+def outline_rows(ellipses: Sequence[Ellipse]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
+                            NDArray[np.float64], tuple[float, float, float, float]]:
+    """What the compiled passes over the :func:`outline` samples of several ellipses take:
+    (E, 6) rows (cx, cy, a, b and the angle's cosine and sine), the (E,) sample counts, the
+    cosines and sines of every sample's parameter (ellipse by ellipse) and the ellipses'
+    bounding box (as :attr:`Outlines.box`)."""
     rows, sizes = [], []
     u0 = v0 = math.inf
     u1 = v1 = -math.inf
@@ -198,17 +203,64 @@ def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
         hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
         u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
         u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
-    offsets = np.zeros(len(sizes) + 1, np.int64)
-    np.cumsum(sizes, out=offsets[1:])
     tables = [unit_circle(k) for k in sizes]
+    return (np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
+            np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
+            np.concatenate([t[1] for t in tables]) if tables else np.zeros(0),
+            (u0, v0, u1, v1))
+
+
+def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
+    """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
+    rows, sizes, ct, st, box = outline_rows(ellipses)
+    offsets = np.zeros(sizes.shape[0] + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
     # Points cx + c x - s y, cy + s x + c y (x = a cos t, y = b sin t) and the unit normals
     # of the implicit form's gradient (b cos t, a sin t), rotated: one compiled pass, as
     # (2, N) arrays (the (N, 2) views below have contiguous columns).
-    pts, normals = kernels.outline_samples(
-        np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
-        np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
-        np.concatenate([t[1] for t in tables]) if tables else np.zeros(0))
-    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
+    pts, normals = kernels.outline_samples(rows, sizes, ct, st)
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=box)
+
+
+#: The window's shifts along the outline, in :attr:`Outlines.window`'s row order.
+_SHIFTS = np.array([0, *range(-(WINDOW_SAMPLES // 2), 0), *range(1, WINDOW_SAMPLES // 2 + 1)],
+                   np.int64)
+
+
+@dataclass(frozen=True, kw_only=True)
+class OutlineSupport:
+    """Which outline samples of several ellipses show a consistent edge
+    (:func:`outline_support`).
+
+    ``points``: (N, 2) samples (:attr:`Outlines.points`); ``offsets``: (E + 1,) ellipse e
+    owns samples ``offsets[e]:offsets[e + 1]``; ``counts``: (E,) samples per ellipse;
+    ``ok``: (N,) the samples that reach the threshold; ``supported``: (E,) how many of each
+    ellipse's do; ``firsts``, ``lasts``: ascending, the first and last samples of the runs of
+    samples that do not (cyclic along each outline)."""
+
+    points: NDArray[np.float64]
+    offsets: NDArray[np.int64]
+    counts: NDArray[np.int64]
+    ok: NDArray[np.bool_]
+    supported: NDArray[np.int64]
+    firsts: NDArray[np.int64]
+    lasts: NDArray[np.int64]
+
+
+def outline_support(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
+                                NDArray[np.float64]], image: EdgeImage) -> OutlineSupport:
+    """:func:`contrast_support` of every outline of the ellipses of ``rows``
+    (:func:`outline_rows`' first four values) in one compiled pass (kernels_pose.
+    outline_support: the samples of :func:`outlines`, the profile of
+    :func:`contrast_profiles`, the same values), with the runs of unsupported samples."""
+    table, sizes, ct, st = rows
+    offsets = np.zeros(sizes.shape[0] + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    pts, ok, supported, firsts, lasts = kernels_pose.outline_support(
+        table, sizes, ct, st, image.gx, image.gy, _OFFSETS, _SHIFTS, SOBEL_GAIN,
+        contrast_threshold(image))
+    return OutlineSupport(points=pts.T, offsets=offsets, counts=sizes, ok=ok,
+                          supported=supported, firsts=firsts, lasts=lasts)
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:

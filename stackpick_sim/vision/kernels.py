@@ -1716,3 +1716,6 @@ def warm_up() -> None:
     from stackpick_sim.vision import kernels_top  # the top rule's kernels (imports this one)
 
     kernels_top.warm_up()
+    from stackpick_sim.vision import kernels_pose  # the evidence's and pose's passes (too)
+
+    kernels_pose.warm_up()

@@ -58,11 +58,11 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import (
-    contrast_profiles,
-    contrast_threshold,
-    outlines,
+    OutlineSupport,
+    outline_rows,
+    outline_support,
     refit_on_contrast,
 )
 from stackpick_sim.vision.edges import EdgeImage
@@ -172,41 +172,59 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     """
     if not ellipses:
         return ()
-    lines = outlines(ellipses)
-    samples = lines.points
-    if gradients is not None:
-        ok = contrast_profiles(lines, gradients) >= contrast_threshold(gradients)
-    else:
-        assert support is not None
-        pix = np.rint(samples).astype(np.int64)
-        h, w = support.shape
-        inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
-        ok = np.zeros(pix.shape[0], bool)
-        ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
+    rows = outline_rows(ellipses)
+    table = rows[0]
+    lines = _support_along(rows[:4], support, gradients)
     n_e = len(ellipses)
     # Any order of the pixels gives the same evidence: row-major, as the counts need.
     edge_points, keys, width = _row_major(edge_points)
-    interior = _interior_counts(ellipses, keys, width, params.interior_margin_px)
+    interior = kernels_pose.interior_counts_of(table, params.interior_margin_px,
+                                               np.ascontiguousarray(keys, np.float64),
+                                               width).tolist()
     counts = lines.counts
-    support_share = (np.add.reduceat(ok, lines.offsets[:-1], dtype=np.int64) / counts).tolist()
+    support_share = (lines.supported / counts).tolist()
     # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
     # frame: paired on Python ints).
-    unsupported = ~ok
-    firsts = (unsupported & ok[lines.window[2]]).nonzero()[0].tolist()  # sample before: ok
+    firsts = lines.firsts.tolist()
     sizes = counts.tolist()
     longest = [0 if supported else n
-               for supported, n in zip(ok[lines.offsets[:-1]].tolist(), sizes, strict=True)]
+               for supported, n in zip(lines.ok[lines.offsets[:-1]].tolist(), sizes, strict=True)]
     occluded_ends = [0] * n_e
     if firsts:
-        lasts = (unsupported & ok[lines.window[3]]).nonzero()[0].tolist()  # sample after: ok
-        ends, owners = _gap_ends(firsts, lasts, lines.offsets.tolist(), longest,
+        ends, owners = _gap_ends(firsts, lines.lasts.tolist(), lines.offsets.tolist(), longest,
                                  params.min_gap_px)
         if ends:
-            for e in _junction_owners(ellipses, np.array(owners), samples[ends],
+            for e in _junction_owners(table, np.array(owners), lines.points[ends],
                                       edge_points, params):
                 occluded_ends[e] += 1
     return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
                      sizes, [params] * n_e))
+
+
+def _support_along(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
+                               NDArray[np.float64]],
+                   support: NDArray[np.uint8] | None, gradients: EdgeImage | None
+                   ) -> OutlineSupport:
+    """Which outline samples of the ellipses of ``rows`` (:func:`~stackpick_sim.vision.
+    contrast.outline_rows`) show an edge: with ``gradients``, a consistent contrast
+    (:func:`~stackpick_sim.vision.contrast.outline_support`), else the (H, W) 0/1
+    ``support`` map at the nearest pixel (none off the map)."""
+    if gradients is not None:
+        return outline_support(rows, gradients)
+    assert support is not None
+    table, sizes, ct, st = rows
+    pts, _ = kernels.outline_samples(table, sizes, ct, st)
+    samples = pts.T
+    pix = np.rint(samples).astype(np.int64)
+    h, w = support.shape
+    inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
+    ok = np.zeros(pix.shape[0], bool)
+    ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
+    offsets = np.zeros(sizes.shape[0] + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    supported, firsts, lasts = kernels_pose.run_ends(ok, sizes)
+    return OutlineSupport(points=samples, offsets=offsets, counts=sizes, ok=ok,
+                          supported=supported, firsts=firsts, lasts=lasts)
 
 
 def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int],
@@ -265,31 +283,23 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
     Row by row: on row v the inside is the open interval of u between the roots of the
     quadratic x^2 + y^2 = 1, and the pixels in it are a range of the keys (two binary
     searches); every (ellipse, row) pair in one array pass."""
-    params, sizes = [], []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        c, s = math.cos(t), math.sin(t)
-        ia = 1.0 / max(e.a - margin_px, 1e-6) ** 2
-        ib = 1.0 / max(e.b - margin_px, 1e-6) ** 2
-        # x^2 + y^2 = p du^2 + q du dv + r dv^2 about the centre.
-        p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
-        half = math.sqrt(p / (p * r - 0.25 * q * q))  # the rows it spans: |dv| <= half
-        first = math.ceil(e.cy - half)
-        params.append((e.cx, e.cy, p, q, r, float(first)))
-        sizes.append(max(0, math.floor(e.cy + half) - first + 1))
-    # Open intervals of u per row, clipped to the keys' columns (an empty one where the
-    # roots are not real), and the keys in each: one compiled pass (kernels.interior_counts).
-    counts = kernels.interior_counts(np.array(params, np.float64).reshape(-1, 6),
-                                     np.array(sizes, np.int64),
-                                     np.ascontiguousarray(keys, np.float64), width)
+    # The shrunk forms, their rows' open intervals of u (clipped to the keys' columns, empty
+    # where the roots are not real) and the keys in each: one compiled pass
+    # (kernels_pose.interior_counts_of: the same arithmetic as the loop on floats).
+    table = np.array([(e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t))
+                      for e in ellipses for t in (math.radians(e.angle_deg),)],
+                     np.float64).reshape(-1, 6)
+    counts = kernels_pose.interior_counts_of(table, margin_px,
+                                             np.ascontiguousarray(keys, np.float64), width)
     return cast("list[int]", counts.tolist())
 
 
-def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
+def _junction_owners(table: NDArray[np.float64], owner: NDArray[np.int64],
                      ends: NDArray[np.float64], edge_points: NDArray[np.float64],
                      params: TopParams) -> list[int]:
-    """The ellipse (``owner``, indices into ``ellipses``) of each gap end
-    (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
+    """The ellipse (``owner``, indices into the (E, 6) ``table`` of the ellipses' cx, cy, a,
+    b and angle's cosine and sine, :func:`~stackpick_sim.vision.contrast.outline_rows`) of
+    each gap end (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
     ``edge_points``, in row-major order) off the ellipse (Sampson distance above
     ``params.off_outline_px``) lies within ``params.junction_radius_px`` of it, and one inside
     the outline by more than ``params.off_outline_px`` within ``params.crossing_reach_px`` of
@@ -302,15 +312,13 @@ def _junction_owners(ellipses: Sequence[Ellipse], owner: NDArray[np.int64],
     # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
     # pixels run into the face). The (end, pixel) tests in one compiled pass
     # (kernels.junction_ends: the same arithmetic as the pairs' array form).
-    rows = []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, math.cos(t), math.sin(t), e.a, e.b,
-                     max(e.a - off, 1e-6), max(e.b - off, 1e-6)))
+    rows = np.empty((table.shape[0], 8))
+    rows[:, 0:2], rows[:, 2:4], rows[:, 4:6] = table[:, 0:2], table[:, 4:6], table[:, 2:4]
+    rows[:, 6:8] = np.maximum(table[:, 2:4] - off, 1e-6)
     both = kernels.junction_ends(
         np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
         np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
-        np.array(rows, np.float64).reshape(-1, 8), float(reach),
+        rows, float(reach),
         float(radius ** 2), float(crossing ** 2), off)
     return cast("list[int]", owner[both].tolist())
 

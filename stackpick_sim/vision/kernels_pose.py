@@ -1,0 +1,126 @@
+"""Compiled passes of the top rule's evidence and the pose (numba; see
+:mod:`~stackpick_sim.vision.kernels` for how kernels are compiled and cached).
+
+Each pass chains kernels of :mod:`~stackpick_sim.vision.kernels` and the array steps between
+them into one call, with the same arithmetic in the same order (so the same values): what it
+saves is the calls, conversions and temporaries between the steps on the few thousand outline
+samples of a frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stackpick_sim.vision import kernels
+from stackpick_sim.vision.kernels import _compiled
+
+
+@_compiled
+def run_ends(ok: NDArray[np.bool_], counts: NDArray[np.int64]
+             ) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                        NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Per outline (``counts[e]`` samples each, concatenated), how many of its samples are
+    ``ok``, and (ascending) the samples not ok whose previous sample along their own outline
+    (cyclic) is ok and those whose next sample is: the first and last samples of the runs of
+    unsupported samples; see :func:`~stackpick_sim.vision.occlusion.evidence_all`."""
+    supported = np.zeros(counts.shape[0], np.int64)
+    n_firsts = n_lasts = 0
+    start = 0
+    for e in range(counts.shape[0]):
+        size = counts[e]
+        for i in range(start, start + size):
+            if ok[i]:
+                supported[e] += 1
+            else:
+                prev = i - 1 if i > start else start + size - 1
+                after = i + 1 if i + 1 < start + size else start
+                n_firsts += ok[prev]
+                n_lasts += ok[after]
+        start += size
+    firsts = np.empty(n_firsts, np.int64)
+    lasts = np.empty(n_lasts, np.int64)
+    n_firsts = n_lasts = 0
+    start = 0
+    for e in range(counts.shape[0]):
+        size = counts[e]
+        for i in range(start, start + size):
+            if not ok[i]:
+                if ok[i - 1 if i > start else start + size - 1]:
+                    firsts[n_firsts] = i
+                    n_firsts += 1
+                if ok[i + 1 if i + 1 < start + size else start]:
+                    lasts[n_lasts] = i
+                    n_lasts += 1
+        start += size
+    return supported, firsts, lasts
+
+
+@_compiled
+def outline_support(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                    ct: NDArray[np.float64], st: NDArray[np.float64],
+                    gx: NDArray[np.int16], gy: NDArray[np.int16],
+                    offsets: NDArray[np.float64], shifts: NDArray[np.int64], gain: float,
+                    threshold: float
+                    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.int64],
+                               NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The outline samples of each ellipse (:func:`~stackpick_sim.vision.kernels.
+    outline_samples`'s arguments), their contrast profile (:func:`~stackpick_sim.vision.
+    kernels.outline_contrasts` over the gradients ``gx``, ``gy`` at the normal ``offsets``,
+    each sample's window the samples ``shifts`` steps along its own outline, cyclic),
+    which samples reach ``threshold`` and :func:`run_ends` of those: (2, N) points, (N,) ok,
+    supported samples per outline, first and last samples of the unsupported runs; see
+    :func:`~stackpick_sim.vision.contrast.outline_support`."""
+    pts, normals = kernels.outline_samples(rows, counts, ct, st)
+    n = ct.shape[0]
+    window = np.empty((shifts.shape[0], n), np.int64)
+    start = 0
+    for e in range(counts.shape[0]):
+        size = counts[e]
+        for r in range(shifts.shape[0]):
+            for i in range(size):
+                window[r, start + i] = start + (i + shifts[r]) % size
+        start += size
+    profile = kernels.outline_contrasts(pts[0], pts[1], normals[0], normals[1], gx, gy,
+                                        offsets, window, gain)
+    ok = profile >= threshold
+    supported, firsts, lasts = run_ends(ok, counts)
+    return pts, ok, supported, firsts, lasts
+
+
+@_compiled
+def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArray[np.float64],
+                       width: int) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.kernels.interior_counts` of the ellipses of (E, 6)
+    ``rows`` (cx, cy, a, b and the angle's cosine and sine) with their semi-axes less
+    ``margin_px``: their shrunk forms and rows first, in the arithmetic of
+    :func:`~stackpick_sim.vision.occlusion._interior_counts`."""
+    n_e = rows.shape[0]
+    params = np.empty((n_e, 6))
+    sizes = np.empty(n_e, np.int64)
+    for e in range(n_e):
+        cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
+        ia = 1.0 / max(a - margin_px, 1e-6) ** 2
+        ib = 1.0 / max(b - margin_px, 1e-6) ** 2
+        p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
+        half = math.sqrt(p / (p * r - 0.25 * q * q))
+        first = math.ceil(cy - half)
+        params[e, 0], params[e, 1], params[e, 2] = cx, cy, p
+        params[e, 3], params[e, 4], params[e, 5] = q, r, float(first)
+        sizes[e] = max(0, math.floor(cy + half) - first + 1)
+    return kernels.interior_counts(params, sizes, keys, width)
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) these kernels for the argument types the detector
+    passes (see :func:`~stackpick_sim.vision.kernels.warm_up`, which calls this)."""
+    col = np.zeros(16)
+    counts = np.array([16], np.int64)
+    img = np.zeros((4, 4), np.int16)
+    rows = np.ones((1, 6))
+    run_ends(np.ones(16, np.bool_), counts)
+    outline_support(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64),
+                    8.0, 1.0)
+    interior_counts_of(rows, 0.5, col, 4)
