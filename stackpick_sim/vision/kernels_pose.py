@@ -59,6 +59,39 @@ def run_ends(ok: NDArray[np.bool_], counts: NDArray[np.int64]
 
 
 @_compiled
+def _strongest_normal(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                      nu: NDArray[np.float64], nv: NDArray[np.float64],
+                      gx: NDArray[np.int16], gy: NDArray[np.int16], offsets: NDArray[np.float64]
+                      ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """Per outline sample (pu, pv) with unit normal (nu, nv): the normal gradient read at the
+    pixel nearest each of the ``offsets`` along the normal (0 off the image), the strongest
+    of them (the first of equals): the first step of :func:`~stackpick_sim.vision.kernels.
+    outline_contrasts` (the same arithmetic)."""
+    h, w = gx.shape
+    n = pu.shape[0]
+    best = np.empty(n)
+    for i in range(n):
+        top = -1.0
+        for k in range(offsets.shape[0]):
+            o = offsets[k]
+            if o == 0.0:
+                qu, qv = pu[i], pv[i]
+            elif o == 1.0:
+                qu, qv = pu[i] + nu[i], pv[i] + nv[i]
+            elif o == -1.0:
+                qu, qv = pu[i] - nu[i], pv[i] - nv[i]
+            else:
+                qu, qv = pu[i] + o * nu[i], pv[i] + o * nv[i]
+            ru, rv = np.rint(qu), np.rint(qv)
+            g = 0.0
+            if 0.0 <= ru < w and 0.0 <= rv < h:  # tested as floats: any value is safe
+                g = gx[np.int64(rv), np.int64(ru)] * nu[i] + gy[np.int64(rv), np.int64(ru)] * nv[i]
+            if k == 0 or abs(g) > top:
+                best[i], top = g, abs(g)
+    return best
+
+
+@_compiled
 def outline_support(rows: NDArray[np.float64], counts: NDArray[np.int64],
                     ct: NDArray[np.float64], st: NDArray[np.float64],
                     gx: NDArray[np.int16], gy: NDArray[np.int16],
@@ -69,22 +102,27 @@ def outline_support(rows: NDArray[np.float64], counts: NDArray[np.int64],
     """The outline samples of each ellipse (:func:`~stackpick_sim.vision.kernels.
     outline_samples`'s arguments), their contrast profile (:func:`~stackpick_sim.vision.
     kernels.outline_contrasts` over the gradients ``gx``, ``gy`` at the normal ``offsets``,
-    each sample's window the samples ``shifts`` steps along its own outline, cyclic),
+    each sample's window the samples ``shifts`` steps along its own outline, cyclic, summed
+    in that order),
     which samples reach ``threshold`` and :func:`run_ends` of those: (2, N) points, (N,) ok,
     supported samples per outline, first and last samples of the unsupported runs; see
     :func:`~stackpick_sim.vision.contrast.outline_support`."""
     pts, normals = kernels.outline_samples(rows, counts, ct, st)
-    n = ct.shape[0]
-    window = np.empty((shifts.shape[0], n), np.int64)
+    best = _strongest_normal(pts[0], pts[1], normals[0], normals[1], gx, gy, offsets)
+    n_rows = shifts.shape[0]
+    profile = np.empty(ct.shape[0])
     start = 0
     for e in range(counts.shape[0]):
         size = counts[e]
-        for r in range(shifts.shape[0]):
-            for i in range(size):
-                window[r, start + i] = start + (i + shifts[r]) % size
-        start += size
-    profile = kernels.outline_contrasts(pts[0], pts[1], normals[0], normals[1], gx, gy,
-                                        offsets, window, gain)
+        stop = start + size
+        for i in range(start, stop):
+            total = 0.0
+            for r in range(n_rows):
+                j = i + shifts[r]
+                j = j + size if j < start else (j - size if j >= stop else j)
+                total = best[j] if r == 0 else total + best[j]
+            profile[i] = abs(total / n_rows) / gain
+        start = stop
     ok = profile >= threshold
     supported, firsts, lasts = run_ends(ok, counts)
     return pts, ok, supported, firsts, lasts
