@@ -151,6 +151,73 @@ def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArra
     return kernels.interior_counts(params, sizes, keys, width)
 
 
+@_compiled
+def _basis(n0: float, n1: float, n2: float
+           ) -> tuple[float, float, float, float, float, float]:  # pragma: no cover - compiled
+    """The in-plane axes u, v of the normal (n0, n1, n2) in the arithmetic of
+    :func:`~stackpick_sim.vision.wall.plane_basis`."""
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
+    if abs(n0) < 0.9:  # helper (1, 0, 0): u = n x e_x
+        u0, u1, u2 = 0.0, n2, -n1
+    else:  # helper (0, 1, 0): u = n x e_y
+        u0, u1, u2 = -n2, 0.0, n0
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    u0, u1, u2 = u0 / un, u1 / un, u2 / un
+    return u0, u1, u2, n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
+
+
+@_compiled
+def _tan_tilt(n0: float, n1: float, n2: float, c0: float, c1: float, c2: float
+              ) -> float:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.wall.tan_tilt` of the normal n and centre c (its
+    arithmetic)."""
+    c_norm = max(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2), 1e-12)
+    n_norm = max(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2), 1e-12)
+    cos_tilt = min(1.0, abs((n0 * c0 + n1 * c1 + n2 * c2) / c_norm) / n_norm)
+    return math.sqrt(max(0.0, 1.0 - cos_tilt * cos_tilt)) / max(cos_tilt, 1e-6)
+
+
+@_compiled
+def wall_hits(solutions: NDArray[np.float64], ct: NDArray[np.float64],
+              st: NDArray[np.float64], depths: NDArray[np.float64],
+              terms: NDArray[np.float64], camera: NDArray[np.float64], margin_px: float,
+              image: NDArray[np.uint8], colour: NDArray[np.float64], settings: NDArray[np.float64],
+              belt: NDArray[np.float64], use_belt: bool
+              ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.kernels.band_hits` of the wall bands of the S unit-radius
+    solutions (S, 2, 3) (normal, centre) of one face (``terms``: its cx, cy, angle's cosine
+    and sine, a, b): their rims (``ct``, ``st``) at the ``depths``
+    (:func:`~stackpick_sim.vision.kernels.band_points`), projected by ``camera`` (fx, fy, cx,
+    cy) and kept more than ``margin_px`` outside the face (:func:`~stackpick_sim.vision.
+    kernels.project_outside`), tested against the face's ``colour``, each solution's
+    :func:`_tan_tilt` plus ``settings[0]`` the brightest a wall may be, ``settings[1:]`` the
+    chroma tolerance, least brightness and belt distance; see
+    :func:`~stackpick_sim.vision.wall.wall_evidences` (the same arithmetic)."""
+    n_s = solutions.shape[0]
+    vectors = np.empty((4, n_s, 3))
+    brightest = np.empty(n_s)
+    for s in range(n_s):
+        n0, n1, n2 = solutions[s, 0, 0], solutions[s, 0, 1], solutions[s, 0, 2]
+        c0, c1, c2 = solutions[s, 1, 0], solutions[s, 1, 1], solutions[s, 1, 2]
+        u0, u1, u2, v0, v1, v2 = _basis(n0, n1, n2)
+        vectors[0, s, 0], vectors[0, s, 1], vectors[0, s, 2] = n0, n1, n2
+        vectors[1, s, 0], vectors[1, s, 1], vectors[1, s, 2] = c0, c1, c2
+        vectors[2, s, 0], vectors[2, s, 1], vectors[2, s, 2] = u0, u1, u2
+        vectors[3, s, 0], vectors[3, s, 1], vectors[3, s, 2] = v0, v1, v2
+        brightest[s] = _tan_tilt(n0, n1, n2, c0, c1, c2) + settings[0]
+    band = kernels.band_points(vectors, ct, st, depths)
+    per = band.shape[2]
+    pu, pv, keep = kernels.project_outside(band.reshape(3, 1, n_s * per), terms, camera[0],
+                                           camera[1], camera[2], camera[3], margin_px)
+    colours = np.empty((n_s, colour.shape[0]))
+    for s in range(n_s):
+        colours[s] = colour
+    return kernels.band_hits(pu.reshape(n_s, per), pv.reshape(n_s, per),
+                             keep.reshape(n_s, per), image, colours, brightest, belt,
+                             use_belt, settings[1], settings[2], settings[3])
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) these kernels for the argument types the detector
     passes (see :func:`~stackpick_sim.vision.kernels.warm_up`, which calls this)."""

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import PoseParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import unit_circle
 
 #: Rim points per depth.
@@ -226,13 +226,23 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
     ``belt`` the bare belt's (or None); the band's depths and margin are ``params``'
     (``wall_depths``, ``wall_margin_px``)."""
-    n_sol = len(solutions)
-    pu, pv, keep = solution_bands(solutions, ellipse, intrinsics, params.wall_depths,
-                                  params.wall_margin_px)
-    colours = np.broadcast_to(face.reshape(1, -1), (n_sol, face.size))
-    return band_evidences(pu.reshape(n_sol, -1), pv.reshape(n_sol, -1),
-                          keep.reshape(n_sol, -1), image, colours,
-                          [tan_tilt(n, c) for n, c in solutions], belt, params)
+    # The bands, their pixels outside the face and the colour test, in one compiled pass
+    # (kernels_pose.wall_hits: solution_bands, then band_evidences' test, the same
+    # arithmetic).
+    pixels = image if image.ndim == 3 else image[:, :, None]
+    c = pixels.shape[2]
+    ct, st = unit_circle(WALL_RIM_POINTS)
+    counts, hits = kernels_pose.wall_hits(
+        np.array([[_floats(n), _floats(x)] for n, x in solutions], np.float64).reshape(-1, 2, 3),
+        ct, st, _depths(params.wall_depths), np.array([_terms(ellipse)], np.float64),
+        np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64),
+        params.wall_margin_px, np.require(pixels, requirements=("C", "W")),
+        np.broadcast_to(np.asarray(face, np.float64).reshape(-1), (c,)).copy(),
+        np.array([params.band_brightness_margin, params.band_chroma_tolerance,
+                  params.band_min_brightness, params.band_belt_delta], np.float64),
+        np.zeros(c) if belt is None else np.broadcast_to(
+            np.asarray(belt, np.float64).reshape(-1), (c,)).copy(), belt is not None)
+    return _evidences(counts, hits)
 
 
 def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
@@ -259,6 +269,11 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
             np.asarray(belt, np.float64).reshape(-1), (c,))),
         belt is not None, params.band_chroma_tolerance, params.band_min_brightness,
         params.band_belt_delta)
+    return _evidences(counts, hits)
+
+
+def _evidences(counts: NDArray[np.int64], hits: NDArray[np.float64]) -> list[WallEvidence]:
+    """The WallEvidence of each band from its sample ``counts`` and ``hits``."""
     return [WallEvidence(samples=int(n), share=float(k / n) if n else 0.0)
             for n, k in zip(counts.tolist(), hits.tolist(), strict=True)]
 
