@@ -230,7 +230,7 @@ _SHIFTS = np.array([0, *range(-(WINDOW_SAMPLES // 2), 0), *range(1, WINDOW_SAMPL
 @dataclass(frozen=True, kw_only=True)
 class OutlineSupport:
     """Which outline samples of several ellipses show a consistent edge
-    (:func:`outline_support`).
+    (:func:`supported_runs`).
 
     ``points``: (N, 2) samples (:attr:`Outlines.points`); ``offsets``: (E + 1,) ellipse e
     owns samples ``offsets[e]:offsets[e + 1]``; ``counts``: (E,) samples per ellipse;
@@ -247,16 +247,16 @@ class OutlineSupport:
     lasts: NDArray[np.int64]
 
 
-def outline_support(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
+def supported_runs(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
                                 NDArray[np.float64]], image: EdgeImage) -> OutlineSupport:
     """:func:`contrast_support` of every outline of the ellipses of ``rows``
     (:func:`outline_rows`' first four values) in one compiled pass (kernels_pose.
-    outline_support: the samples of :func:`outlines`, the profile of
+    contrast_runs: the samples of :func:`outlines`, the profile of
     :func:`contrast_profiles`, the same values), with the runs of unsupported samples."""
     table, sizes, ct, st = rows
     offsets = np.zeros(sizes.shape[0] + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
-    pts, ok, supported, firsts, lasts = kernels_pose.outline_support(
+    pts, ok, supported, firsts, lasts = kernels_pose.contrast_runs(
         table, sizes, ct, st, image.gx, image.gy, _OFFSETS, _SHIFTS, SOBEL_GAIN,
         contrast_threshold(image))
     return OutlineSupport(points=pts.T, offsets=offsets, counts=sizes, ok=ok,

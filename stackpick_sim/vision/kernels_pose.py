@@ -92,7 +92,7 @@ def _strongest_normal(pu: NDArray[np.float64], pv: NDArray[np.float64],
 
 
 @_compiled
-def outline_support(rows: NDArray[np.float64], counts: NDArray[np.int64],
+def contrast_runs(rows: NDArray[np.float64], counts: NDArray[np.int64],
                     ct: NDArray[np.float64], st: NDArray[np.float64],
                     gx: NDArray[np.int16], gy: NDArray[np.int16],
                     offsets: NDArray[np.float64], shifts: NDArray[np.int64], gain: float,
@@ -106,7 +106,7 @@ def outline_support(rows: NDArray[np.float64], counts: NDArray[np.int64],
     in that order),
     which samples reach ``threshold`` and :func:`run_ends` of those: (2, N) points, (N,) ok,
     supported samples per outline, first and last samples of the unsupported runs; see
-    :func:`~stackpick_sim.vision.contrast.outline_support`."""
+    :func:`~stackpick_sim.vision.contrast.supported_runs`."""
     pts, normals = kernels.outline_samples(rows, counts, ct, st)
     best = _strongest_normal(pts[0], pts[1], normals[0], normals[1], gx, gy, offsets)
     n_rows = shifts.shape[0]
@@ -226,6 +226,11 @@ def warm_up() -> None:
     img = np.zeros((4, 4), np.int16)
     rows = np.ones((1, 6))
     run_ends(np.ones(16, np.bool_), counts)
-    outline_support(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64),
+    contrast_runs(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64),
                     8.0, 1.0)
     interior_counts_of(rows, 0.5, col, 4)
+    fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
+    fixed.setflags(write=False)
+    colour = np.ones(3)
+    wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, rows, np.ones(4), 1.0,
+              np.zeros((4, 4, 3), np.uint8), colour, np.ones(4), colour, True)

@@ -62,7 +62,7 @@ from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import (
     OutlineSupport,
     outline_rows,
-    outline_support,
+    supported_runs,
     refit_on_contrast,
 )
 from stackpick_sim.vision.edges import EdgeImage
@@ -207,10 +207,10 @@ def _support_along(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[n
                    ) -> OutlineSupport:
     """Which outline samples of the ellipses of ``rows`` (:func:`~stackpick_sim.vision.
     contrast.outline_rows`) show an edge: with ``gradients``, a consistent contrast
-    (:func:`~stackpick_sim.vision.contrast.outline_support`), else the (H, W) 0/1
+    (:func:`~stackpick_sim.vision.contrast.supported_runs`), else the (H, W) 0/1
     ``support`` map at the nearest pixel (none off the map)."""
     if gradients is not None:
-        return outline_support(rows, gradients)
+        return supported_runs(rows, gradients)
     assert support is not None
     table, sizes, ct, st = rows
     pts, _ = kernels.outline_samples(table, sizes, ct, st)
