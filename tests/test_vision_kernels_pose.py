@@ -118,14 +118,11 @@ def test_the_support_map_path_reads_the_rounded_samples(rng: np.random.Generator
         assert np.array_equal(a, b)
 
 
-def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator) -> None:
-    uv = np.unique(rng.integers(0, 100, (1500, 2)), axis=0)
-    width = 102
-    keys = np.sort(uv[:, 1] * width + uv[:, 0]).astype(np.float64)
-    ellipses = _ellipses(rng, 6, 100.0, 100.0)
-    margin = TopParams().interior_margin_px
+def _shrunk_forms(ellipses: list[Ellipse], margin: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """kernels.interior_counts' (E, 6) forms and row counts, on Python floats."""
     params, sizes = [], []
-    for e in ellipses:  # the shrunk form on Python floats
+    for e in ellipses:
         t = math.radians(e.angle_deg)
         c, s = math.cos(t), math.sin(t)
         ia = 1.0 / max(e.a - margin, 1e-6) ** 2
@@ -135,9 +132,24 @@ def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator
         first = math.ceil(e.cy - half)
         params.append((e.cx, e.cy, p, q, r, float(first)))
         sizes.append(max(0, math.floor(e.cy + half) - first + 1))
-    want = kernels.interior_counts(np.array(params), np.array(sizes, np.int64), keys, width)
+    return np.array(params).reshape(-1, 6), np.array(sizes, np.int64)
+
+
+@pytest.mark.parametrize("pixels", [0, 1, 40, 1500, 6000])
+def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator,
+                                                        pixels: int) -> None:
+    uv = np.unique(rng.integers(0, 100, (pixels, 2)), axis=0).reshape(-1, 2)
+    width = int(uv[:, 0].max()) + 2 if pixels else 0
+    keys = np.sort(uv[:, 1] * width + uv[:, 0]).astype(np.float64)
+    margin = TopParams().interior_margin_px
+    # Random ones, and ones beyond the keys' columns and rows on every side.
+    ellipses = _ellipses(rng, 12, 100.0, 100.0) + [
+        Ellipse.of(cx, cy, 20.0, 12.0, 30.0)
+        for cx, cy in ((300.0, 50.0), (-40.0, 50.0), (50.0, -30.0), (50.0, 130.0))]
+    want = kernels.interior_counts(*_shrunk_forms(ellipses, margin), keys, width)
     got = kernels_pose.interior_counts_of(outline_rows(ellipses)[0], margin, keys, width)
-    assert np.array_equal(got, want) and want.sum() > 0
+    assert np.array_equal(got, want)
+    assert want.sum() > 0 or pixels < 100
 
 
 @pytest.mark.parametrize("belt", [None, (90.0, 90.0, 95.0)])
