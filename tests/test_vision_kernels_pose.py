@@ -3,6 +3,8 @@ they chain (bit-identical)."""
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 import subprocess
 import sys
@@ -20,7 +22,7 @@ from stackpick_sim.vision.contrast import (
     contrast_profiles,
     outline_rows,
     outlines,
-    supported_runs,
+    supported_samples,
 )
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.occlusion import _support_along
@@ -50,57 +52,85 @@ def _image(rng: np.random.Generator) -> EdgeImage:
     return EdgeImage(edges=np.zeros((60, 80), np.uint8), gx=gx, gy=gy, noise=4.0)
 
 
-def _runs_form(ok: np.ndarray, offsets: np.ndarray, window: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Supported samples per outline, first and last samples of the unsupported runs: the
-    array form."""
-    return (np.add.reduceat(ok, offsets[:-1], dtype=np.int64),
-            (~ok & ok[window[2]]).nonzero()[0], (~ok & ok[window[3]]).nonzero()[0])
+def _gap_form(ok: np.ndarray, offsets: list[int], min_gap: int
+              ) -> tuple[list[int], list[int], list[int]]:
+    """Per outline the longest gap, and the ends of the gaps of at least ``min_gap`` samples
+    with their outlines: the runs' first and last samples from the array form, paired by
+    binary search."""
+    n = len(offsets) - 1
+    window = np.concatenate([(np.arange(b - a) + _SHIFTS[:, None]) % (b - a) + a
+                             for a, b in itertools.pairwise(offsets)], axis=1)
+    firsts = (~ok & ok[window[2]]).nonzero()[0].tolist()
+    lasts = (~ok & ok[window[3]]).nonzero()[0].tolist()
+    longest = [0 if ok[offsets[e]] else offsets[e + 1] - offsets[e] for e in range(n)]
+    ends, owners = [], []
+    runs: dict[int, int] = {}
+    for first in firsts:
+        e = bisect.bisect_right(offsets, first) - 1
+        start, stop = offsets[e], offsets[e + 1]
+        j = bisect.bisect_left(lasts, first)
+        last = (lasts[j] if j < len(lasts) and lasts[j] < stop
+                else lasts[bisect.bisect_left(lasts, start)])
+        length = (last - first) % (stop - start) + 1
+        runs[e] = max(runs.get(e, 0), length)
+        if length >= min_gap:
+            ends += [first - 1 if first > start else stop - 1,
+                     last + 1 if last + 1 < stop else start]
+            owners += [e, e]
+    for e, length in runs.items():
+        longest[e] = length
+    return longest, ends, owners
 
 
-def test_contrast_runs_are_the_profile_its_threshold_and_runs(rng: np.random.Generator
-                                                                ) -> None:
+def test_contrast_ok_is_the_profile_over_its_threshold(rng: np.random.Generator) -> None:
     image = _image(rng)
     ellipses = _ellipses(rng, 7)
     lines = outlines(ellipses)
     profile = contrast_profiles(lines, image)
     threshold = float(np.median(profile))
-    ok = profile >= threshold
     table, sizes, ct, st, _ = outline_rows(ellipses)
-    pts, got_ok, supported, firsts, lasts = kernels_pose.contrast_runs(
-        table, sizes, ct, st, image.gx, image.gy, _OFFSETS, _SHIFTS, SOBEL_GAIN, threshold)
+    pts, ok = kernels_pose.contrast_ok(table, sizes, ct, st, image.gx, image.gy, _OFFSETS,
+                                       _SHIFTS, SOBEL_GAIN, threshold)
     assert np.array_equal(pts.T, lines.points)
-    assert np.array_equal(got_ok, ok) and 0 < ok.sum() < ok.size
-    want = _runs_form(ok, lines.offsets, lines.window)
-    for a, b in zip((supported, firsts, lasts), want, strict=True):
-        assert np.array_equal(a, b)
-    assert firsts.size and lasts.size
+    assert np.array_equal(ok, profile >= threshold) and 0 < ok.sum() < ok.size
 
 
-def test_supported_runs_read_the_image_threshold(rng: np.random.Generator) -> None:
+def test_supported_samples_read_the_image_threshold(rng: np.random.Generator) -> None:
     image = _image(rng)
     ellipses = _ellipses(rng, 4)
-    lines = outlines(ellipses)
-    got = supported_runs(outline_rows(ellipses)[:4], image)
-    ok = contrast_profiles(lines, image) >= max(image.params.support_min_contrast,
-                                                image.params.support_noise_multiple * 4.0)
-    assert np.array_equal(got.ok, ok)
-    assert np.array_equal(got.offsets, lines.offsets)
-    assert np.array_equal(got.counts, lines.counts)
+    _, ok = supported_samples(outline_rows(ellipses)[:4], image)
+    want = contrast_profiles(outlines(ellipses), image) >= max(
+        image.params.support_min_contrast, image.params.support_noise_multiple * 4.0)
+    assert np.array_equal(ok, want)
 
 
-def test_run_ends_of_whole_empty_and_wrapping_outlines(rng: np.random.Generator) -> None:
-    counts = np.array([16, 20, 30, 17], np.int64)
-    ok = rng.random(int(counts.sum())) < 0.6
-    ok[:16] = True  # one outline wholly supported
-    ok[16:36] = False  # one wholly unsupported
-    ok[36], ok[65] = False, False  # a run wrapping round the third outline's start
-    offsets = np.concatenate([[0], np.cumsum(counts)])
-    window = np.concatenate([(np.arange(n) + _SHIFTS[:, None]) % n + start
-                             for n, start in zip(counts, offsets[:-1], strict=True)], axis=1)
-    got = kernels_pose.run_ends(ok, counts)
-    for a, b in zip(got, _runs_form(ok, offsets, window), strict=True):
-        assert np.array_equal(a, b)
+@pytest.mark.parametrize("min_gap", [1, 3, 6])
+def test_gap_evidence_is_the_runs_then_the_junction_test(rng: np.random.Generator,
+                                                         min_gap: int) -> None:
+    ellipses = _ellipses(rng, 6)
+    table, sizes, ct, st, _ = outline_rows(ellipses)
+    pts, _ = kernels.outline_samples(table, sizes, ct, st)
+    ok = rng.random(int(sizes.sum())) < 0.75
+    ok[: sizes[0]] = True  # one outline wholly supported, one not
+    ok[sizes[0]: sizes[0] + sizes[1]] = False
+    ok[int(sizes[:3].sum()) - 2:int(sizes[:3].sum()) + 3] = False  # a run over an outline end
+    offsets = [0, *np.cumsum(sizes).tolist()]
+    edges = np.unique(rng.integers(0, 80, (900, 2)), axis=0).astype(np.float64)[:, ::-1]
+    pu, pv = np.ascontiguousarray(edges[:, 0]), np.ascontiguousarray(edges[:, 1])
+    tol, reach, junction, crossing = 0.8, 4.0, 2.0, 4.0
+    supported, longest, occluded = kernels_pose.gap_evidence(
+        ok, sizes, pts, table, pu, pv, min_gap, reach, junction ** 2, crossing ** 2, tol)
+    want_longest, ends, owners = _gap_form(ok, offsets, min_gap)
+    rows = [(cx, cy, c, s, a, b, max(a - tol, 1e-6), max(b - tol, 1e-6))
+            for cx, cy, a, b, c, s in table.tolist()]
+    both = kernels.junction_ends(pu, pv, np.ascontiguousarray(pts.T[ends]),
+                                 np.array(owners, np.int64), np.array(rows).reshape(-1, 8),
+                                 reach, junction ** 2, crossing ** 2, tol)
+    want_occluded = np.bincount(np.array(owners, np.int64)[both], minlength=len(ellipses))
+    assert supported.tolist() == np.add.reduceat(ok, offsets[:-1]).tolist()
+    assert longest.tolist() == want_longest and (ends or min_gap > 3)
+    assert occluded.tolist() == want_occluded.tolist()
+    assert min_gap > 1 or want_occluded.sum() > 0
 
 
 def test_the_support_map_path_reads_the_rounded_samples(rng: np.random.Generator) -> None:
@@ -109,13 +139,10 @@ def test_the_support_map_path_reads_the_rounded_samples(rng: np.random.Generator
     lines = outlines(ellipses)
     pix = np.rint(lines.points).astype(np.int64)
     inside = (pix[:, 0] >= 0) & (pix[:, 0] < 80) & (pix[:, 1] >= 0) & (pix[:, 1] < 60)
-    ok = np.zeros(pix.shape[0], bool)
-    ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
-    got = _support_along(outline_rows(ellipses)[:4], support, None)
-    assert np.array_equal(got.points, lines.points) and np.array_equal(got.ok, ok)
-    for a, b in zip((got.supported, got.firsts, got.lasts),
-                    _runs_form(ok, lines.offsets, lines.window), strict=True):
-        assert np.array_equal(a, b)
+    want = np.zeros(pix.shape[0], bool)
+    want[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
+    pts, ok = _support_along(outline_rows(ellipses)[:4], support, None)
+    assert np.array_equal(pts.T, lines.points) and np.array_equal(ok, want)
 
 
 def _shrunk_forms(ellipses: list[Ellipse], margin: float

@@ -227,40 +227,16 @@ _SHIFTS = np.array([0, *range(-(WINDOW_SAMPLES // 2), 0), *range(1, WINDOW_SAMPL
                    np.int64)
 
 
-@dataclass(frozen=True, kw_only=True)
-class OutlineSupport:
-    """Which outline samples of several ellipses show a consistent edge
-    (:func:`supported_runs`).
-
-    ``points``: (N, 2) samples (:attr:`Outlines.points`); ``offsets``: (E + 1,) ellipse e
-    owns samples ``offsets[e]:offsets[e + 1]``; ``counts``: (E,) samples per ellipse;
-    ``ok``: (N,) the samples that reach the threshold; ``supported``: (E,) how many of each
-    ellipse's do; ``firsts``, ``lasts``: ascending, the first and last samples of the runs of
-    samples that do not (cyclic along each outline)."""
-
-    points: NDArray[np.float64]
-    offsets: NDArray[np.int64]
-    counts: NDArray[np.int64]
-    ok: NDArray[np.bool_]
-    supported: NDArray[np.int64]
-    firsts: NDArray[np.int64]
-    lasts: NDArray[np.int64]
-
-
-def supported_runs(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
-                                NDArray[np.float64]], image: EdgeImage) -> OutlineSupport:
-    """:func:`contrast_support` of every outline of the ellipses of ``rows``
-    (:func:`outline_rows`' first four values) in one compiled pass (kernels_pose.
-    contrast_runs: the samples of :func:`outlines`, the profile of
-    :func:`contrast_profiles`, the same values), with the runs of unsupported samples."""
+def supported_samples(rows: tuple[NDArray[np.float64], NDArray[np.int64],
+                                   NDArray[np.float64], NDArray[np.float64]],
+                      image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The (2, N) :func:`outlines` samples of the ellipses of ``rows`` (:func:`outline_rows`'
+    first four values) and which of them show a consistent edge (:func:`contrast_support`),
+    in one compiled pass (kernels_pose.contrast_ok: the samples of :func:`outlines`, the
+    profile of :func:`contrast_profiles`, the same values)."""
     table, sizes, ct, st = rows
-    offsets = np.zeros(sizes.shape[0] + 1, np.int64)
-    np.cumsum(sizes, out=offsets[1:])
-    pts, ok, supported, firsts, lasts = kernels_pose.contrast_runs(
-        table, sizes, ct, st, image.gx, image.gy, _OFFSETS, _SHIFTS, SOBEL_GAIN,
-        contrast_threshold(image))
-    return OutlineSupport(points=pts.T, offsets=offsets, counts=sizes, ok=ok,
-                          supported=supported, firsts=firsts, lasts=lasts)
+    return kernels_pose.contrast_ok(table, sizes, ct, st, image.gx, image.gy, _OFFSETS,
+                                    _SHIFTS, SOBEL_GAIN, contrast_threshold(image))
 
 
 def contrast_profiles(lines: Outlines, image: EdgeImage) -> NDArray[np.float64]:

@@ -866,7 +866,7 @@ def junction_ends(pu: NDArray[np.float64], pv: NDArray[np.float64],
     among the edge pixels (pu, pv) (rows ascending) within ``reach`` of it one off the
     ellipse (Sampson distance above ``tol_px``) lies within ``junction_sq`` (px^2) of it and
     one off it and inside the inner axes within ``crossing_sq``; see
-    :func:`~stackpick_sim.vision.occlusion._junction_owners` (the same arithmetic)."""
+    :func:`~stackpick_sim.vision.kernels_pose.gap_evidence` (the same arithmetic)."""
     out = np.zeros(ends.shape[0], np.bool_)
     reach_sq = reach * reach
     for k in range(ends.shape[0]):

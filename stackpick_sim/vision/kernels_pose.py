@@ -19,46 +19,6 @@ from stackpick_sim.vision.kernels import _compiled
 
 
 @_compiled
-def run_ends(ok: NDArray[np.bool_], counts: NDArray[np.int64]
-             ) -> tuple[NDArray[np.int64], NDArray[np.int64],
-                        NDArray[np.int64]]:  # pragma: no cover - compiled
-    """Per outline (``counts[e]`` samples each, concatenated), how many of its samples are
-    ``ok``, and (ascending) the samples not ok whose previous sample along their own outline
-    (cyclic) is ok and those whose next sample is: the first and last samples of the runs of
-    unsupported samples; see :func:`~stackpick_sim.vision.occlusion.evidence_all`."""
-    supported = np.zeros(counts.shape[0], np.int64)
-    n_firsts = n_lasts = 0
-    start = 0
-    for e in range(counts.shape[0]):
-        size = counts[e]
-        for i in range(start, start + size):
-            if ok[i]:
-                supported[e] += 1
-            else:
-                prev = i - 1 if i > start else start + size - 1
-                after = i + 1 if i + 1 < start + size else start
-                n_firsts += ok[prev]
-                n_lasts += ok[after]
-        start += size
-    firsts = np.empty(n_firsts, np.int64)
-    lasts = np.empty(n_lasts, np.int64)
-    n_firsts = n_lasts = 0
-    start = 0
-    for e in range(counts.shape[0]):
-        size = counts[e]
-        for i in range(start, start + size):
-            if not ok[i]:
-                if ok[i - 1 if i > start else start + size - 1]:
-                    firsts[n_firsts] = i
-                    n_firsts += 1
-                if ok[i + 1 if i + 1 < start + size else start]:
-                    lasts[n_lasts] = i
-                    n_lasts += 1
-        start += size
-    return supported, firsts, lasts
-
-
-@_compiled
 def _strongest_normal(pu: NDArray[np.float64], pv: NDArray[np.float64],
                       nu: NDArray[np.float64], nv: NDArray[np.float64],
                       gx: NDArray[np.int16], gy: NDArray[np.int16], offsets: NDArray[np.float64]
@@ -92,21 +52,18 @@ def _strongest_normal(pu: NDArray[np.float64], pv: NDArray[np.float64],
 
 
 @_compiled
-def contrast_runs(rows: NDArray[np.float64], counts: NDArray[np.int64],
-                    ct: NDArray[np.float64], st: NDArray[np.float64],
-                    gx: NDArray[np.int16], gy: NDArray[np.int16],
-                    offsets: NDArray[np.float64], shifts: NDArray[np.int64], gain: float,
-                    threshold: float
-                    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.int64],
-                               NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+def contrast_ok(rows: NDArray[np.float64], counts: NDArray[np.int64],
+                ct: NDArray[np.float64], st: NDArray[np.float64],
+                gx: NDArray[np.int16], gy: NDArray[np.int16],
+                offsets: NDArray[np.float64], shifts: NDArray[np.int64], gain: float,
+                threshold: float
+                ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:  # pragma: no cover
     """The outline samples of each ellipse (:func:`~stackpick_sim.vision.kernels.
     outline_samples`'s arguments), their contrast profile (:func:`~stackpick_sim.vision.
     kernels.outline_contrasts` over the gradients ``gx``, ``gy`` at the normal ``offsets``,
     each sample's window the samples ``shifts`` steps along its own outline, cyclic, summed
-    in that order),
-    which samples reach ``threshold`` and :func:`run_ends` of those: (2, N) points, (N,) ok,
-    supported samples per outline, first and last samples of the unsupported runs; see
-    :func:`~stackpick_sim.vision.contrast.supported_runs`."""
+    in that order) and which samples reach ``threshold``: (2, N) points and (N,) ok; see
+    :func:`~stackpick_sim.vision.contrast.supported_samples`."""
     pts, normals = kernels.outline_samples(rows, counts, ct, st)
     best = _strongest_normal(pts[0], pts[1], normals[0], normals[1], gx, gy, offsets)
     n_rows = shifts.shape[0]
@@ -123,9 +80,80 @@ def contrast_runs(rows: NDArray[np.float64], counts: NDArray[np.int64],
                 total = best[j] if r == 0 else total + best[j]
             profile[i] = abs(total / n_rows) / gain
         start = stop
-    ok = profile >= threshold
-    supported, firsts, lasts = run_ends(ok, counts)
-    return pts, ok, supported, firsts, lasts
+    return pts, profile >= threshold
+
+
+@_compiled
+def _gap_ends(ok: NDArray[np.bool_], counts: NDArray[np.int64], min_gap: int
+              ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
+                         NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Per outline (``counts[e]`` samples each, concatenated): how many samples are ``ok``
+    and the longest cyclic run of samples that are not (its whole size when none is); and,
+    run by run in the order of their first samples, the ok samples at both ends of each run
+    of at least ``min_gap`` samples and its outline; see
+    :func:`~stackpick_sim.vision.occlusion.evidence_all`."""
+    n_e = counts.shape[0]
+    supported = np.zeros(n_e, np.int64)
+    longest = np.zeros(n_e, np.int64)
+    ends = np.empty(ok.shape[0] + 1, np.int64)
+    owners = np.empty(ok.shape[0] + 1, np.int64)
+    k = 0
+    start = 0
+    for e in range(n_e):
+        size = counts[e]
+        stop = start + size
+        for i in range(start, stop):
+            supported[e] += ok[i]
+        if supported[e] == 0:
+            longest[e] = size
+        for i in range(start, stop if 0 < supported[e] < size else start):
+            if ok[i] or not ok[i - 1 if i > start else stop - 1]:
+                continue  # not a run's first sample
+            last, length = i, 1
+            while not ok[last + 1 if last + 1 < stop else start]:
+                last = last + 1 if last + 1 < stop else start
+                length += 1
+            longest[e] = max(longest[e], length)
+            if length >= min_gap:
+                ends[k], ends[k + 1] = (i - 1 if i > start else stop - 1,
+                                        last + 1 if last + 1 < stop else start)
+                owners[k], owners[k + 1] = e, e
+                k += 2
+        start = stop
+    return supported, longest, ends[:k], owners[:k]
+
+
+@_compiled
+def gap_evidence(ok: NDArray[np.bool_], counts: NDArray[np.int64], pts: NDArray[np.float64],
+                 rows: NDArray[np.float64], pu: NDArray[np.float64], pv: NDArray[np.float64],
+                 min_gap: int, reach: float, junction_sq: float, crossing_sq: float,
+                 tol_px: float
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                            NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Per outline of the ellipses of (E, 6) ``rows`` (cx, cy, a, b and the angle's cosine
+    and sine; ``counts[e]`` samples each, (2, N) ``pts``, which are ``ok``): the ok
+    samples, the longest gap and how many gap ends are T-junctions
+    (:func:`~stackpick_sim.vision.kernels.junction_ends` of the ends of the gaps of at least
+    ``min_gap`` samples among the edge pixels (pu, pv), rows ascending, with the axes less
+    ``tol_px`` inside); see :func:`~stackpick_sim.vision.occlusion.evidence_all` (the same
+    values)."""
+    supported, longest, ends, owners = _gap_ends(ok, counts, min_gap)
+    occluded = np.zeros(counts.shape[0], np.int64)
+    if ends.shape[0] == 0:
+        return supported, longest, occluded
+    params = np.empty((rows.shape[0], 8))
+    for e in range(rows.shape[0]):
+        params[e, 0], params[e, 1], params[e, 2] = rows[e, 0], rows[e, 1], rows[e, 4]
+        params[e, 3], params[e, 4], params[e, 5] = rows[e, 5], rows[e, 2], rows[e, 3]
+        params[e, 6], params[e, 7] = max(rows[e, 2] - tol_px, 1e-6), max(rows[e, 3] - tol_px, 1e-6)
+    at = np.empty((ends.shape[0], 2))
+    for k in range(ends.shape[0]):
+        at[k, 0], at[k, 1] = pts[0, ends[k]], pts[1, ends[k]]
+    both = kernels.junction_ends(pu, pv, at, owners, params, reach, junction_sq, crossing_sq,
+                                 tol_px)
+    for k in range(ends.shape[0]):
+        occluded[owners[k]] += both[k]
+    return supported, longest, occluded
 
 
 @_compiled
@@ -277,10 +305,11 @@ def warm_up() -> None:
     counts = np.array([16], np.int64)
     img = np.zeros((4, 4), np.int16)
     rows = np.ones((1, 6))
-    run_ends(np.ones(16, np.bool_), counts)
-    contrast_runs(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64),
-                    8.0, 1.0)
+    contrast_ok(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64), 8.0,
+                1.0)
     interior_counts_of(rows, 0.5, col, 4)
+    gap_evidence(np.ones(16, np.bool_), counts, np.zeros((2, 16)), rows, col, col, 5, 1.0,
+                 1.0, 1.0, 1.0)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
     fixed.setflags(write=False)
     colour = np.ones(3)

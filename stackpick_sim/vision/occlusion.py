@@ -47,7 +47,6 @@ ellipses. Its settings (the names above) are the fields of
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -59,12 +58,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
-from stackpick_sim.vision.contrast import (
-    OutlineSupport,
-    outline_rows,
-    supported_runs,
-    refit_on_contrast,
-)
+from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
 from stackpick_sim.vision.merging import support_map
@@ -173,88 +167,48 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     if not ellipses:
         return ()
     rows = outline_rows(ellipses)
-    table = rows[0]
-    lines = _support_along(rows[:4], support, gradients)
-    n_e = len(ellipses)
+    table, sizes = rows[0], rows[1]
+    pts, ok = _support_along(rows[:4], support, gradients)
     # Any order of the pixels gives the same evidence: row-major, as the counts need.
     edge_points, keys, width = _row_major(edge_points)
     interior = kernels_pose.interior_counts_of(table, params.interior_margin_px,
-                                               np.ascontiguousarray(keys, np.float64),
-                                               width).tolist()
-    counts = lines.counts
-    support_share = (lines.supported / counts).tolist()
-    # Gaps: cyclic runs of unsupported samples, from their first and last samples (a few a
-    # frame: paired on Python ints).
-    firsts = lines.firsts.tolist()
-    sizes = counts.tolist()
-    longest = [0 if supported else n
-               for supported, n in zip(lines.ok[lines.offsets[:-1]].tolist(), sizes, strict=True)]
-    occluded_ends = [0] * n_e
-    if firsts:
-        ends, owners = _gap_ends(firsts, lines.lasts.tolist(), lines.offsets.tolist(), longest,
-                                 params.min_gap_px)
-        if ends:
-            for e in _junction_owners(table, np.array(owners), lines.points[ends],
-                                      edge_points, params):
-                occluded_ends[e] += 1
-    return tuple(map(OcclusionEvidence.of, support_share, longest, occluded_ends, interior,
-                     sizes, [params] * n_e))
+                                               np.ascontiguousarray(keys, np.float64), width)
+    # The gaps (cyclic runs of unsupported samples), the longest of each outline, and the
+    # T-junctions at the ends of those of at least min_gap_px (an edge pixel off the
+    # ellipse, Sampson distance above off_outline_px, within junction_radius_px of the end,
+    # and one inside the outline by more than off_outline_px within crossing_reach_px of
+    # it; only the pixels of the rows within reach of an end are tested), in one compiled
+    # pass (kernels_pose.gap_evidence).
+    radius, crossing = params.junction_radius_px, params.crossing_reach_px
+    supported, longest, occluded_ends = kernels_pose.gap_evidence(
+        ok, sizes, pts, table, np.ascontiguousarray(edge_points[:, 0], np.float64),
+        np.ascontiguousarray(edge_points[:, 1], np.float64), params.min_gap_px,
+        float(max(radius, crossing)), float(radius ** 2), float(crossing ** 2),
+        params.off_outline_px)
+    n_e = len(ellipses)
+    return tuple(map(OcclusionEvidence.of, (supported / sizes).tolist(), longest.tolist(),
+                     occluded_ends.tolist(), interior.tolist(), sizes.tolist(),
+                     [params] * n_e))
 
 
 def _support_along(rows: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
                                NDArray[np.float64]],
                    support: NDArray[np.uint8] | None, gradients: EdgeImage | None
-                   ) -> OutlineSupport:
-    """Which outline samples of the ellipses of ``rows`` (:func:`~stackpick_sim.vision.
-    contrast.outline_rows`) show an edge: with ``gradients``, a consistent contrast
-    (:func:`~stackpick_sim.vision.contrast.supported_runs`), else the (H, W) 0/1
-    ``support`` map at the nearest pixel (none off the map)."""
+                   ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The (2, N) outline samples of the ellipses of ``rows`` (:func:`~stackpick_sim.vision.
+    contrast.outline_rows`) and which of them show an edge: with ``gradients``, a consistent
+    contrast (:func:`~stackpick_sim.vision.contrast.supported_samples`), else the (H, W)
+    0/1 ``support`` map at the nearest pixel (none off the map)."""
     if gradients is not None:
-        return supported_runs(rows, gradients)
+        return supported_samples(rows, gradients)
     assert support is not None
-    table, sizes, ct, st = rows
-    pts, _ = kernels.outline_samples(table, sizes, ct, st)
-    samples = pts.T
-    pix = np.rint(samples).astype(np.int64)
+    pts, _ = kernels.outline_samples(*rows)
+    pix = np.rint(pts.T).astype(np.int64)
     h, w = support.shape
     inside = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
     ok = np.zeros(pix.shape[0], bool)
     ok[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
-    offsets = np.zeros(sizes.shape[0] + 1, np.int64)
-    np.cumsum(sizes, out=offsets[1:])
-    supported, firsts, lasts = kernels_pose.run_ends(ok, sizes)
-    return OutlineSupport(points=samples, offsets=offsets, counts=sizes, ok=ok,
-                          supported=supported, firsts=firsts, lasts=lasts)
-
-
-def _gap_ends(firsts: list[int], lasts: list[int], offsets: list[int], longest: list[int],
-              min_gap_px: int) -> tuple[list[int], list[int]]:
-    """The supported samples at the ends of the gaps (runs of unsupported samples of at
-    least ``min_gap_px`` along their outline, cyclic) and each one's outline, given every run's
-    first and last samples (``firsts``, ``lasts``: ascending global sample indices) and the
-    outlines' sample ``offsets`` (E + 1); ``longest`` (per outline) is raised to the longest
-    run of each outline with runs."""
-    ends: list[int] = []
-    owners: list[int] = []
-    runs: dict[int, int] = {}
-    for first in firsts:
-        e = bisect.bisect_right(offsets, first) - 1
-        start, stop = offsets[e], offsets[e + 1]
-        # The run's last sample: the first last at or after its first in its outline, else
-        # (the run wraps round the outline's start) the outline's first last.
-        j = bisect.bisect_left(lasts, first)
-        last = (lasts[j] if j < len(lasts) and lasts[j] < stop
-                else lasts[bisect.bisect_left(lasts, start)])
-        length = (last - first) % (stop - start) + 1
-        if length > runs.get(e, 0):
-            runs[e] = length
-        if length >= min_gap_px:
-            ends += [first - 1 if first > start else stop - 1,
-                     last + 1 if last + 1 < stop else start]
-            owners += [e, e]
-    for e, length in runs.items():
-        longest[e] = length
-    return ends, owners
+    return pts, ok
 
 
 def _row_major(edge_points: NDArray[np.float64]
@@ -292,35 +246,6 @@ def _interior_counts(ellipses: Sequence[Ellipse], keys: NDArray[np.float64], wid
     counts = kernels_pose.interior_counts_of(table, margin_px,
                                              np.ascontiguousarray(keys, np.float64), width)
     return cast("list[int]", counts.tolist())
-
-
-def _junction_owners(table: NDArray[np.float64], owner: NDArray[np.int64],
-                     ends: NDArray[np.float64], edge_points: NDArray[np.float64],
-                     params: TopParams) -> list[int]:
-    """The ellipse (``owner``, indices into the (E, 6) ``table`` of the ellipses' cx, cy, a,
-    b and angle's cosine and sine, :func:`~stackpick_sim.vision.contrast.outline_rows`) of
-    each gap end (``ends``, (K, 2) outline samples) that is a T-junction: an edge pixel (of the (M, 2)
-    ``edge_points``, in row-major order) off the ellipse (Sampson distance above
-    ``params.off_outline_px``) lies within ``params.junction_radius_px`` of it, and one inside
-    the outline by more than ``params.off_outline_px`` within ``params.crossing_reach_px`` of
-    it. Only
-    the pixels of the rows within reach of an end are tested, all (end, pixel) pairs in one
-    pass."""
-    radius, crossing = params.junction_radius_px, params.crossing_reach_px
-    off = params.off_outline_px
-    reach = max(radius, crossing)
-    # Per ellipse: centre, cos, sin, axes and the axes less the inner margin (an occluder's
-    # pixels run into the face). The (end, pixel) tests in one compiled pass
-    # (kernels.junction_ends: the same arithmetic as the pairs' array form).
-    rows = np.empty((table.shape[0], 8))
-    rows[:, 0:2], rows[:, 2:4], rows[:, 4:6] = table[:, 0:2], table[:, 4:6], table[:, 2:4]
-    rows[:, 6:8] = np.maximum(table[:, 2:4] - off, 1e-6)
-    both = kernels.junction_ends(
-        np.ascontiguousarray(edge_points[:, 0]), np.ascontiguousarray(edge_points[:, 1]),
-        np.ascontiguousarray(ends, np.float64), np.asarray(owner, np.int64),
-        rows, float(reach),
-        float(radius ** 2), float(crossing ** 2), off)
-    return cast("list[int]", owner[both].tolist())
 
 
 def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
