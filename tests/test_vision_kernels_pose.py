@@ -27,7 +27,13 @@ from stackpick_sim.vision.contrast import (
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.occlusion import _support_along
 from stackpick_sim.vision.pose import unit_circle_poses
-from stackpick_sim.vision.wall import band_evidences, solution_bands, tan_tilt, wall_evidences
+from stackpick_sim.vision.wall import (
+    band_evidences,
+    plane_basis,
+    solution_bands,
+    tan_tilt,
+    wall_evidences,
+)
 
 
 @pytest.fixture
@@ -177,6 +183,18 @@ def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator
     got = kernels_pose.interior_counts_of(outline_rows(ellipses)[0], margin, keys, width)
     assert np.array_equal(got, want)
     assert want.sum() > 0 or pixels < 100
+
+
+def test_band_points_of_take_the_plane_basis_axes(rng: np.random.Generator) -> None:
+    solutions = rng.normal(size=(6, 2, 3))
+    solutions[:2, 0] = [[0.95, 0.1, 0.2], [0.05, -0.2, 0.97]]  # both helper axes
+    ct, st = np.cos(np.arange(8) * 0.7), np.sin(np.arange(8) * 0.7)
+    depths = np.array([0.0, 0.3, 1.1])
+    vectors = np.array([[n.tolist() for n, _ in solutions], [c.tolist() for _, c in solutions],
+                        [plane_basis(n)[0].tolist() for n, _ in solutions],
+                        [plane_basis(n)[1].tolist() for n, _ in solutions]])
+    assert np.array_equal(kernels_pose.band_points_of(solutions, ct, st, depths),
+                          kernels.band_points(vectors, ct, st, depths))
 
 
 @pytest.mark.parametrize("belt", [None, (90.0, 90.0, 95.0)])

@@ -259,6 +259,27 @@ def _tan_tilt(n0: float, n1: float, n2: float, c0: float, c1: float, c2: float
 
 
 @_compiled
+def band_points_of(solutions: NDArray[np.float64], ct: NDArray[np.float64],
+                   st: NDArray[np.float64], depths: NDArray[np.float64]
+                   ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.kernels.band_points` of the S unit-radius solutions (S, 2,
+    3) (normal, centre), their rim axes those of :func:`_basis`; see
+    :func:`~stackpick_sim.vision.wall.solution_band_points` (the same values)."""
+    n_s = solutions.shape[0]
+    vectors = np.empty((4, n_s, 3))
+    for s in range(n_s):
+        n0, n1, n2 = solutions[s, 0, 0], solutions[s, 0, 1], solutions[s, 0, 2]
+        u0, u1, u2, v0, v1, v2 = _basis(n0, n1, n2)
+        vectors[0, s, 0], vectors[0, s, 1], vectors[0, s, 2] = n0, n1, n2
+        vectors[1, s, 0] = solutions[s, 1, 0]
+        vectors[1, s, 1] = solutions[s, 1, 1]
+        vectors[1, s, 2] = solutions[s, 1, 2]
+        vectors[2, s, 0], vectors[2, s, 1], vectors[2, s, 2] = u0, u1, u2
+        vectors[3, s, 0], vectors[3, s, 1], vectors[3, s, 2] = v0, v1, v2
+    return kernels.band_points(vectors, ct, st, depths)
+
+
+@_compiled
 def wall_hits(solutions: NDArray[np.float64], ct: NDArray[np.float64],
               st: NDArray[np.float64], depths: NDArray[np.float64],
               terms: NDArray[np.float64], camera: NDArray[np.float64], margin_px: float,
@@ -275,18 +296,12 @@ def wall_hits(solutions: NDArray[np.float64], ct: NDArray[np.float64],
     chroma tolerance, least brightness and belt distance; see
     :func:`~stackpick_sim.vision.wall.wall_evidences` (the same arithmetic)."""
     n_s = solutions.shape[0]
-    vectors = np.empty((4, n_s, 3))
     brightest = np.empty(n_s)
     for s in range(n_s):
-        n0, n1, n2 = solutions[s, 0, 0], solutions[s, 0, 1], solutions[s, 0, 2]
-        c0, c1, c2 = solutions[s, 1, 0], solutions[s, 1, 1], solutions[s, 1, 2]
-        u0, u1, u2, v0, v1, v2 = _basis(n0, n1, n2)
-        vectors[0, s, 0], vectors[0, s, 1], vectors[0, s, 2] = n0, n1, n2
-        vectors[1, s, 0], vectors[1, s, 1], vectors[1, s, 2] = c0, c1, c2
-        vectors[2, s, 0], vectors[2, s, 1], vectors[2, s, 2] = u0, u1, u2
-        vectors[3, s, 0], vectors[3, s, 1], vectors[3, s, 2] = v0, v1, v2
-        brightest[s] = _tan_tilt(n0, n1, n2, c0, c1, c2) + settings[0]
-    band = kernels.band_points(vectors, ct, st, depths)
+        brightest[s] = _tan_tilt(solutions[s, 0, 0], solutions[s, 0, 1], solutions[s, 0, 2],
+                                 solutions[s, 1, 0], solutions[s, 1, 1],
+                                 solutions[s, 1, 2]) + settings[0]
+    band = band_points_of(solutions, ct, st, depths)
     per = band.shape[2]
     pu, pv, keep = kernels.project_outside(band.reshape(3, 1, n_s * per), terms, camera[0],
                                            camera[1], camera[2], camera[3], margin_px)
@@ -313,5 +328,6 @@ def warm_up() -> None:
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
     fixed.setflags(write=False)
     colour = np.ones(3)
+    band_points_of(np.ones((2, 2, 3)), fixed, fixed, fixed)
     wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, rows, np.ones(4), 1.0,
               np.zeros((4, 4, 3), np.uint8), colour, np.ones(4), colour, True)

@@ -154,16 +154,17 @@ def solution_band_points(solutions: Sequence[tuple[NDArray[np.float64], NDArray[
     """(3, S, P) camera-frame points of the wall bands of S unit-radius solutions
     (normal_cam (3,), centre_cam (3,)): P = len(depths) x WALL_RIM_POINTS, depth by depth,
     the rim at each depth (in face radii) along the normal."""
-    bases = [_basis(n) for n, _ in solutions]
-    # (solutions, 3) each: normal, centre, u, v.
-    vectors = np.array(
-        [[np.asarray(n, np.float64).tolist() for n, _ in solutions],
-         [np.asarray(c, np.float64).tolist() for _, c in solutions],
-         [b[0] for b in bases], [b[1] for b in bases]], np.float64).reshape(4, -1, 3)
     ct, st = unit_circle(WALL_RIM_POINTS)
-    # The rims at each depth in one compiled pass (kernels.band_points: the same arithmetic
-    # as the array form centre + ct u + st v + depth normal).
-    return kernels.band_points(vectors, ct, st, _depths(depths))
+    # The rims' axes and the rims at each depth in one compiled pass (kernels_pose.
+    # band_points_of: the same arithmetic as plane_basis and the array form centre + ct u +
+    # st v + depth normal).
+    return kernels_pose.band_points_of(_solution_array(solutions), ct, st, _depths(depths))
+
+
+def _solution_array(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]
+                    ) -> NDArray[np.float64]:
+    """S (normal_cam (3,), centre_cam (3,)) pairs as one fresh (S, 2, 3) float64 array."""
+    return np.array(solutions, np.float64).reshape(-1, 2, 3)
 
 
 @functools.lru_cache(maxsize=16)
@@ -233,8 +234,8 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     c = pixels.shape[2]
     ct, st = unit_circle(WALL_RIM_POINTS)
     counts, hits = kernels_pose.wall_hits(
-        np.array([[_floats(n), _floats(x)] for n, x in solutions], np.float64).reshape(-1, 2, 3),
-        ct, st, _depths(params.wall_depths), np.array([_terms(ellipse)], np.float64),
+        _solution_array(solutions), ct, st, _depths(params.wall_depths),
+        np.array([_terms(ellipse)], np.float64),
         np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64),
         params.wall_margin_px, np.require(pixels, requirements=("C", "W")),
         np.broadcast_to(np.asarray(face, np.float64).reshape(-1), (c,)).copy(),
