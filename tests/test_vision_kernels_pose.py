@@ -94,7 +94,7 @@ def test_contrast_ok_is_the_profile_over_its_threshold(rng: np.random.Generator)
     lines = outlines(ellipses)
     profile = contrast_profiles(lines, image)
     threshold = float(np.median(profile))
-    table, sizes, ct, st, _ = outline_rows(ellipses)
+    table, sizes, ct, st = outline_rows(ellipses)
     pts, ok = kernels_pose.contrast_ok(table, sizes, ct, st, image.gx, image.gy, _OFFSETS,
                                        _SHIFTS, SOBEL_GAIN, threshold)
     assert np.array_equal(pts.T, lines.points)
@@ -104,7 +104,7 @@ def test_contrast_ok_is_the_profile_over_its_threshold(rng: np.random.Generator)
 def test_supported_samples_read_the_image_threshold(rng: np.random.Generator) -> None:
     image = _image(rng)
     ellipses = _ellipses(rng, 4)
-    _, ok = supported_samples(outline_rows(ellipses)[:4], image)
+    _, ok = supported_samples(outline_rows(ellipses), image)
     want = contrast_profiles(outlines(ellipses), image) >= max(
         image.params.support_min_contrast, image.params.support_noise_multiple * 4.0)
     assert np.array_equal(ok, want)
@@ -114,7 +114,7 @@ def test_supported_samples_read_the_image_threshold(rng: np.random.Generator) ->
 def test_gap_evidence_is_the_runs_then_the_junction_test(rng: np.random.Generator,
                                                          min_gap: int) -> None:
     ellipses = _ellipses(rng, 6)
-    table, sizes, ct, st, _ = outline_rows(ellipses)
+    table, sizes, ct, st = outline_rows(ellipses)
     pts, _ = kernels.outline_samples(table, sizes, ct, st)
     ok = rng.random(int(sizes.sum())) < 0.75
     ok[: sizes[0]] = True  # one outline wholly supported, one not
@@ -147,7 +147,7 @@ def test_the_support_map_path_reads_the_rounded_samples(rng: np.random.Generator
     inside = (pix[:, 0] >= 0) & (pix[:, 0] < 80) & (pix[:, 1] >= 0) & (pix[:, 1] < 60)
     want = np.zeros(pix.shape[0], bool)
     want[inside] = support[pix[inside, 1], pix[inside, 0]] > 0
-    pts, ok = _support_along(outline_rows(ellipses)[:4], support, None)
+    pts, ok = _support_along(outline_rows(ellipses), support, None)
     assert np.array_equal(pts.T, lines.points) and np.array_equal(ok, want)
 
 

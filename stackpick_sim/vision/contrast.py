@@ -187,39 +187,37 @@ class Outlines:
 
 def outline_rows(ellipses: Sequence[Ellipse]
                  ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64],
-                            NDArray[np.float64], tuple[float, float, float, float]]:
+                            NDArray[np.float64]]:
     """What the compiled passes over the :func:`outline` samples of several ellipses take:
-    (E, 6) rows (cx, cy, a, b and the angle's cosine and sine), the (E,) sample counts, the
-    cosines and sines of every sample's parameter (ellipse by ellipse) and the ellipses'
-    bounding box (as :attr:`Outlines.box`)."""
+    (E, 6) rows (cx, cy, a, b and the angle's cosine and sine), the (E,) sample counts and
+    the cosines and sines of every sample's parameter (ellipse by ellipse)."""
     rows, sizes = [], []
-    u0 = v0 = math.inf
-    u1 = v1 = -math.inf
     for e in ellipses:
         t = math.radians(e.angle_deg)
-        c, s = math.cos(t), math.sin(t)
-        rows.append((e.cx, e.cy, e.a, e.b, c, s))
+        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
         sizes.append(max(16, math.ceil(perimeter_px(e))))
-        hw, hh = math.hypot(e.a * c, e.b * s), math.hypot(e.a * s, e.b * c)
-        u0, v0 = min(u0, e.cx - hw), min(v0, e.cy - hh)
-        u1, v1 = max(u1, e.cx + hw), max(v1, e.cy + hh)
     tables = [unit_circle(k) for k in sizes]
     return (np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
             np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
-            np.concatenate([t[1] for t in tables]) if tables else np.zeros(0),
-            (u0, v0, u1, v1))
+            np.concatenate([t[1] for t in tables]) if tables else np.zeros(0))
 
 
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:
     """:func:`outline` of every ellipse in one pass (the same samples, concatenated)."""
-    rows, sizes, ct, st, box = outline_rows(ellipses)
+    rows, sizes, ct, st = outline_rows(ellipses)
     offsets = np.zeros(sizes.shape[0] + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
+    u0 = v0 = math.inf
+    u1 = v1 = -math.inf
+    for cx, cy, a, b, c, s in rows.tolist():
+        hw, hh = math.hypot(a * c, b * s), math.hypot(a * s, b * c)
+        u0, v0 = min(u0, cx - hw), min(v0, cy - hh)
+        u1, v1 = max(u1, cx + hw), max(v1, cy + hh)
     # Points cx + c x - s y, cy + s x + c y (x = a cos t, y = b sin t) and the unit normals
     # of the implicit form's gradient (b cos t, a sin t), rotated: one compiled pass, as
     # (2, N) arrays (the (N, 2) views below have contiguous columns).
     pts, normals = kernels.outline_samples(rows, sizes, ct, st)
-    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=box)
+    return Outlines(points=pts.T, normals=normals.T, offsets=offsets, box=(u0, v0, u1, v1))
 
 
 #: The window's shifts along the outline, in :attr:`Outlines.window`'s row order.
@@ -230,8 +228,8 @@ _SHIFTS = np.array([0, *range(-(WINDOW_SAMPLES // 2), 0), *range(1, WINDOW_SAMPL
 def supported_samples(rows: tuple[NDArray[np.float64], NDArray[np.int64],
                                    NDArray[np.float64], NDArray[np.float64]],
                       image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """The (2, N) :func:`outlines` samples of the ellipses of ``rows`` (:func:`outline_rows`'
-    first four values) and which of them show a consistent edge (:func:`contrast_support`),
+    """The (2, N) :func:`outlines` samples of the ellipses of ``rows`` (:func:`outline_rows`)
+    and which of them show a consistent edge (:func:`contrast_support`),
     in one compiled pass (kernels_pose.contrast_ok: the samples of :func:`outlines`, the
     profile of :func:`contrast_profiles`, the same values)."""
     table, sizes, ct, st = rows

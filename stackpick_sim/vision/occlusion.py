@@ -168,7 +168,7 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
         return ()
     rows = outline_rows(ellipses)
     table, sizes = rows[0], rows[1]
-    pts, ok = _support_along(rows[:4], support, gradients)
+    pts, ok = _support_along(rows, support, gradients)
     # Any order of the pixels gives the same evidence: row-major, as the counts need.
     edge_points, keys, width = _row_major(edge_points)
     interior = kernels_pose.interior_counts_of(table, params.interior_margin_px,
