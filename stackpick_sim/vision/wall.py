@@ -238,11 +238,10 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
         np.array([_terms(ellipse)], np.float64),
         np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64),
         params.wall_margin_px, np.require(pixels, requirements=("C", "W")),
-        np.broadcast_to(np.asarray(face, np.float64).reshape(-1), (c,)).copy(),
+        _per_channel(face, c),
         np.array([params.band_brightness_margin, params.band_chroma_tolerance,
                   params.band_min_brightness, params.band_belt_delta], np.float64),
-        np.zeros(c) if belt is None else np.broadcast_to(
-            np.asarray(belt, np.float64).reshape(-1), (c,)).copy(), belt is not None)
+        np.zeros(c) if belt is None else _per_channel(belt, c), belt is not None)
     return _evidences(counts, hits)
 
 
@@ -271,6 +270,15 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
         belt is not None, params.band_chroma_tolerance, params.band_min_brightness,
         params.band_belt_delta)
     return _evidences(counts, hits)
+
+
+def _per_channel(colour: NDArray[np.float64], channels: int) -> NDArray[np.float64]:
+    """A colour (one value per channel, or one for all) as a (channels,) float64 array the
+    compiled pass takes (C order, writable; ``colour`` itself where it is one)."""
+    flat = np.asarray(colour, np.float64).reshape(-1)
+    if flat.shape[0] != channels:
+        return np.broadcast_to(flat, (channels,)).copy()
+    return np.require(flat, requirements=("C", "W"))
 
 
 def _evidences(counts: NDArray[np.int64], hits: NDArray[np.float64]) -> list[WallEvidence]:
