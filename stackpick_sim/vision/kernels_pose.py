@@ -32,20 +32,13 @@ def _strongest_normal(pu: NDArray[np.float64], pv: NDArray[np.float64],
     best = np.empty(n)
     for i in range(n):
         top = -1.0
+        u, v, du, dv = pu[i], pv[i], nu[i], nv[i]
         for k in range(offsets.shape[0]):
-            o = offsets[k]
-            if o == 0.0:
-                qu, qv = pu[i], pv[i]
-            elif o == 1.0:
-                qu, qv = pu[i] + nu[i], pv[i] + nv[i]
-            elif o == -1.0:
-                qu, qv = pu[i] - nu[i], pv[i] - nv[i]
-            else:
-                qu, qv = pu[i] + o * nu[i], pv[i] + o * nv[i]
-            ru, rv = np.rint(qu), np.rint(qv)
+            # u + o du: for the offsets 0 and +-1 the same value as u, u + du, u - du.
+            ru, rv = np.rint(u + offsets[k] * du), np.rint(v + offsets[k] * dv)
             g = 0.0
             if 0.0 <= ru < w and 0.0 <= rv < h:  # tested as floats: any value is safe
-                g = gx[np.int64(rv), np.int64(ru)] * nu[i] + gy[np.int64(rv), np.int64(ru)] * nv[i]
+                g = gx[np.int64(rv), np.int64(ru)] * du + gy[np.int64(rv), np.int64(ru)] * dv
             if k == 0 or abs(g) > top:
                 best[i], top = g, abs(g)
     return best
