@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_vision_kernels import _COMPILES_AFTER_WARM_UP
 
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
@@ -185,16 +186,29 @@ def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator
     assert want.sum() > 0 or pixels < 100
 
 
+def _axes(normal: np.ndarray) -> tuple[list[float], list[float]]:
+    """The plane basis of a normal on Python floats (u = n x helper, normalised; v = n x u)."""
+    norm = math.sqrt(sum(x * x for x in normal.tolist()))
+    n0, n1, n2 = (x / norm for x in normal.tolist())
+    u0, u1, u2 = (0.0, n2, -n1) if abs(n0) < 0.9 else (-n2, 0.0, n0)
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    u0, u1, u2 = u0 / un, u1 / un, u2 / un
+    return [u0, u1, u2], [n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0]
+
+
 def test_band_points_of_take_the_plane_basis_axes(rng: np.random.Generator) -> None:
     solutions = rng.normal(size=(6, 2, 3))
     solutions[:2, 0] = [[0.95, 0.1, 0.2], [0.05, -0.2, 0.97]]  # both helper axes
     ct, st = np.cos(np.arange(8) * 0.7), np.sin(np.arange(8) * 0.7)
     depths = np.array([0.0, 0.3, 1.1])
+    axes = [_axes(n) for n, _ in solutions]
     vectors = np.array([[n.tolist() for n, _ in solutions], [c.tolist() for _, c in solutions],
-                        [plane_basis(n)[0].tolist() for n, _ in solutions],
-                        [plane_basis(n)[1].tolist() for n, _ in solutions]])
+                        [u for u, _ in axes], [v for _, v in axes]])
     assert np.array_equal(kernels_pose.band_points_of(solutions, ct, st, depths),
                           kernels.band_points(vectors, ct, st, depths))
+    for (n, _), (u, v) in zip(solutions, axes, strict=True):
+        got = plane_basis(n)
+        assert got[0].tolist() == u and got[1].tolist() == v
 
 
 @pytest.mark.parametrize("belt", [None, (90.0, 90.0, 95.0)])
@@ -220,34 +234,12 @@ def test_wall_hits_are_the_bands_then_their_colour_test(rng: np.random.Generator
     assert 0.0 < max(shares) < 1.0
 
 
-_COMPILES_AFTER_WARM_UP = r"""
-import sys
-from pathlib import Path
-from numba.core.registry import CPUDispatcher
-from stackpick_sim.config.loader import load_scene
-from stackpick_sim.vision import kernels, kernels_pose
-from stackpick_sim.vision.benchmark.frames import load_frame
-from stackpick_sim.vision.benchmark.methods import detector_config
-from stackpick_sim.vision.detector import TopObjectDetector
-kernels.warm_up()
-compiled = {n: k for n, k in vars(kernels_pose).items() if isinstance(k, CPUDispatcher)}
-warm = {n: set(k.signatures) for n, k in compiled.items()}
-scene = load_scene("paper")
-kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
-              for t in scene.object_types.values())
-folder = Path(sys.argv[1])
-for png in sorted(folder.glob("*.png")):
-    frame = load_frame(folder, int(png.stem), scene.conveyor.top_z,
-                       scene.objects.max_face_height, kinds)
-    detector = TopObjectDetector(detector_config(frame))
-    detector.detect(frame.image_rgb)
-    detector.detect(frame.image_rgb.mean(axis=2).astype("uint8"))
-print(sorted(n for n, k in compiled.items() if set(k.signatures) - warm[n]))
-"""
-
-
 def test_warm_up_compiles_every_pass_for_the_types_the_detector_passes() -> None:
+    script = _COMPILES_AFTER_WARM_UP.replace("vars(kernels)", "vars(kernels_pose)").replace(
+        "from stackpick_sim.vision import kernels\n",
+        "from stackpick_sim.vision import kernels, kernels_pose\n")
+    assert "vars(kernels_pose)" in script and "kernels_pose\n" in script
     frames = Path(__file__).parent / "data" / "paper_dev_frames"
-    out = subprocess.run([sys.executable, "-c", _COMPILES_AFTER_WARM_UP, str(frames)],
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", script, str(frames)], capture_output=True,
+                         text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout

@@ -166,20 +166,6 @@ def _row_starts(keys: NDArray[np.float64], width: int
 
 
 @_compiled
-def _first_above_in(keys: NDArray[np.float64], x: float, strict: bool, lo: int, hi: int
-                    ) -> int:  # pragma: no cover - compiled
-    """:func:`~stackpick_sim.vision.kernels._first_above` searched within ``lo:hi`` (where
-    the answer lies)."""
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if keys[mid] > x or (not strict and keys[mid] == x):
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@_compiled
 def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArray[np.float64],
                        width: int) -> NDArray[np.int64]:  # pragma: no cover - compiled
     """:func:`~stackpick_sim.vision.kernels.interior_counts` of the ellipses of (E, 6)
@@ -217,17 +203,19 @@ def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArra
                 continue
             else:
                 k0, k1 = starts[at], starts[at + 1]
-            inside = (_first_above_in(keys, base + hi, False, k0, k1)
-                      - _first_above_in(keys, base + lo, True, k0, k1))
+            row_keys = keys[k0:k1]
+            inside = (kernels._first_above(row_keys, base + hi, False)
+                      - kernels._first_above(row_keys, base + lo, True))
             total += max(inside, 0)
         out[e] = total
     return out
 
 
 @_compiled
-def _basis(n0: float, n1: float, n2: float
+def plane_axes(n0: float, n1: float, n2: float
            ) -> tuple[float, float, float, float, float, float]:  # pragma: no cover - compiled
-    """The in-plane axes u, v of the normal (n0, n1, n2) in the arithmetic of
+    """The in-plane axes u, v of the normal (n0, n1, n2), six floats: u = n x e (e the helper
+    axis e_x, or e_y where |n0| >= 0.9, n normalised) normalised, then v = n x u; see
     :func:`~stackpick_sim.vision.wall.plane_basis`."""
     norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
@@ -256,13 +244,13 @@ def band_points_of(solutions: NDArray[np.float64], ct: NDArray[np.float64],
                    st: NDArray[np.float64], depths: NDArray[np.float64]
                    ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """:func:`~stackpick_sim.vision.kernels.band_points` of the S unit-radius solutions (S, 2,
-    3) (normal, centre), their rim axes those of :func:`_basis`; see
+    3) (normal, centre), their rim axes those of :func:`plane_axes`; see
     :func:`~stackpick_sim.vision.wall.solution_band_points` (the same values)."""
     n_s = solutions.shape[0]
     vectors = np.empty((4, n_s, 3))
     for s in range(n_s):
         n0, n1, n2 = solutions[s, 0, 0], solutions[s, 0, 1], solutions[s, 0, 2]
-        u0, u1, u2, v0, v1, v2 = _basis(n0, n1, n2)
+        u0, u1, u2, v0, v1, v2 = plane_axes(n0, n1, n2)
         vectors[0, s, 0], vectors[0, s, 1], vectors[0, s, 2] = n0, n1, n2
         vectors[1, s, 0] = solutions[s, 1, 0]
         vectors[1, s, 1] = solutions[s, 1, 1]
@@ -321,6 +309,7 @@ def warm_up() -> None:
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
     fixed.setflags(write=False)
     colour = np.ones(3)
+    plane_axes(0.0, 0.0, 1.0)
     band_points_of(np.ones((2, 2, 3)), fixed, fixed, fixed)
     wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, rows, np.ones(4), 1.0,
               np.zeros((4, 4, 3), np.uint8), colour, np.ones(4), colour, True)
