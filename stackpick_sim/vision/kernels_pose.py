@@ -150,65 +150,26 @@ def gap_evidence(ok: NDArray[np.bool_], counts: NDArray[np.int64], pts: NDArray[
 
 
 @_compiled
-def _row_starts(keys: NDArray[np.float64], width: int
-                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
-    """(R + 1,) for ascending row-major ``keys`` (v ``width`` + u, R rows up to the last
-    key's): entry v is the first index whose key lies on row v or a later row."""
-    n = keys.shape[0]
-    rows = int(keys[n - 1] // width) + 1 if n else 0
-    starts = np.empty(rows + 1, np.int64)
-    k = 0
-    for v in range(rows + 1):
-        while k < n and keys[k] < v * width:
-            k += 1
-        starts[v] = k
-    return starts
-
-
-@_compiled
 def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArray[np.float64],
                        width: int) -> NDArray[np.int64]:  # pragma: no cover - compiled
     """:func:`~stackpick_sim.vision.kernels.interior_counts` of the ellipses of (E, 6)
     ``rows`` (cx, cy, a, b and the angle's cosine and sine) with their semi-axes less
-    ``margin_px`` (their shrunk forms and rows in the arithmetic of
-    :func:`~stackpick_sim.vision.occlusion._interior_counts`; the same counts): each row's
-    two searches run among that row's keys only, found from a table of where each row's
-    keys start, wherever the interval's ends lie within the row (u from -0.5 to ``width`` -
-    1.5; beyond it, among all keys)."""
-    starts = _row_starts(keys, width)
-    last = starts.shape[0] - 2  # the last row holding keys
-    out = np.zeros(rows.shape[0], np.int64)
-    for e in range(rows.shape[0]):
+    ``margin_px``: their shrunk forms and rows first, in the arithmetic of
+    :func:`~stackpick_sim.vision.occlusion._interior_counts`."""
+    n_e = rows.shape[0]
+    params = np.empty((n_e, 6))
+    sizes = np.empty(n_e, np.int64)
+    for e in range(n_e):
         cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
         ia = 1.0 / max(a - margin_px, 1e-6) ** 2
         ib = 1.0 / max(b - margin_px, 1e-6) ** 2
         p, q, r = c * c * ia + s * s * ib, 2.0 * c * s * (ia - ib), s * s * ia + c * c * ib
         half = math.sqrt(p / (p * r - 0.25 * q * q))
         first = math.ceil(cy - half)
-        total = 0
-        for j in range(max(0, math.floor(cy + half) - first + 1)):
-            at = first + j
-            row = float(at)
-            dv = row - cy
-            qdv = q * dv
-            disc = qdv * qdv - 4.0 * p * (r * dv * dv - 1.0)
-            root = math.sqrt(max(disc, 0.0))
-            lo = max((-qdv - root) / (2.0 * p) + cx, -0.5)
-            hi = min((-qdv + root) / (2.0 * p) + cx, width - 1.5)
-            hi = max(hi, lo) if disc > 0.0 else lo
-            base = row * width
-            if lo > width - 1.5:  # both ends beyond the row: the whole search
-                k0, k1 = 0, keys.shape[0]
-            elif at < 0 or at > last:  # no keys on the row (nor between its ends)
-                continue
-            else:
-                k0, k1 = starts[at], starts[at + 1]
-            row_keys = keys[k0:k1]
-            inside = (kernels._first_above(row_keys, base + hi, False)
-                      - kernels._first_above(row_keys, base + lo, True))
-            total += max(inside, 0)
-        out[e] = total
-    return out
+        params[e, 0], params[e, 1], params[e, 2] = cx, cy, p
+        params[e, 3], params[e, 4], params[e, 5] = q, r, float(first)
+        sizes[e] = max(0, math.floor(cy + half) - first + 1)
+    return kernels.interior_counts(params, sizes, keys, width)
 
 
 @_compiled
