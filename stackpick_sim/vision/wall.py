@@ -52,9 +52,9 @@ _FACE_CIRCLE = tuple(t.copy() for t in unit_circle(FACE_SAMPLES))
 
 
 def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`stackpick_sim.geometry.plane_basis` (same vectors) on Python floats: numpy's
-    ``cross`` costs ~20 us a call, and the top rule and pose call this a few hundred times
-    a frame."""
+    """:func:`stackpick_sim.geometry.plane_basis` (same vectors) on scalars
+    (:func:`~stackpick_sim.vision.kernels_pose.plane_axes`): numpy's ``cross`` costs ~20 us
+    a call."""
     u, v = _basis(normal)
     return np.array(u), np.array(v)
 
@@ -62,7 +62,8 @@ def plane_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
 def _basis(normal: NDArray[np.float64]) -> tuple[tuple[float, float, float],
                                                  tuple[float, float, float]]:
     """:func:`plane_basis` as float triples."""
-    # Compiled (kernels_pose.plane_axes): a call costs less than the arithmetic on floats.
+    # The wall bands' compiled axes (kernels_pose.plane_axes): one copy of the arithmetic, a
+    # call costing what the same arithmetic on Python floats does.
     u0, u1, u2, v0, v1, v2 = kernels_pose.plane_axes(*_floats(normal))
     return (u0, u1, u2), (v0, v1, v2)
 
