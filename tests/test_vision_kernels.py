@@ -985,3 +985,15 @@ def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> 
                               points[at, 1])
         assert r == np.sqrt(np.bincount(np.zeros(at.size, np.int64), weights=d * d)[0]
                             / at.size)
+
+
+@pytest.mark.parametrize("channels", [1, 2, 3, 4])
+def test_strongest_gradients_take_the_first_channel_of_largest_l1(
+        rng: np.random.Generator, channels: int) -> None:
+    stacked = rng.integers(-1020, 1021, (channels, 2, 30, 41)).astype(np.int16)
+    stacked[:, :, :5] //= 200  # small values: many ties between channels
+    l1 = np.abs(stacked[:, 0].astype(np.int32)) + np.abs(stacked[:, 1].astype(np.int32))
+    first = np.argmax(l1, axis=0)[None]  # the first of equals
+    got_x, got_y = kernels.strongest_gradients(stacked)
+    assert np.array_equal(got_x, np.take_along_axis(stacked[:, 0], first, 0)[0])
+    assert np.array_equal(got_y, np.take_along_axis(stacked[:, 1], first, 0)[0])

@@ -149,6 +149,38 @@ def _near_scale(tol_px: float, minor: float) -> float:  # pragma: no cover - com
 
 
 @_compiled
+def strongest_gradients(stacked: NDArray[np.int16]
+                        ) -> tuple[NDArray[np.int16], NDArray[np.int16]]:  # pragma: no cover
+    """Per pixel, the (dx, dy) of the channel with the largest |dx| + |dy| (the first of
+    equals) of per-channel Sobel gradients ``stacked`` (C, 2, H, W) (channel c's dx and dy
+    at [c, 0] and [c, 1]); (H, W) each. Channel by channel, each a pass a later channel
+    replaces where it is strictly stronger (Sobel 3x3 terms of uint8 images are at most
+    4 x 255, so the L1 sum fits int16); see :func:`~stackpick_sim.vision.edges.
+    colour_gradients`."""
+    channels, _, h, w = stacked.shape
+    n = h * w
+    flat = stacked.reshape(channels, 2, n)
+    best_x, best_y = np.empty((h, w), np.int16), np.empty((h, w), np.int16)
+    out_x, out_y = best_x.ravel(), best_y.ravel()
+    best = np.empty(n, np.int16)
+    gx, gy = flat[0, 0], flat[0, 1]
+    for i in range(n):
+        x, y = gx[i], gy[i]
+        out_x[i], out_y[i] = x, y
+        best[i] = abs(x) + abs(y)
+    for c in range(1, channels):
+        gx, gy = flat[c, 0], flat[c, 1]
+        for i in range(n):  # branch-free selects: the loop vectorises
+            x, y = gx[i], gy[i]
+            m = np.int16(abs(x) + abs(y))
+            stronger = m > best[i]
+            out_x[i] = x if stronger else out_x[i]
+            out_y[i] = y if stronger else out_y[i]
+            best[i] = m if stronger else best[i]
+    return best_x, best_y
+
+
+@_compiled
 def stride_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int, gain: float
                       ) -> NDArray[np.float32]:  # pragma: no cover - compiled
     """The gradient magnitudes over ``gain`` of every ``stride``-th row and column of (H, W)
@@ -1667,6 +1699,7 @@ def warm_up() -> None:
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     stride_magnitudes(img, img, 4, 8.0)
+    strongest_gradients(np.zeros((3, 2, 4, 4), np.int16))
     for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
         chain_hits(pts, np.zeros(1, np.int64), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
