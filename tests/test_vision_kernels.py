@@ -24,6 +24,7 @@ from stackpick_sim.vision.fitting import (
     grouped_distances,
     plausible,
 )
+from stackpick_sim.vision.refine import _form
 from stackpick_sim.vision.roi import Roi, decimate, find_roi
 
 
@@ -87,6 +88,17 @@ def test_box_pairs_is_nonzero_of_the_box_test(rng: np.random.Generator) -> None:
                       & (np.abs(pv - cy[:, None]) <= reach[:, None]))
     assert np.array_equal(pe, want[0]) and np.array_equal(pm, want[1])
     assert pe.size > 0
+
+
+def test_box_runs_are_the_box_pairs_points_and_their_bounds(rng: np.random.Generator) -> None:
+    pu, pv = rng.uniform(0, 100, 500), rng.uniform(0, 100, 500)
+    cx, cy = rng.uniform(0, 100, 6), rng.uniform(0, 100, 6)
+    reach = rng.uniform(0, 30, 6)
+    reach[2] = 0.0  # an ellipse with no point in its box
+    pe, pm = kernels.box_pairs(pu, pv, cx, cy, reach)
+    at, starts = kernels.box_runs(pu, pv, cx, cy, reach)
+    assert np.array_equal(at, pm)
+    assert np.array_equal(starts, np.searchsorted(pe, np.arange(7)))
 
 
 def test_grouped_distances_match_the_broadcast_form(rng: np.random.Generator) -> None:
@@ -467,7 +479,6 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
-    pixels = rng.integers(0, 100, (n, 2)).astype(np.float64)
     active = np.array([True, False, True, True])
     passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
@@ -475,10 +486,9 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     at = rng.permutation(n).astype(np.int64)
     back = np.argsort(at)
     sel, bounds, pts = kernels.along_select(forms, starts, active, at, u[back], v[back],
-                                            gu[back], gv[back], pixels[back], 16.0,
-                                            0.87 * 0.87)
+                                            gu[back], gv[back], 16.0, 0.87 * 0.87)
     assert np.array_equal(sel, passed.nonzero()[0])
-    assert np.array_equal(pts, pixels[sel].astype(np.float32))
+    assert np.array_equal(pts, np.column_stack([u, v])[sel].astype(np.float32))
     owner = np.arange(4).repeat(counts)[sel]
     assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
     assert bounds[2] == bounds[1] and sel.size > 0
@@ -889,6 +899,38 @@ def test_fit_checks_match_fit_ellipse_and_plausible(rng: np.random.Generator) ->
         if e is not None:
             assert (rows[k, :4].tolist(), degrees[k]) == ([e.cx, e.cy, e.a, e.b], e.angle_deg)
             assert rows[k, 4] == math.radians(e.angle_deg)
+
+
+def test_ellipse_forms_match_the_form_of_each_ellipse(rng: np.random.Generator) -> None:
+    rows = np.column_stack([rng.uniform(0, 300, 300), rng.uniform(0, 300, 300),
+                            rng.uniform(5, 150, 300), rng.uniform(1, 100, 300),
+                            rng.uniform(0, 180, 300)])
+    want = [_form(Ellipse.of(*r)) for r in rows.tolist()]
+    assert kernels.ellipse_forms(rows).tolist() == [list(f) for f in want]
+
+
+def test_refit_checks_are_fit_checks_then_the_forms_and_stops(rng: np.random.Generator
+                                                              ) -> None:
+    raw = np.column_stack([rng.uniform(-50, 300, 60), rng.uniform(-50, 300, 60),
+                           rng.uniform(-5, 200, 60), rng.uniform(-5, 200, 60),
+                           rng.uniform(-180, 360, 60)])
+    raw[::11, 0] = np.nan
+    which = rng.permutation(80)[:60].astype(np.int64)
+    forms = rng.uniform(0, 1, (80, 5))
+    active = np.ones(80, np.bool_)
+    want_forms, want_active = forms.copy(), active.copy()
+    rows, degrees, ok = kernels.fit_checks(raw, 2.0, 250.0, EQ2_CHECKED_RATIO_SQ)
+    for k, e in enumerate(which.tolist()):
+        if ok[k]:
+            fit = Ellipse.of(*rows[k, :4].tolist(), float(degrees[k]))
+            want_forms[e] = _form(fit)
+        else:
+            want_active[e] = False
+    got = kernels.refit_checks(raw, which, forms, active, 2.0, 250.0, EQ2_CHECKED_RATIO_SQ)
+    for a, b in zip(got, (rows, degrees, ok), strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(forms, want_forms) and np.array_equal(active, want_active)
+    assert 0 < int(ok.sum()) < 60
 
 
 def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator) -> None:

@@ -75,6 +75,21 @@ def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.f
 
 
 @_compiled
+def box_runs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
+             cy: NDArray[np.float64], reach: NDArray[np.float64]
+             ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The points of :func:`box_pairs` (ellipse by ellipse, points ascending) and where each
+    ellipse's run of them starts and ends ((E + 1,) bounds)."""
+    pe, pm = box_pairs(pu, pv, cx, cy, reach)
+    starts = np.zeros(cx.shape[0] + 1, np.int64)
+    for k in range(pe.shape[0]):
+        starts[pe[k] + 1] += 1
+    for e in range(cx.shape[0]):
+        starts[e + 1] += starts[e]
+    return pm, starts
+
+
+@_compiled
 def _sampson(du: float, dv: float, a: float, b: float, c: float, s: float
              ) -> float:  # pragma: no cover - compiled
     """Sampson distance of a point at (du, dv) from the centre of the ellipse of semi-axes
@@ -503,14 +518,14 @@ def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, 
 def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
                  active: NDArray[np.bool_], at: NDArray[np.int64], u: NDArray[np.float64],
                  v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
-                 points: NDArray[np.float64], dist_sq: float, cos_sq: float
+                 dist_sq: float, cos_sq: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
     (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
     ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
-    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels'
-    rows of the (N, 2) ``points`` as float32 (the fits' input); see
+    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels
+    (u, v) as (K, 2) float32 rows (the fits' input); see
     :func:`~stackpick_sim.vision.refine.refine_all`."""
     n_e = forms.shape[0]
     sel = np.empty(at.shape[0], np.int64)
@@ -528,8 +543,8 @@ def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
     out = np.empty((count, 2), np.float32)
     for j in range(count):
         m = at[sel[j]]
-        out[j, 0] = np.float32(points[m, 0])
-        out[j, 1] = np.float32(points[m, 1])
+        out[j, 0] = np.float32(u[m])
+        out[j, 1] = np.float32(v[m])
     return sel[:count], bounds, out
 
 
@@ -1458,6 +1473,51 @@ def fit_checks(raw: NDArray[np.float64], min_axis: float, max_axis: float, ratio
 
 
 @_compiled
+def _form_into(out: NDArray[np.float64], e: int, cx: float, cy: float, a: float, b: float,
+               t: float) -> None:  # pragma: no cover - compiled
+    """Row ``e`` of ``out``: the centre and quadratic form (cx, cy, A, H, B) of the ellipse
+    (cx, cy, a, b) at angle ``t`` (rad); see :func:`~stackpick_sim.vision.refine._form` (the
+    same arithmetic)."""
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / (a * a), 1.0 / (b * b)
+    out[e, 0], out[e, 1] = cx, cy
+    out[e, 2] = c * c * ia + s * s * ib
+    out[e, 3] = c * s * (ia - ib)
+    out[e, 4] = s * s * ia + c * c * ib
+
+
+@_compiled
+def ellipse_forms(rows: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+    """(E, 5) centres and quadratic forms (cx, cy, A, H, B) of the ellipses of (E, 5)
+    ``rows`` cx, cy, a, b, angle (deg); see :func:`~stackpick_sim.vision.refine._form` (the
+    same arithmetic)."""
+    out = np.empty((rows.shape[0], 5))
+    for e in range(rows.shape[0]):
+        _form_into(out, e, rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3],
+                   rows[e, 4] * (math.pi / 180.0))
+    return out
+
+
+@_compiled
+def refit_checks(raw: NDArray[np.float64], which: NDArray[np.int64],
+                 forms: NDArray[np.float64], active: NDArray[np.bool_], min_axis: float,
+                 max_axis: float, ratio_sq: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                            NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """:func:`fit_checks` of the direct fits ``raw`` (K, 5) of the ellipses ``which`` (K,);
+    in place, the row ``which[k]`` of ``forms`` (E, 5) becomes the form (:func:`ellipse_forms`)
+    of each fit that passes, and ``active[which[k]]`` is cleared for each that fails."""
+    rows, degrees, ok = fit_checks(raw, min_axis, max_axis, ratio_sq)
+    for k in range(which.shape[0]):
+        if ok[k]:
+            _form_into(forms, which[k], rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3],
+                       rows[k, 4])
+        else:
+            active[which[k]] = False
+    return rows, degrees, ok
+
+
+@_compiled
 def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
                starts: NDArray[np.int64], stops: NDArray[np.int64], which: NDArray[np.bool_]
                ) -> NDArray[np.float64]:  # pragma: no cover - compiled
@@ -1708,7 +1768,8 @@ def warm_up() -> None:
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)
     along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
-                 np.zeros(1, np.int64), col, col, col, col, np.zeros((1, 2)), 1.0, 1.0)
+                 np.zeros(1, np.int64), col, col, col, col, 1.0, 1.0)
+    box_runs(col, col, col, col, col)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
@@ -1719,6 +1780,9 @@ def warm_up() -> None:
                 0.5)
     bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
+    ellipse_forms(np.ones((1, 5)))
+    refit_checks(np.ones((1, 5)), np.zeros(1, np.int64), np.ones((1, 5)), np.ones(1, np.bool_),
+                 1.0, 1.0, 1.0)
     ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
                np.ones(1, np.bool_))
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
