@@ -949,6 +949,36 @@ def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator)
                                                  weights=d * d)[0]) / (hi - lo)) if on else 0.0)
 
 
+@pytest.mark.parametrize("dtype", [np.int32, np.float64])
+def test_fit_screen_keeps_the_long_bowed_pieces(rng: np.random.Generator, dtype: type) -> None:
+    counts = rng.integers(1, 40, 30).astype(np.int64)
+    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(dtype)
+    pixels[:counts[0], 1] = 7  # a straight piece
+    tried, starts, stops = kernels.fit_screen(pixels, counts, 10, 2.0)
+    bows = kernels.bows(pixels, counts)
+    want = [i for i in range(30) if counts[i] >= 10 and bows[i] >= 2.0]
+    assert tried.tolist() == want and 0 not in want
+    ends = np.cumsum(counts)
+    assert np.array_equal(stops, ends[want]) and np.array_equal(starts, (ends - counts)[want])
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.float64])
+def test_level_fits_are_the_fit_checks_then_ranged_rms(rng: np.random.Generator,
+                                                       dtype: type) -> None:
+    pixels = rng.integers(0, 300, (500, 2)).astype(dtype)
+    raw = np.column_stack([rng.uniform(50, 250, 40), rng.uniform(50, 250, 40),
+                           rng.uniform(-5, 200, 40), rng.uniform(1, 200, 40),
+                           rng.uniform(0, 360, 40)])
+    starts = rng.integers(0, 400, 40)
+    stops = starts + rng.integers(1, 100, 40)
+    rows, degrees, ok = kernels.fit_checks(raw, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ)
+    rms = kernels.ranged_rms(distance_rows(rows), pixels, starts, stops, ok)
+    got = kernels.level_fits(raw, pixels, starts, stops, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ, 60.0)
+    assert np.array_equal(got[0], rows) and np.array_equal(got[1], degrees)
+    assert np.array_equal(got[2], ok & (rms <= 60.0)) and np.array_equal(got[3], rms)
+    assert 0 < int(got[2].sum()) < int(ok.sum())
+
+
 def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(
         rng: np.random.Generator) -> None:
     from stackpick_sim.vision.edges import STAIR_LUTS

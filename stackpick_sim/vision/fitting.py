@@ -271,23 +271,20 @@ def _fit_level(pending: list[_Piece], max_axis: float, params: FitParams
     pixels = np.concatenate(pieces)
     if pixels.dtype != _INT32:  # int32 chains, as the stages pass them, read as they are
         pixels = pixels.astype(np.float64)
-    stops = np.cumsum(counts)
-    shortest = max(5, params.min_fit_px)
-    bows = kernels.bows(pixels, counts).tolist()
-    tried = [k for k, (n, bow) in enumerate(zip(counts.tolist(), bows, strict=True))
-             if n >= shortest and bow >= params.min_bow_px]
-    if not tried:
+    # The straightness test, then the fits' checks and residuals, each one compiled pass.
+    tried, starts, stops = kernels.fit_screen(pixels, counts, max(5, params.min_fit_px),
+                                              params.min_bow_px)
+    if not tried.size:
         return [], pending
-    rows, degrees, ok = kernels.fit_checks(_direct_rows([pieces[k] for k in tried]),
-                                           params.min_axis_px, max_axis, EQ2_CHECKED_RATIO_SQ)
-    at = np.array(tried, np.int64)
-    rms = kernels.ranged_rms(distance_rows(rows), pixels, stops[at] - counts[at], stops[at],
-                             ok).tolist()
+    at = tried.tolist()
+    rows, degrees, good, rms = kernels.level_fits(
+        _direct_rows([pieces[k] for k in at]), pixels, starts, stops, params.min_axis_px,
+        max_axis, EQ2_CHECKED_RATIO_SQ, params.max_residual_px)
     accepted: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     fitted = set()
-    for k, good, (cx, cy, a, b, _), ang, r in zip(tried, ok.tolist(), rows.tolist(),
-                                                  degrees.tolist(), rms, strict=True):
-        if good and r <= params.max_residual_px:
+    for k, ok, (cx, cy, a, b, _), ang, r in zip(at, good.tolist(), rows.tolist(),
+                                                degrees.tolist(), rms.tolist(), strict=True):
+        if ok:
             i, path, pts_ = pending[k]
             accepted.append(((i, path), pts_, Ellipse.of(cx, cy, a, b, ang), r))
             fitted.add(k)

@@ -1540,6 +1540,55 @@ def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
 
 
 @_compiled
+def fit_screen(pixels: NDArray, counts: NDArray[np.int64], shortest: int, min_bow: float
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                          NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The pieces of (N, 2) ``pixels`` (one after another, ``counts[i]`` pixels each) worth a
+    fit: at least ``shortest`` pixels and a :func:`bows` of at least ``min_bow`` px; their
+    indices (ascending) and where each starts and stops in ``pixels``."""
+    bow = bows(pixels, counts)
+    m = counts.shape[0]
+    tried = np.empty(m, np.int64)
+    starts, stops = np.empty(m, np.int64), np.empty(m, np.int64)
+    k = 0
+    start = 0
+    for i in range(m):
+        if counts[i] >= shortest and bow[i] >= min_bow:
+            tried[k], starts[k], stops[k] = i, start, start + counts[i]
+            k += 1
+        start += counts[i]
+    return tried[:k], starts[:k], stops[:k]
+
+
+@_compiled
+def level_fits(raw: NDArray[np.float64], pixels: NDArray, starts: NDArray[np.int64],
+               stops: NDArray[np.int64], min_axis: float, max_axis: float, ratio_sq: float,
+               max_residual: float
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                          NDArray[np.float64]]:  # pragma: no cover - compiled
+    """:func:`fit_checks` of the direct fits ``raw`` (K, 5) of the pieces
+    ``pixels[starts[k]:stops[k]]``, then the RMS Sampson distance of each piece to its fit
+    (as :func:`ranged_rms` of the checked fits, 0 for the others): the rows, the angles
+    (deg), whether each fit passes and is within ``max_residual`` px, and the residuals."""
+    rows, degrees, ok = fit_checks(raw, min_axis, max_axis, ratio_sq)
+    k = raw.shape[0]
+    rms = np.zeros(k)
+    good = np.zeros(k, np.bool_)
+    for e in range(k):
+        if not ok[e]:
+            continue
+        cx, cy, a, b = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3]
+        c, s = math.cos(rows[e, 4]), math.sin(rows[e, 4])
+        total = 0.0
+        for j in range(starts[e], stops[e]):
+            d = _sampson(pixels[j, 0] - cx, pixels[j, 1] - cy, a, b, c, s)
+            total += d * d
+        rms[e] = math.sqrt(total / (stops[e] - starts[e]))
+        good[e] = rms[e] <= max_residual
+    return rows, degrees, good, rms
+
+
+@_compiled
 def set_pixels(image: NDArray[np.uint8]
                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
     """The rows and columns of the nonzero pixels of ``image`` (H, W), row-major (as
@@ -1780,6 +1829,9 @@ def warm_up() -> None:
                 0.5)
     bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
+    for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
+        fit_screen(pixels, counts, 1, 0.0)
+        level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)
     ellipse_forms(np.ones((1, 5)))
     refit_checks(np.ones((1, 5)), np.zeros(1, np.int64), np.ones((1, 5)), np.ones(1, np.bool_),
                  1.0, 1.0, 1.0)
