@@ -165,6 +165,44 @@ def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
     assert 0 < close.sum() < close.size
 
 
+def test_near_pairs_decide_points_at_the_tolerance_as_the_distance_does(
+        rng: np.random.Generator) -> None:
+    # Points placed at Sampson distances within 1e-9 to 1e-3 of the tolerance (inside and
+    # outside the outlines), and at the centres: the screen's undecided band and its edges.
+    rows = _ellipse_rows(rng, 5)
+    tol = 1.5
+    pu_all, pv_all = [], []
+    for e in range(5):
+        cx, cy, a, b, c, s = rows[:, e]
+        t = rng.uniform(0, 2 * np.pi, 200)
+        x, y = a * np.cos(t), b * np.sin(t)
+        nu, nv = b * np.cos(t), a * np.sin(t)  # the outward normal, in the ellipse's frame
+        norm = np.hypot(nu, nv)
+        for side in (-1.0, 1.0):
+            lo, hi = np.zeros(200), np.full(200, 3.0 * tol)
+            for _ in range(60):  # bisect the offset to the tolerance's distance
+                mid = 0.5 * (lo + hi)
+                u = cx + c * (x + side * mid * nu / norm) - s * (y + side * mid * nv / norm)
+                v = cy + s * (x + side * mid * nu / norm) + c * (y + side * mid * nv / norm)
+                d = kernels.point_distances(np.column_stack([u, v]), cx, cy, a, b, c, s)
+                lo, hi = np.where(d < tol, mid, lo), np.where(d < tol, hi, mid)
+            for f in (1 - 1e-3, 1 - 1e-7, 1 - 1e-9, 1.0, 1 + 1e-9, 1 + 1e-7, 1 + 1e-3):
+                m = lo * f
+                pu_all.append(cx + c * (x + side * m * nu / norm) - s * (y + side * m * nv / norm))
+                pv_all.append(cy + s * (x + side * m * nu / norm) + c * (y + side * m * nv / norm))
+        pu_all.append(np.array([cx]))
+        pv_all.append(np.array([cy]))
+    pu, pv = np.concatenate(pu_all), np.concatenate(pv_all)
+    reach = rows[2] + tol + 1.0
+    be, bm = kernels.box_pairs(pu, pv, rows[0].copy(), rows[1].copy(), reach)
+    d = kernels.grouped_distances(rows, np.bincount(be, minlength=5).astype(np.int64),
+                                  pu[bm], pv[bm])
+    close = d < tol
+    got = kernels.near_pairs(pu, pv, rows, reach, tol)
+    assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
+    assert 5 * 2 * 200 * 3 <= close.sum() < close.size  # the three inner offsets at least
+
+
 def test_bows_match_the_per_piece_sums(rng: np.random.Generator) -> None:
     counts = rng.integers(10, 120, 9).astype(np.int64)
     pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(np.float64)

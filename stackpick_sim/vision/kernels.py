@@ -311,13 +311,38 @@ def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[n
     for e in range(n_e):
         cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
         r = reach[e]
+        ia, ib = 1.0 / a, 1.0 / b
         for m in range(n_p):
-            if (abs(pu[m] - cx) <= r and abs(pv[m] - cy) <= r
-                    and _sampson(pu[m] - cx, pv[m] - cy, a, b, c, s) < tol_px):
+            du, dv = pu[m] - cx, pv[m] - cy
+            if (abs(du) <= r and abs(dv) <= r
+                    and _near_sampson(du, dv, a, b, c, s, ia, ib, tol_px)):
                 pe[k] = e
                 pm[k] = m
                 k += 1
     return pe[:k], pm[:k]
+
+
+@_compiled
+def _near_sampson(du: float, dv: float, a: float, b: float, c: float, s: float, ia: float,
+                  ib: float, tol_px: float) -> bool:  # pragma: no cover - compiled
+    """``_sampson(du, dv, a, b, c, s) < tol_px`` (``ia``, ``ib``: 1 / a, 1 / b), told
+    without a division where a margin allows: the squared distance is Q^2 / (4 G) (Q =
+    x^2 + y^2 - 1, G = (x / a)^2 + (y / b)^2, x and y in units of the axes), so Q^2 against
+    4 tol^2 G, computed with the reciprocals, decides unless the two lie within a relative
+    1e-6 of each other or G is below 1e-8 (their rounding, and the distance's 1e-12 guard
+    against G = 0, are then orders of magnitude below the margin); there the distance itself
+    is computed."""
+    x, y = (c * du + s * dv) * ia, (c * dv - s * du) * ib
+    q = x * x + y * y - 1.0
+    xa, yb = x * ia, y * ib
+    g = xa * xa + yb * yb
+    lhs, rhs = q * q, 4.0 * tol_px * tol_px * g
+    if g > 1e-8:  # the guard's share of the distance below 1e-8
+        if lhs < rhs * (1.0 - 1e-6):
+            return True
+        if lhs > rhs * (1.0 + 1e-6):
+            return False
+    return _sampson(du, dv, a, b, c, s) < tol_px
 
 
 @_compiled
