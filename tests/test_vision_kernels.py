@@ -1107,3 +1107,23 @@ def test_strongest_gradients_take_the_first_channel_of_largest_l1(
     got_x, got_y = kernels.strongest_gradients(stacked)
     assert np.array_equal(got_x, np.take_along_axis(stacked[:, 0], first, 0)[0])
     assert np.array_equal(got_y, np.take_along_axis(stacked[:, 1], first, 0)[0])
+
+
+@pytest.mark.parametrize("channels", [1, 2, 3, 4])
+def test_level_histogram_and_belt_box_match_the_array_forms(rng: np.random.Generator,
+                                                            channels: int) -> None:
+    for h, w in ((7, 9), (12, 16), (1, 1)):
+        small = rng.integers(90, 140, (h, w, channels)).astype(np.uint8)
+        small[h // 3:, w // 2:] = 200  # a block of foreground
+        level, counts = kernels.level_histogram(small)
+        assert np.array_equal(level, small.max(axis=2))
+        assert np.array_equal(counts, np.bincount(level.ravel(), minlength=256).astype(float))
+        belt = int(np.median(level))
+        mean, near, box = kernels.belt_box(small, level, belt, 8, 20.0)
+        on = np.abs(level.astype(int) - belt) <= 8
+        assert near == on.sum()
+        want = (small[on].astype(np.int64).sum(axis=0) * (1.0 / on.sum()) if on.any()
+                else np.zeros(channels))
+        assert np.array_equal(mean, want)
+        fore = (np.abs(level.astype(int) - belt) > 20.0).astype(np.uint8)
+        assert tuple(box.tolist()) == cv2.boundingRect(fore)

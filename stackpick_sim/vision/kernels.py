@@ -1406,14 +1406,27 @@ def level_histogram(small: NDArray[np.uint8]
     ``np.maximum`` over the channels and ``cv2.calcHist``)."""
     h, w, channels = small.shape
     level = np.empty((h, w), np.uint8)
-    counts = np.zeros(256)
-    for r in range(h):
-        for c in range(w):
-            top = small[r, c, 0]
+    flat, out = small.reshape(h * w, channels), level.ravel()
+    if channels == 3:  # the colour frames: the channel loop unrolled
+        for i in range(h * w):
+            out[i] = max(flat[i, 0], flat[i, 1], flat[i, 2])
+    else:
+        for i in range(h * w):
+            top = flat[i, 0]
             for k in range(1, channels):
-                top = max(top, small[r, c, k])
-            level[r, c] = top
-            counts[top] += 1.0
+                top = max(top, flat[i, k])
+            out[i] = top
+    # Integer counts (exact, as the float sums of ones), two interleaved tables: a run of
+    # equal levels (the belt) would otherwise wait on each increment's store.
+    tables = np.zeros((2, 256), np.int64)
+    for i in range(0, h * w - 1, 2):
+        tables[0, out[i]] += 1
+        tables[1, out[i + 1]] += 1
+    if (h * w) % 2:
+        tables[0, out[h * w - 1]] += 1
+    counts = np.empty(256)
+    for v in range(256):
+        counts[v] = np.float64(tables[0, v] + tables[1, v])
     return level, counts
 
 
@@ -1432,16 +1445,39 @@ def belt_box(small: NDArray[np.uint8], level: NDArray[np.uint8], belt: int, spre
     near = 0
     lo, hi = max(0, belt - spread), min(255, belt + spread)
     u0, v0, u1, v1 = w, h, -1, -1
+    # Per level, whether it is near the belt's and whether it is foreground: two table
+    # lookups per pixel instead of the tests.
+    is_near, is_fore = np.zeros(256, np.int64), np.zeros(256, np.bool_)
+    for x in range(256):
+        is_near[x] = lo <= x <= hi
+        is_fore[x] = abs(x - belt) > delta
     for r in range(h):
-        for c in range(w):
-            x = np.int64(level[r, c])
-            if lo <= x <= hi:
-                near += 1
+        row, levels = small[r], level[r]
+        if channels == 3:  # the colour frames: the sums in registers
+            s0, s1, s2 = sums[0], sums[1], sums[2]
+            for c in range(w):
+                on = is_near[levels[c]]
+                near += on
+                s0 += on * np.int64(row[c, 0])
+                s1 += on * np.int64(row[c, 1])
+                s2 += on * np.int64(row[c, 2])
+            sums[0], sums[1], sums[2] = s0, s1, s2
+        else:
+            for c in range(w):
+                on = is_near[levels[c]]
+                near += on
                 for k in range(channels):
-                    sums[k] += small[r, c, k]
-            if abs(x - belt) > delta:
-                u0, u1 = min(u0, c), max(u1, c)
-                v0, v1 = min(v0, r), max(v1, r)
+                    sums[k] += on * np.int64(row[c, k])
+        first, last = -1, -1
+        for c in range(w):
+            if is_fore[levels[c]]:
+                last = c
+                if first < 0:
+                    first = c
+        if first >= 0:  # the row's foreground spans first..last
+            u0, u1 = min(u0, first), max(u1, last)
+            v0 = min(v0, r)
+            v1 = r
     mean = np.zeros(channels)
     scale = 1.0 / near if near else 0.0
     for k in range(channels):
