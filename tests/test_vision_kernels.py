@@ -1127,3 +1127,16 @@ def test_level_histogram_and_belt_box_match_the_array_forms(rng: np.random.Gener
         assert np.array_equal(mean, want)
         fore = (np.abs(level.astype(int) - belt) > 20.0).astype(np.uint8)
         assert tuple(box.tolist()) == cv2.boundingRect(fore)
+
+
+def test_junctions_cut_uv_is_junctions_cut_of_the_whole_pixels(rng: np.random.Generator
+                                                               ) -> None:
+    edges = (rng.random((40, 50)) < 0.3).astype(np.uint8)
+    rows, cols = kernels.set_pixels(edges)
+    uv = np.vstack([cols, rows]).astype(np.float64)
+    want = kernels.junctions_cut(edges, rows, cols)
+    got = kernels.junctions_cut_uv(edges, uv)
+    assert got[2] and want[2]
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    uv[0, 3] += 0.5  # not a pixel
+    assert not kernels.junctions_cut_uv(edges, uv)[2]

@@ -1708,6 +1708,21 @@ def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArr
 
 
 @_compiled
+def junctions_cut_uv(edges: NDArray[np.uint8], uv: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8],
+                                bool]:  # pragma: no cover - compiled
+    """:func:`junctions_cut` of the pixels given as (2, M) rows u, v (whole numbers, as the
+    edge stage lists them; one that is not: not valid)."""
+    n = uv.shape[1]
+    rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
+    for j in range(n):
+        rows[j], cols[j] = np.int64(uv[1, j]), np.int64(uv[0, j])
+        if rows[j] != uv[1, j] or cols[j] != uv[0, j]:
+            return np.zeros((1, 1), np.uint8), np.zeros((1, 1), np.uint8), False
+    return junctions_cut(edges, rows, cols)
+
+
+@_compiled
 def _padded_box(flat: NDArray[np.uint8], i: int, wp: int) -> int:  # pragma: no cover
     """The 3x3 sum round flat index ``i`` of a map of row length ``wp`` with a zero border."""
     return (int(flat[i - wp - 1]) + flat[i - wp] + flat[i - wp + 1] + flat[i - 1] + flat[i]
@@ -1913,6 +1928,7 @@ def warm_up() -> None:
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     grid = np.zeros((4, 4), np.uint8)
     _, end, _ = junctions_cut(grid, *set_pixels(grid))
+    junctions_cut_uv(grid, np.zeros((2, 1)))
     pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
     chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
                1.0)
