@@ -163,6 +163,11 @@ def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
     got = kernels.near_pairs(pu, pv, rows, reach, 1.5)
     assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
     assert 0 < close.sum() < close.size
+    first = got[1] < 1200
+    split = kernels.near_pairs_split(pu, pv, rows, reach, 1.5, 1200)
+    for a, b in zip(split, (got[0][first], got[1][first], got[0][~first], got[1][~first]),
+                    strict=True):
+        assert np.array_equal(a, b)
 
 
 def test_near_pairs_decide_points_at_the_tolerance_as_the_distance_does(
@@ -1140,3 +1145,16 @@ def test_junctions_cut_uv_is_junctions_cut_of_the_whole_pixels(rng: np.random.Ge
     assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
     uv[0, 3] += 0.5  # not a pixel
     assert not kernels.junctions_cut_uv(edges, uv)[2]
+
+
+def test_outline_rows_match_the_perimeter_and_the_angle(rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.contrast import perimeter_px
+
+    ellipses = [Ellipse.of(*rng.uniform(0, 300, 2), *np.sort(rng.uniform(0.5, 200, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(200)]
+    counts, rows = kernels.outline_rows(
+        np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses]))
+    assert counts.tolist() == [max(16, math.ceil(perimeter_px(e))) for e in ellipses]
+    t = [math.radians(e.angle_deg) for e in ellipses]
+    assert rows.tolist() == [[e.cx, e.cy, e.a, e.b, math.cos(x), math.sin(x)]
+                             for e, x in zip(ellipses, t, strict=True)]

@@ -131,11 +131,21 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
     ``np.nonzero`` order, without the (E, N) matrix."""
+    pairs = within_pairs_split(params, points, tol_px, points.shape[0])
+    return pairs[0], pairs[1]
+
+
+def within_pairs_split(params: NDArray[np.float64], points: NDArray, tol_px: float,
+                       split: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                            NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`within_pairs` as the pairs of the points before ``split`` and those of the
+    others, each in :func:`within_pairs`' order (its pairs split by point)."""
     p = np.asarray(points, np.float64)
     reach = params[:, 2] + tol_px + 1.0
     # The box test and the distances in one compiled pass over (ellipse, point) pairs.
-    return kernels.near_pairs(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                              distance_rows(params), reach, tol_px)
+    return kernels.near_pairs_split(np.ascontiguousarray(p[:, 0]),
+                                    np.ascontiguousarray(p[:, 1]), distance_rows(params),
+                                    reach, tol_px, split)
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],

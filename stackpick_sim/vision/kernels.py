@@ -303,11 +303,23 @@ def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[n
     (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
     closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
     column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
+    pe, pm, _, _ = near_pairs_split(pu, pv, rows, reach, tol_px, pu.shape[0])
+    return pe, pm
+
+
+@_compiled
+def near_pairs_split(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                     rows: NDArray[np.float64], reach: NDArray[np.float64], tol_px: float,
+                     split: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                          NDArray[np.int64],
+                                          NDArray[np.int64]]:  # pragma: no cover - compiled
+    """:func:`near_pairs` as the (ellipse, point) pairs of the points before ``split`` and
+    those of the others (each in :func:`near_pairs`' order)."""
     n_e, n_p = rows.shape[1], pu.shape[0]
     count = _box_count(pu, pv, rows[0], rows[1], reach)
-    pe = np.empty(count, np.int64)
-    pm = np.empty(count, np.int64)
-    k = 0
+    pe, pm = np.empty(count, np.int64), np.empty(count, np.int64)
+    re, rm = np.empty(count, np.int64), np.empty(count, np.int64)
+    k = j = 0
     for e in range(n_e):
         cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
         r = reach[e]
@@ -316,10 +328,13 @@ def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[n
             du, dv = pu[m] - cx, pv[m] - cy
             if (abs(du) <= r and abs(dv) <= r
                     and _near_sampson(du, dv, a, b, c, s, ia, ib, tol_px)):
-                pe[k] = e
-                pm[k] = m
-                k += 1
-    return pe[:k], pm[:k]
+                if m < split:
+                    pe[k], pm[k] = e, m
+                    k += 1
+                else:
+                    re[j], rm[j] = e, m
+                    j += 1
+    return pe[:k], pm[:k], re[:j], rm[:j]
 
 
 @_compiled
@@ -416,6 +431,26 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
             k += 1
         out[e] = hits / counts[e]
     return out
+
+
+@_compiled
+def outline_rows(ellipses: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover
+    """Per ellipse of (E, 5) ``ellipses`` cx, cy, a, b, angle (deg): its outline's sample
+    count, max(16, ceil(perimeter)) with Ramanujan's perimeter (px), and its row cx, cy, a,
+    b, cos angle, sin angle ((E, 6)); see :func:`~stackpick_sim.vision.contrast.perimeter_px`
+    and :func:`~stackpick_sim.vision.merging.support_shares` (the same arithmetic)."""
+    n = ellipses.shape[0]
+    counts, rows = np.empty(n, np.int64), np.empty((n, 6))
+    for e in range(n):
+        a, b = ellipses[e, 2], ellipses[e, 3]
+        h = ((a - b) / (a + b)) ** 2
+        perimeter = math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
+        counts[e] = max(16, math.ceil(perimeter))
+        t = ellipses[e, 4] * (math.pi / 180.0)
+        rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3] = ellipses[e, 0], ellipses[e, 1], a, b
+        rows[e, 4], rows[e, 5] = math.cos(t), math.sin(t)
+    return counts, rows
 
 
 @_compiled
@@ -1898,6 +1933,7 @@ def warm_up() -> None:
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
+    near_pairs_split(col, col, np.ones((6, 1)), col, 1.0, 1)
     bows(np.zeros((1, 2)), counts)
     segments_rms(np.ones((6, 1)), np.zeros((1, 2)), np.array([0, 1], np.int64), counts - 1,
                  counts)
@@ -1914,6 +1950,7 @@ def warm_up() -> None:
     ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
                np.ones(1, np.bool_))
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
+    outline_rows(np.ones((1, 5)))
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
