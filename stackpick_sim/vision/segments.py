@@ -124,7 +124,8 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
         longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
         kept = [kept[i] for i in sorted(longest[:max_contours])]
     ordered, bounds, closed = kernels.ordered_chains(
-        np.concatenate(kept).reshape(-1, 2), np.array([c.shape[0] for c in kept], np.int64),
+        cast("NDArray[np.int32]", np.concatenate(kept).reshape(-1, 2)),
+        np.array([c.shape[0] for c in kept], np.int64),
         end, shortest)
     # Each chain's polygon (OpenCV reads an (N, 2) int32 array as N points), then the cuts
     # of all chains in one pass.
@@ -148,8 +149,8 @@ def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
     set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's."""
     if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
         # The (2, M) rows u, v the columns are a view of, when they are.
-        rows = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
-        cut, end, valid = kernels.junctions_cut_uv(edges, np.asarray(rows, np.float64))
+        uv = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
+        cut, end, valid = kernels.junctions_cut_uv(edges, np.asarray(uv, np.float64))
         if valid:
             return cut, end
     rows, cols = kernels.set_pixels(edges)
