@@ -1158,3 +1158,11 @@ def test_outline_rows_match_the_perimeter_and_the_angle(rng: np.random.Generator
     t = [math.radians(e.angle_deg) for e in ellipses]
     assert rows.tolist() == [[e.cx, e.cy, e.a, e.b, math.cos(x), math.sin(x)]
                              for e, x in zip(ellipses, t, strict=True)]
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 5), (7, 8), (31, 33), (240, 320)])
+def test_set_indices_are_the_flat_nonzero_pixels(rng: np.random.Generator,
+                                                 shape: tuple[int, int]) -> None:
+    for density in (0.0, 0.03, 0.5, 1.0):
+        image = (rng.random(shape) < density).astype(np.uint8) * np.uint8(255)
+        assert np.array_equal(kernels._set_indices(image), np.flatnonzero(image))

@@ -1142,6 +1142,27 @@ def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
 
 
 @_compiled
+def _set_indices(image: NDArray[np.uint8]) -> NDArray[np.int64]:  # pragma: no cover
+    """The flat indices (ascending) of the nonzero pixels of a C-ordered (H, W) uint8 image,
+    read eight bytes at a time (a sparse edge map is mostly zero words)."""
+    flat = image.ravel()
+    size = flat.shape[0]
+    words = size // 8
+    packed = flat[:words * 8].view(np.uint64)
+    out = np.empty(size, np.int64)
+    n = 0
+    for j in range(words):
+        if packed[j]:
+            for i in range(8 * j, 8 * j + 8):
+                out[n] = i
+                n += flat[i] != 0
+    for i in range(words * 8, size):
+        out[n] = i
+        n += flat[i] != 0
+    return out[:n]
+
+
+@_compiled
 def _stair_pass(padded: NDArray[np.uint8], at: NDArray[np.int64], n: int,
                 lut: NDArray[np.uint8], gone: NDArray[np.int64]) -> int:  # pragma: no cover
     """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat
@@ -1190,20 +1211,17 @@ def _stairs_pass_pair(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     (into it, ascending) of the pixels left at the front of the returned index array, and
     how many."""
     h, w = edges.shape
-    padded = np.zeros((h + 2, w + 2), np.uint8)
-    n = 0
-    for r in range(h):
-        for c in range(w):
-            on = int(edges[r, c] != 0)
-            padded[r + 1, c + 1] = on
-            n += on
-    # Branch-free appends (on dense edge maps branches would mispredict): one spare slot.
-    at = np.empty(n + 1, np.int64)
+    wp = w + 2
+    padded = np.zeros((h + 2, wp), np.uint8)
     flat = padded.ravel()
-    k = 0
-    for i in range(w + 3, (h + 1) * (w + 2) - 1):
-        at[k] = i
-        k += flat[i]
+    # The set pixels' flat indices (into the padded map, ascending), set to 1 in it.
+    found = _set_indices(edges)
+    n = found.shape[0]
+    at = np.empty(n + 1, np.int64)
+    for k in range(n):
+        i = found[k]
+        at[k] = (i // w + 1) * wp + i % w + 1
+        flat[at[k]] = 1
     gone = np.empty(n, np.int64)
     n = _stair_pass(padded, at, n, first, gone)
     n = _stair_pass(padded, at, n, second, gone)
@@ -1222,13 +1240,15 @@ def stairs_removed_pixels(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     padded, at, n = _stairs_pass_pair(edges, first, second)
     wp = padded.shape[1]
     pts, g = np.empty((2, n)), np.empty((2, n))
+    kept = np.zeros(edges.shape, np.uint8)  # the map written pixel by pixel, not copied
     for k in range(n):
         r, c = at[k] // wp - 1, at[k] % wp - 1
+        kept[r, c] = 1
         pts[0, k], pts[1, k] = c, r
         x, y = np.float64(gx[r, c]), np.float64(gy[r, c])
         norm = max(np.hypot(x, y), 1e-9)
         g[0, k], g[1, k] = x / norm, y / norm
-    return np.ascontiguousarray(padded[1:-1, 1:-1]), pts, g
+    return kept, pts, g
 
 
 @_compiled
