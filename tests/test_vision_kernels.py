@@ -95,10 +95,11 @@ def test_box_runs_are_the_box_pairs_points_and_their_bounds(rng: np.random.Gener
     cx, cy = rng.uniform(0, 100, 6), rng.uniform(0, 100, 6)
     reach = rng.uniform(0, 30, 6)
     reach[2] = 0.0  # an ellipse with no point in its box
-    pe, pm = kernels.box_pairs(pu, pv, cx, cy, reach)
-    at, starts = kernels.box_runs(pu, pv, cx, cy, reach)
-    assert np.array_equal(at, pm)
-    assert np.array_equal(starts, np.searchsorted(pe, np.arange(7)))
+    for rows in (pv, np.sort(np.rint(pv))):  # scattered, then in rows as the edge pixels
+        pe, pm = kernels.box_pairs(pu, rows, cx, cy, reach)
+        at, starts = kernels.box_runs(pu, rows, cx, cy, reach)
+        assert np.array_equal(at, pm)
+        assert np.array_equal(starts, np.searchsorted(pe, np.arange(7)))
 
 
 def test_grouped_distances_match_the_broadcast_form(rng: np.random.Generator) -> None:

@@ -80,13 +80,66 @@ def box_runs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.fl
              ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover - compiled
     """The points of :func:`box_pairs` (ellipse by ellipse, points ascending) and where each
     ellipse's run of them starts and ends ((E + 1,) bounds)."""
-    pe, pm = box_pairs(pu, pv, cx, cy, reach)
-    starts = np.zeros(cx.shape[0] + 1, np.int64)
-    for k in range(pe.shape[0]):
-        starts[pe[k] + 1] += 1
-    for e in range(cx.shape[0]):
-        starts[e + 1] += starts[e]
-    return pm, starts
+    n_e, n_p = cx.shape[0], pu.shape[0]
+    ascending = True
+    for m in range(n_p - 1):
+        ascending &= pv[m] <= pv[m + 1]
+    if not ascending:
+        pe, pm = box_pairs(pu, pv, cx, cy, reach)
+        starts = np.zeros(n_e + 1, np.int64)
+        for k in range(pe.shape[0]):
+            starts[pe[k] + 1] += 1
+        for e in range(n_e):
+            starts[e + 1] += starts[e]
+        return pm, starts
+    # Points in rows ascending (as the edge stage lists them): the rows within reach of an
+    # ellipse's centre are one run of them (pv - cy rounds monotonically), found by
+    # bisection; only that run is tested.
+    runs = np.empty((n_e, 2), np.int64)
+    total = 0
+    for e in range(n_e):
+        runs[e, 0] = _first_at_least(pv, cy[e], -reach[e])
+        runs[e, 1] = max(runs[e, 0], _first_beyond(pv, cy[e], reach[e]))
+        total += runs[e, 1] - runs[e, 0]
+    pm = np.empty(total, np.int64)
+    starts = np.zeros(n_e + 1, np.int64)
+    k = 0
+    for e in range(n_e):
+        x, y, r = cx[e], cy[e], reach[e]
+        for m in range(runs[e, 0], runs[e, 1]):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                pm[k] = m
+                k += 1
+        starts[e + 1] = k
+    return pm[:k], starts
+
+
+@_compiled
+def _first_at_least(pv: NDArray[np.float64], cy: float, low: float
+                    ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``pv`` with ``pv - cy >= low`` (its length if none)."""
+    lo, hi = 0, pv.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if pv[mid] - cy >= low:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@_compiled
+def _first_beyond(pv: NDArray[np.float64], cy: float, high: float
+                  ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``pv`` with ``pv - cy > high`` (its length if none)."""
+    lo, hi = 0, pv.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if pv[mid] - cy > high:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
 
 
 @_compiled
