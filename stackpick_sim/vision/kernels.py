@@ -98,8 +98,8 @@ def box_runs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.fl
     runs = np.empty((n_e, 2), np.int64)
     total = 0
     for e in range(n_e):
-        runs[e, 0] = _first_at_least(pv, cy[e], -reach[e])
-        runs[e, 1] = max(runs[e, 0], _first_beyond(pv, cy[e], reach[e]))
+        runs[e, 0] = _first_past(pv, cy[e], -reach[e], False)
+        runs[e, 1] = max(runs[e, 0], _first_past(pv, cy[e], reach[e], True))
         total += runs[e, 1] - runs[e, 0]
     pm = np.empty(total, np.int64)
     starts = np.zeros(n_e + 1, np.int64)
@@ -115,27 +115,15 @@ def box_runs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.fl
 
 
 @_compiled
-def _first_at_least(pv: NDArray[np.float64], cy: float, low: float
-                    ) -> int:  # pragma: no cover - compiled
-    """The first index of ascending ``pv`` with ``pv - cy >= low`` (its length if none)."""
+def _first_past(pv: NDArray[np.float64], cy: float, bound: float, strict: bool
+                ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``pv`` with ``pv - cy`` above ``bound`` (``strict``) or
+    at least ``bound`` (its length if none)."""
     lo, hi = 0, pv.shape[0]
     while lo < hi:
         mid = (lo + hi) // 2
-        if pv[mid] - cy >= low:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@_compiled
-def _first_beyond(pv: NDArray[np.float64], cy: float, high: float
-                  ) -> int:  # pragma: no cover - compiled
-    """The first index of ascending ``pv`` with ``pv - cy > high`` (its length if none)."""
-    lo, hi = 0, pv.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if pv[mid] - cy > high:
+        d = pv[mid] - cy
+        if d > bound or (not strict and d == bound):
             hi = mid
         else:
             lo = mid + 1
