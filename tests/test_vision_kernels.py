@@ -977,22 +977,6 @@ def test_refit_checks_are_fit_checks_then_the_forms_and_stops(rng: np.random.Gen
     assert 0 < int(ok.sum()) < 60
 
 
-def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator) -> None:
-    pixels = rng.integers(0, 300, (500, 2)).astype(np.int32)
-    ellipses = [Ellipse.of(*rng.uniform(50, 250, 2), *np.sort(rng.uniform(5, 80, 2))[::-1],
-                           float(rng.uniform(0, 180))) for _ in range(12)]
-    starts = rng.integers(0, 400, 12)
-    stops = starts + rng.integers(1, 100, 12)
-    which = rng.random(12) < 0.8
-    got = kernels.ranged_rms(distance_rows(ellipse_params(ellipses)), pixels, starts, stops,
-                             which)
-    for e, lo, hi, on, r in zip(ellipses, starts, stops, which, got, strict=True):
-        d = grouped_distances(ellipse_params([e]), np.array([hi - lo]),
-                              pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
-        assert r == (math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64),
-                                                 weights=d * d)[0]) / (hi - lo)) if on else 0.0)
-
-
 @pytest.mark.parametrize("dtype", [np.int32, np.float64])
 def test_fit_screen_keeps_the_long_bowed_pieces(rng: np.random.Generator, dtype: type) -> None:
     counts = rng.integers(1, 40, 30).astype(np.int64)
@@ -1007,7 +991,7 @@ def test_fit_screen_keeps_the_long_bowed_pieces(rng: np.random.Generator, dtype:
 
 
 @pytest.mark.parametrize("dtype", [np.int32, np.float64])
-def test_level_fits_are_the_fit_checks_then_ranged_rms(rng: np.random.Generator,
+def test_level_fits_are_the_fit_checks_then_their_residuals(rng: np.random.Generator,
                                                        dtype: type) -> None:
     pixels = rng.integers(0, 300, (500, 2)).astype(dtype)
     raw = np.column_stack([rng.uniform(50, 250, 40), rng.uniform(50, 250, 40),
@@ -1016,7 +1000,14 @@ def test_level_fits_are_the_fit_checks_then_ranged_rms(rng: np.random.Generator,
     starts = rng.integers(0, 400, 40)
     stops = starts + rng.integers(1, 100, 40)
     rows, degrees, ok = kernels.fit_checks(raw, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ)
-    rms = kernels.ranged_rms(distance_rows(rows), pixels, starts, stops, ok)
+    # Each checked fit's residual on its range (the squares summed in order).
+    rms = np.zeros(40)
+    for e in ok.nonzero()[0]:
+        lo, hi = starts[e], stops[e]
+        d = grouped_distances(rows[e:e + 1], np.array([hi - lo]),
+                              pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
+        rms[e] = math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64), weights=d * d)[0])
+                           / (hi - lo))
     got = kernels.level_fits(raw, pixels, starts, stops, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ, 60.0)
     assert np.array_equal(got[0], rows) and np.array_equal(got[1], degrees)
     assert np.array_equal(got[2], ok & (rms <= 60.0)) and np.array_equal(got[3], rms)

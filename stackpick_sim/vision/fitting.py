@@ -251,9 +251,9 @@ _Piece = tuple[int, str, NDArray]
 
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
-    """:func:`fit_or_split` of every chain, level by level: the straightness test, the fits'
-    checks and the residuals of all pieces of one level are one compiled pass each (only the
-    direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
+    """:func:`fit_or_split` of every chain, level by level: the straightness test of all
+    pieces of one level is one compiled pass, their fits' checks with the residuals another
+    (only the direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
     accepted piece, in the order :func:`fit_or_split` gives them chain after chain."""
     pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []

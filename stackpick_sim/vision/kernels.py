@@ -1675,28 +1675,6 @@ def refit_checks(raw: NDArray[np.float64], which: NDArray[np.int64],
 
 
 @_compiled
-def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
-               starts: NDArray[np.int64], stops: NDArray[np.int64], which: NDArray[np.bool_]
-               ) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
-    sine) with ``which[e]`` set, the RMS Sampson distance of the pixels
-    ``pixels[starts[e]:stops[e]]`` to it (their squares summed in order; 0 elsewhere); see
-    :func:`~stackpick_sim.vision.fitting.rms_residual` (the same sums)."""
-    n = rows.shape[1]
-    out = np.zeros(n)
-    for e in range(n):
-        if not which[e]:
-            continue
-        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
-        total = 0.0
-        for k in range(starts[e], stops[e]):
-            d = _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s)
-            total += d * d
-        out[e] = math.sqrt(total / (stops[e] - starts[e]))
-    return out
-
-
-@_compiled
 def fit_screen(pixels: NDArray, counts: NDArray[np.int64], shortest: int, min_bow: float
                ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                           NDArray[np.int64]]:  # pragma: no cover - compiled
@@ -1725,7 +1703,7 @@ def level_fits(raw: NDArray[np.float64], pixels: NDArray, starts: NDArray[np.int
                           NDArray[np.float64]]:  # pragma: no cover - compiled
     """:func:`fit_checks` of the direct fits ``raw`` (K, 5) of the pieces
     ``pixels[starts[k]:stops[k]]``, then the RMS Sampson distance of each piece to its fit
-    (as :func:`ranged_rms` of the checked fits, 0 for the others): the rows, the angles
+    (its squares summed in order; 0 for the fits that fail): the rows, the angles
     (deg), whether each fit passes and is within ``max_residual`` px, and the residuals."""
     rows, degrees, ok = fit_checks(raw, min_axis, max_axis, ratio_sq)
     k = raw.shape[0]
@@ -2008,8 +1986,6 @@ def warm_up() -> None:
     ellipse_forms(np.ones((1, 5)))
     refit_checks(np.ones((1, 5)), np.zeros(1, np.int64), np.ones((1, 5)), np.ones(1, np.bool_),
                  1.0, 1.0, 1.0)
-    ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
-               np.ones(1, np.bool_))
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
     outline_rows(np.ones((1, 5)))
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
