@@ -162,7 +162,7 @@ def test_along_select_is_each_ellipses_mask(scene: tuple[np.ndarray, list[Ellips
     for tol in (1.2, 2.5):
         expected = np.concatenate([_along_mask(e, *points.T, *grads.T, tol) for e in probes])
         sel, _, _ = kernels.along_select(forms, starts, np.ones(len(probes), np.bool_), at, u,
-                                         v, gu, gv, points, 4.0 * tol * tol,
+                                         v, gu, gv, 4.0 * tol * tol,
                                          MIN_NORMAL_COS * MIN_NORMAL_COS)
         np.testing.assert_array_equal(sel, expected.nonzero()[0])
 

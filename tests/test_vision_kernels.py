@@ -24,6 +24,7 @@ from stackpick_sim.vision.fitting import (
     grouped_distances,
     plausible,
 )
+from stackpick_sim.vision.refine import _form
 from stackpick_sim.vision.roi import Roi, decimate, find_roi
 
 
@@ -89,6 +90,18 @@ def test_box_pairs_is_nonzero_of_the_box_test(rng: np.random.Generator) -> None:
     assert pe.size > 0
 
 
+def test_box_runs_are_the_box_pairs_points_and_their_bounds(rng: np.random.Generator) -> None:
+    pu, pv = rng.uniform(0, 100, 500), rng.uniform(0, 100, 500)
+    cx, cy = rng.uniform(0, 100, 6), rng.uniform(0, 100, 6)
+    reach = rng.uniform(0, 30, 6)
+    reach[2] = 0.0  # an ellipse with no point in its box
+    for rows in (pv, np.sort(np.rint(pv))):  # scattered, then in rows as the edge pixels
+        pe, pm = kernels.box_pairs(pu, rows, cx, cy, reach)
+        at, starts = kernels.box_runs(pu, rows, cx, cy, reach)
+        assert np.array_equal(at, pm)
+        assert np.array_equal(starts, np.searchsorted(pe, np.arange(7)))
+
+
 def test_grouped_distances_match_the_broadcast_form(rng: np.random.Generator) -> None:
     params = np.column_stack([rng.uniform(20, 80, 5), rng.uniform(20, 80, 5),
                               rng.uniform(10, 30, 5), rng.uniform(5, 10, 5),
@@ -151,6 +164,49 @@ def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
     got = kernels.near_pairs(pu, pv, rows, reach, 1.5)
     assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
     assert 0 < close.sum() < close.size
+    first = got[1] < 1200
+    split = kernels.near_pairs_split(pu, pv, rows, reach, 1.5, 1200)
+    for a, b in zip(split, (got[0][first], got[1][first], got[0][~first], got[1][~first]),
+                    strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_near_pairs_decide_points_at_the_tolerance_as_the_distance_does(
+        rng: np.random.Generator) -> None:
+    # Points placed at Sampson distances within 1e-9 to 1e-3 of the tolerance (inside and
+    # outside the outlines), and at the centres: the screen's undecided band and its edges.
+    rows = _ellipse_rows(rng, 5)
+    tol = 1.5
+    pu_all, pv_all = [], []
+    for e in range(5):
+        cx, cy, a, b, c, s = rows[:, e]
+        t = rng.uniform(0, 2 * np.pi, 200)
+        x, y = a * np.cos(t), b * np.sin(t)
+        nu, nv = b * np.cos(t), a * np.sin(t)  # the outward normal, in the ellipse's frame
+        norm = np.hypot(nu, nv)
+        for side in (-1.0, 1.0):
+            lo, hi = np.zeros(200), np.full(200, 3.0 * tol)
+            for _ in range(60):  # bisect the offset to the tolerance's distance
+                mid = 0.5 * (lo + hi)
+                u = cx + c * (x + side * mid * nu / norm) - s * (y + side * mid * nv / norm)
+                v = cy + s * (x + side * mid * nu / norm) + c * (y + side * mid * nv / norm)
+                d = kernels.point_distances(np.column_stack([u, v]), cx, cy, a, b, c, s)
+                lo, hi = np.where(d < tol, mid, lo), np.where(d < tol, hi, mid)
+            for f in (1 - 1e-3, 1 - 1e-7, 1 - 1e-9, 1.0, 1 + 1e-9, 1 + 1e-7, 1 + 1e-3):
+                m = lo * f
+                pu_all.append(cx + c * (x + side * m * nu / norm) - s * (y + side * m * nv / norm))
+                pv_all.append(cy + s * (x + side * m * nu / norm) + c * (y + side * m * nv / norm))
+        pu_all.append(np.array([cx]))
+        pv_all.append(np.array([cy]))
+    pu, pv = np.concatenate(pu_all), np.concatenate(pv_all)
+    reach = rows[2] + tol + 1.0
+    be, bm = kernels.box_pairs(pu, pv, rows[0].copy(), rows[1].copy(), reach)
+    d = kernels.grouped_distances(rows, np.bincount(be, minlength=5).astype(np.int64),
+                                  pu[bm], pv[bm])
+    close = d < tol
+    got = kernels.near_pairs(pu, pv, rows, reach, tol)
+    assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
+    assert 5 * 2 * 200 * 3 <= close.sum() < close.size  # the three inner offsets at least
 
 
 def test_bows_match_the_per_piece_sums(rng: np.random.Generator) -> None:
@@ -467,7 +523,6 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
-    pixels = rng.integers(0, 100, (n, 2)).astype(np.float64)
     active = np.array([True, False, True, True])
     passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
@@ -475,10 +530,9 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     at = rng.permutation(n).astype(np.int64)
     back = np.argsort(at)
     sel, bounds, pts = kernels.along_select(forms, starts, active, at, u[back], v[back],
-                                            gu[back], gv[back], pixels[back], 16.0,
-                                            0.87 * 0.87)
+                                            gu[back], gv[back], 16.0, 0.87 * 0.87)
     assert np.array_equal(sel, passed.nonzero()[0])
-    assert np.array_equal(pts, pixels[sel].astype(np.float32))
+    assert np.array_equal(pts, np.column_stack([u, v])[sel].astype(np.float32))
     owner = np.arange(4).repeat(counts)[sel]
     assert np.array_equal(bounds, np.searchsorted(owner, np.arange(5)))
     assert bounds[2] == bounds[1] and sel.size > 0
@@ -891,20 +945,73 @@ def test_fit_checks_match_fit_ellipse_and_plausible(rng: np.random.Generator) ->
             assert rows[k, 4] == math.radians(e.angle_deg)
 
 
-def test_ranged_rms_matches_the_residual_of_each_range(rng: np.random.Generator) -> None:
-    pixels = rng.integers(0, 300, (500, 2)).astype(np.int32)
-    ellipses = [Ellipse.of(*rng.uniform(50, 250, 2), *np.sort(rng.uniform(5, 80, 2))[::-1],
-                           float(rng.uniform(0, 180))) for _ in range(12)]
-    starts = rng.integers(0, 400, 12)
-    stops = starts + rng.integers(1, 100, 12)
-    which = rng.random(12) < 0.8
-    got = kernels.ranged_rms(distance_rows(ellipse_params(ellipses)), pixels, starts, stops,
-                             which)
-    for e, lo, hi, on, r in zip(ellipses, starts, stops, which, got, strict=True):
-        d = grouped_distances(ellipse_params([e]), np.array([hi - lo]),
+def test_ellipse_forms_match_the_form_of_each_ellipse(rng: np.random.Generator) -> None:
+    rows = np.column_stack([rng.uniform(0, 300, 300), rng.uniform(0, 300, 300),
+                            rng.uniform(5, 150, 300), rng.uniform(1, 100, 300),
+                            rng.uniform(0, 180, 300)])
+    want = [_form(Ellipse.of(*r)) for r in rows.tolist()]
+    assert kernels.ellipse_forms(rows).tolist() == [list(f) for f in want]
+
+
+def test_refit_checks_are_fit_checks_then_the_forms_and_stops(rng: np.random.Generator
+                                                              ) -> None:
+    raw = np.column_stack([rng.uniform(-50, 300, 60), rng.uniform(-50, 300, 60),
+                           rng.uniform(-5, 200, 60), rng.uniform(-5, 200, 60),
+                           rng.uniform(-180, 360, 60)])
+    raw[::11, 0] = np.nan
+    which = rng.permutation(80)[:60].astype(np.int64)
+    forms = rng.uniform(0, 1, (80, 5))
+    active = np.ones(80, np.bool_)
+    want_forms, want_active = forms.copy(), active.copy()
+    rows, degrees, ok = kernels.fit_checks(raw, 2.0, 250.0, EQ2_CHECKED_RATIO_SQ)
+    for k, e in enumerate(which.tolist()):
+        if ok[k]:
+            fit = Ellipse.of(*rows[k, :4].tolist(), float(degrees[k]))
+            want_forms[e] = _form(fit)
+        else:
+            want_active[e] = False
+    got = kernels.refit_checks(raw, which, forms, active, 2.0, 250.0, EQ2_CHECKED_RATIO_SQ)
+    for a, b in zip(got, (rows, degrees, ok), strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(forms, want_forms) and np.array_equal(active, want_active)
+    assert 0 < int(ok.sum()) < 60
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.float64])
+def test_fit_screen_keeps_the_long_bowed_pieces(rng: np.random.Generator, dtype: type) -> None:
+    counts = rng.integers(1, 40, 30).astype(np.int64)
+    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(dtype)
+    pixels[:counts[0], 1] = 7  # a straight piece
+    tried, starts, stops = kernels.fit_screen(pixels, counts, 10, 2.0)
+    bows = kernels.bows(pixels, counts)
+    want = [i for i in range(30) if counts[i] >= 10 and bows[i] >= 2.0]
+    assert tried.tolist() == want and 0 not in want
+    ends = np.cumsum(counts)
+    assert np.array_equal(stops, ends[want]) and np.array_equal(starts, (ends - counts)[want])
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.float64])
+def test_level_fits_are_the_fit_checks_then_their_residuals(rng: np.random.Generator,
+                                                       dtype: type) -> None:
+    pixels = rng.integers(0, 300, (500, 2)).astype(dtype)
+    raw = np.column_stack([rng.uniform(50, 250, 40), rng.uniform(50, 250, 40),
+                           rng.uniform(-5, 200, 40), rng.uniform(1, 200, 40),
+                           rng.uniform(0, 360, 40)])
+    starts = rng.integers(0, 400, 40)
+    stops = starts + rng.integers(1, 100, 40)
+    rows, degrees, ok = kernels.fit_checks(raw, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ)
+    # Each checked fit's residual on its range (the squares summed in order).
+    rms = np.zeros(40)
+    for e in ok.nonzero()[0]:
+        lo, hi = starts[e], stops[e]
+        d = grouped_distances(rows[e:e + 1], np.array([hi - lo]),
                               pixels[lo:hi, 0].astype(float), pixels[lo:hi, 1].astype(float))
-        assert r == (math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64),
-                                                 weights=d * d)[0]) / (hi - lo)) if on else 0.0)
+        rms[e] = math.sqrt(float(np.bincount(np.zeros(hi - lo, np.int64), weights=d * d)[0])
+                           / (hi - lo))
+    got = kernels.level_fits(raw, pixels, starts, stops, 2.0, 150.0, EQ2_CHECKED_RATIO_SQ, 60.0)
+    assert np.array_equal(got[0], rows) and np.array_equal(got[1], degrees)
+    assert np.array_equal(got[2], ok & (rms <= 60.0)) and np.array_equal(got[3], rms)
+    assert 0 < int(got[2].sum()) < int(ok.sum())
 
 
 def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(
@@ -985,3 +1092,69 @@ def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> 
                               points[at, 1])
         assert r == np.sqrt(np.bincount(np.zeros(at.size, np.int64), weights=d * d)[0]
                             / at.size)
+
+
+@pytest.mark.parametrize("channels", [1, 2, 3, 4])
+def test_strongest_gradients_take_the_first_channel_of_largest_l1(
+        rng: np.random.Generator, channels: int) -> None:
+    stacked = rng.integers(-1020, 1021, (channels, 2, 30, 41)).astype(np.int16)
+    stacked[:, :, :5] //= 200  # small values: many ties between channels
+    l1 = np.abs(stacked[:, 0].astype(np.int32)) + np.abs(stacked[:, 1].astype(np.int32))
+    first = np.argmax(l1, axis=0)[None]  # the first of equals
+    got_x, got_y = kernels.strongest_gradients(stacked)
+    assert np.array_equal(got_x, np.take_along_axis(stacked[:, 0], first, 0)[0])
+    assert np.array_equal(got_y, np.take_along_axis(stacked[:, 1], first, 0)[0])
+
+
+@pytest.mark.parametrize("channels", [1, 2, 3, 4])
+def test_level_histogram_and_belt_box_match_the_array_forms(rng: np.random.Generator,
+                                                            channels: int) -> None:
+    for h, w in ((7, 9), (12, 16), (1, 1)):
+        small = rng.integers(90, 140, (h, w, channels)).astype(np.uint8)
+        small[h // 3:, w // 2:] = 200  # a block of foreground
+        level, counts = kernels.level_histogram(small)
+        assert np.array_equal(level, small.max(axis=2))
+        assert np.array_equal(counts, np.bincount(level.ravel(), minlength=256).astype(float))
+        belt = int(np.median(level))
+        mean, near, box = kernels.belt_box(small, level, belt, 8, 20.0)
+        on = np.abs(level.astype(int) - belt) <= 8
+        assert near == on.sum()
+        want = (small[on].astype(np.int64).sum(axis=0) * (1.0 / on.sum()) if on.any()
+                else np.zeros(channels))
+        assert np.array_equal(mean, want)
+        fore = (np.abs(level.astype(int) - belt) > 20.0).astype(np.uint8)
+        assert tuple(box.tolist()) == cv2.boundingRect(fore)
+
+
+def test_junctions_cut_uv_is_junctions_cut_of_the_whole_pixels(rng: np.random.Generator
+                                                               ) -> None:
+    edges = (rng.random((40, 50)) < 0.3).astype(np.uint8)
+    rows, cols = kernels.set_pixels(edges)
+    uv = np.vstack([cols, rows]).astype(np.float64)
+    want = kernels.junctions_cut(edges, rows, cols)
+    got = kernels.junctions_cut_uv(edges, uv)
+    assert got[2] and want[2]
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    uv[0, 3] += 0.5  # not a pixel
+    assert not kernels.junctions_cut_uv(edges, uv)[2]
+
+
+def test_outline_rows_match_the_perimeter_and_the_angle(rng: np.random.Generator) -> None:
+    from stackpick_sim.vision.contrast import perimeter_px
+
+    ellipses = [Ellipse.of(*rng.uniform(0, 300, 2), *np.sort(rng.uniform(0.5, 200, 2))[::-1],
+                           float(rng.uniform(0, 180))) for _ in range(200)]
+    counts, rows = kernels.outline_rows(
+        np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses]))
+    assert counts.tolist() == [max(16, math.ceil(perimeter_px(e))) for e in ellipses]
+    t = [math.radians(e.angle_deg) for e in ellipses]
+    assert rows.tolist() == [[e.cx, e.cy, e.a, e.b, math.cos(x), math.sin(x)]
+                             for e, x in zip(ellipses, t, strict=True)]
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 5), (7, 8), (31, 33), (240, 320)])
+def test_set_indices_are_the_flat_nonzero_pixels(rng: np.random.Generator,
+                                                 shape: tuple[int, int]) -> None:
+    for density in (0.0, 0.03, 0.5, 1.0):
+        image = (rng.random(shape) < density).astype(np.uint8) * np.uint8(255)
+        assert np.array_equal(kernels._set_indices(image), np.flatnonzero(image))

@@ -82,39 +82,17 @@ def colour_gradients(image: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArr
     if image.ndim == 2:
         dx, dy = cv2.spatialGradient(image)
         return cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
-    # One channel at a time, each into the same few buffers: extractChannel and
-    # spatialGradient (the 3x3 Sobel pair, same border) cost a third of split and two Sobel
-    # calls, and reused buffers spare the page faults of fresh ones (a large share of this
-    # stage's time on these sizes).
-    channels = image.shape[2]
-    plane = cast("NDArray[np.uint8]", cv2.extractChannel(image, 0))
-    dx, dy = cv2.spatialGradient(plane)
-    best_x, best_y = cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
-    gx, gy, best_m, m, spare = (np.empty_like(best_x) for _ in range(5))
-    _l1(best_x, best_y, best_m, spare)
-    better = np.empty_like(plane)
-    for c in range(1, channels):
+    # One channel at a time through one plane buffer (extractChannel and spatialGradient,
+    # the 3x3 Sobel pair with the same border, cost a third of split and two Sobel calls),
+    # each channel's pair into one stacked buffer, then the strongest channel per pixel in
+    # one compiled pass (kernels.strongest_gradients).
+    h, w, channels = image.shape
+    plane = np.empty((h, w), np.uint8)
+    stacked = np.empty((channels, 2, h, w), np.int16)
+    for c in range(channels):
         cv2.extractChannel(image, c, plane)
-        cv2.spatialGradient(plane, gx, gy)
-        _l1(gx, gy, m, spare)
-        cv2.compare(m, best_m, cv2.CMP_GT, better)
-        cv2.copyTo(gx, better, best_x)
-        cv2.copyTo(gy, better, best_y)
-        if c + 1 < channels:  # the last channel's maximum is not needed
-            np.maximum(m, best_m, out=best_m)
-    return best_x, best_y
-
-
-def _l1(dx: NDArray[np.int16], dy: NDArray[np.int16], out: NDArray[np.int16],
-        spare: NDArray[np.int16] | None = None) -> NDArray[np.int16]:
-    """|dx| + |dy| of 3x3 Sobel gradients of a uint8 image (a cheap gradient magnitude for
-    ranking channels), written into ``out`` (``spare``, of the same shape, is overwritten;
-    None: a fresh one); each term is at most 4 x 255, so int16 holds the sum without
-    overflow."""
-    # numpy's abs costs a fifth of OpenCV's absdiff with a scalar on these sizes.
-    np.abs(dx, out=out)
-    out += np.abs(dy, out=spare)
-    return out
+        cv2.spatialGradient(plane, stacked[c, 0], stacked[c, 1])
+    return kernels.strongest_gradients(stacked)
 
 
 def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16],

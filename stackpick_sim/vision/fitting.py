@@ -131,11 +131,21 @@ def within_pairs(params: NDArray[np.float64], points: NDArray, tol_px: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The true entries of :func:`within` as (ellipse, point) index arrays (K,) each, in
     ``np.nonzero`` order, without the (E, N) matrix."""
+    pairs = within_pairs_split(params, points, tol_px, points.shape[0])
+    return pairs[0], pairs[1]
+
+
+def within_pairs_split(params: NDArray[np.float64], points: NDArray, tol_px: float,
+                       split: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                            NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`within_pairs` as the pairs of the points before ``split`` and those of the
+    others, each in :func:`within_pairs`' order (its pairs split by point)."""
     p = np.asarray(points, np.float64)
     reach = params[:, 2] + tol_px + 1.0
     # The box test and the distances in one compiled pass over (ellipse, point) pairs.
-    return kernels.near_pairs(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                              distance_rows(params), reach, tol_px)
+    return kernels.near_pairs_split(np.ascontiguousarray(p[:, 0]),
+                                    np.ascontiguousarray(p[:, 1]), distance_rows(params),
+                                    reach, tol_px, split)
 
 
 def pair_distances(params: NDArray[np.float64], points: NDArray[np.float64],
@@ -241,9 +251,9 @@ _Piece = tuple[int, str, NDArray]
 
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
-    """:func:`fit_or_split` of every chain, level by level: the straightness test, the fits'
-    checks and the residuals of all pieces of one level are one compiled pass each (only the
-    direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
+    """:func:`fit_or_split` of every chain, level by level: the straightness test of all
+    pieces of one level is one compiled pass, their fits' checks with the residuals another
+    (only the direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
     accepted piece, in the order :func:`fit_or_split` gives them chain after chain."""
     pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
     found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
@@ -271,23 +281,20 @@ def _fit_level(pending: list[_Piece], max_axis: float, params: FitParams
     pixels = np.concatenate(pieces)
     if pixels.dtype != _INT32:  # int32 chains, as the stages pass them, read as they are
         pixels = pixels.astype(np.float64)
-    stops = np.cumsum(counts)
-    shortest = max(5, params.min_fit_px)
-    bows = kernels.bows(pixels, counts).tolist()
-    tried = [k for k, (n, bow) in enumerate(zip(counts.tolist(), bows, strict=True))
-             if n >= shortest and bow >= params.min_bow_px]
-    if not tried:
+    # The straightness test, then the fits' checks and residuals, each one compiled pass.
+    tried, starts, stops = kernels.fit_screen(pixels, counts, max(5, params.min_fit_px),
+                                              params.min_bow_px)
+    if not tried.size:
         return [], pending
-    rows, degrees, ok = kernels.fit_checks(_direct_rows([pieces[k] for k in tried]),
-                                           params.min_axis_px, max_axis, EQ2_CHECKED_RATIO_SQ)
-    at = np.array(tried, np.int64)
-    rms = kernels.ranged_rms(distance_rows(rows), pixels, stops[at] - counts[at], stops[at],
-                             ok).tolist()
+    at = tried.tolist()
+    rows, degrees, good, rms = kernels.level_fits(
+        _direct_rows([pieces[k] for k in at]), pixels, starts, stops, params.min_axis_px,
+        max_axis, EQ2_CHECKED_RATIO_SQ, params.max_residual_px)
     accepted: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
     fitted = set()
-    for k, good, (cx, cy, a, b, _), ang, r in zip(tried, ok.tolist(), rows.tolist(),
-                                                  degrees.tolist(), rms, strict=True):
-        if good and r <= params.max_residual_px:
+    for k, ok, (cx, cy, a, b, _), ang, r in zip(at, good.tolist(), rows.tolist(),
+                                                degrees.tolist(), rms.tolist(), strict=True):
+        if ok:
             i, path, pts_ = pending[k]
             accepted.append(((i, path), pts_, Ellipse.of(cx, cy, a, b, ang), r))
             fitted.add(k)

@@ -75,6 +75,62 @@ def box_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.f
 
 
 @_compiled
+def box_runs(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
+             cy: NDArray[np.float64], reach: NDArray[np.float64]
+             ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The points of :func:`box_pairs` (ellipse by ellipse, points ascending) and where each
+    ellipse's run of them starts and ends ((E + 1,) bounds)."""
+    n_e, n_p = cx.shape[0], pu.shape[0]
+    ascending = True
+    for m in range(n_p - 1):
+        ascending &= pv[m] <= pv[m + 1]
+    if not ascending:
+        pe, pm = box_pairs(pu, pv, cx, cy, reach)
+        starts = np.zeros(n_e + 1, np.int64)
+        for k in range(pe.shape[0]):
+            starts[pe[k] + 1] += 1
+        for e in range(n_e):
+            starts[e + 1] += starts[e]
+        return pm, starts
+    # Points in rows ascending (as the edge stage lists them): the rows within reach of an
+    # ellipse's centre are one run of them (pv - cy rounds monotonically), found by
+    # bisection; only that run is tested.
+    runs = np.empty((n_e, 2), np.int64)
+    total = 0
+    for e in range(n_e):
+        runs[e, 0] = _first_past(pv, cy[e], -reach[e], False)
+        runs[e, 1] = max(runs[e, 0], _first_past(pv, cy[e], reach[e], True))
+        total += runs[e, 1] - runs[e, 0]
+    pm = np.empty(total, np.int64)
+    starts = np.zeros(n_e + 1, np.int64)
+    k = 0
+    for e in range(n_e):
+        x, y, r = cx[e], cy[e], reach[e]
+        for m in range(runs[e, 0], runs[e, 1]):
+            if abs(pu[m] - x) <= r and abs(pv[m] - y) <= r:
+                pm[k] = m
+                k += 1
+        starts[e + 1] = k
+    return pm[:k], starts
+
+
+@_compiled
+def _first_past(pv: NDArray[np.float64], cy: float, bound: float, strict: bool
+                ) -> int:  # pragma: no cover - compiled
+    """The first index of ascending ``pv`` with ``pv - cy`` above ``bound`` (``strict``) or
+    at least ``bound`` (its length if none)."""
+    lo, hi = 0, pv.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        d = pv[mid] - cy
+        if d > bound or (not strict and d == bound):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@_compiled
 def _sampson(du: float, dv: float, a: float, b: float, c: float, s: float
              ) -> float:  # pragma: no cover - compiled
     """Sampson distance of a point at (du, dv) from the centre of the ellipse of semi-axes
@@ -146,6 +202,38 @@ def _near_scale(tol_px: float, minor: float) -> float:  # pragma: no cover - com
         return math.inf
     t = tol_px / minor
     return (t + math.sqrt(t * t + 1.0)) * (1.0 + 1e-6)
+
+
+@_compiled
+def strongest_gradients(stacked: NDArray[np.int16]
+                        ) -> tuple[NDArray[np.int16], NDArray[np.int16]]:  # pragma: no cover
+    """Per pixel, the (dx, dy) of the channel with the largest |dx| + |dy| (the first of
+    equals) of per-channel Sobel gradients ``stacked`` (C, 2, H, W) (channel c's dx and dy
+    at [c, 0] and [c, 1]); (H, W) each. Channel by channel, each a pass a later channel
+    replaces where it is strictly stronger (Sobel 3x3 terms of uint8 images are at most
+    4 x 255, so the L1 sum fits int16); see :func:`~stackpick_sim.vision.edges.
+    colour_gradients`."""
+    channels, _, h, w = stacked.shape
+    n = h * w
+    flat = stacked.reshape(channels, 2, n)
+    best_x, best_y = np.empty((h, w), np.int16), np.empty((h, w), np.int16)
+    out_x, out_y = best_x.ravel(), best_y.ravel()
+    best = np.empty(n, np.int16)
+    gx, gy = flat[0, 0], flat[0, 1]
+    for i in range(n):
+        x, y = gx[i], gy[i]
+        out_x[i], out_y[i] = x, y
+        best[i] = abs(x) + abs(y)
+    for c in range(1, channels):
+        gx, gy = flat[c, 0], flat[c, 1]
+        for i in range(n):  # branch-free selects: the loop vectorises
+            x, y = gx[i], gy[i]
+            m = np.int16(abs(x) + abs(y))
+            stronger = m > best[i]
+            out_x[i] = x if stronger else out_x[i]
+            out_y[i] = y if stronger else out_y[i]
+            best[i] = m if stronger else best[i]
+    return best_x, best_y
 
 
 @_compiled
@@ -256,21 +344,61 @@ def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[n
     (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
     closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
     column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
+    pe, pm, _, _ = near_pairs_split(pu, pv, rows, reach, tol_px, pu.shape[0])
+    return pe, pm
+
+
+@_compiled
+def near_pairs_split(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                     rows: NDArray[np.float64], reach: NDArray[np.float64], tol_px: float,
+                     split: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                          NDArray[np.int64],
+                                          NDArray[np.int64]]:  # pragma: no cover - compiled
+    """:func:`near_pairs` as the (ellipse, point) pairs of the points before ``split`` and
+    those of the others (each in :func:`near_pairs`' order)."""
     n_e, n_p = rows.shape[1], pu.shape[0]
     count = _box_count(pu, pv, rows[0], rows[1], reach)
-    pe = np.empty(count, np.int64)
-    pm = np.empty(count, np.int64)
-    k = 0
+    pe, pm = np.empty(count, np.int64), np.empty(count, np.int64)
+    re, rm = np.empty(count, np.int64), np.empty(count, np.int64)
+    k = j = 0
     for e in range(n_e):
         cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
         r = reach[e]
+        ia, ib = 1.0 / a, 1.0 / b
         for m in range(n_p):
-            if (abs(pu[m] - cx) <= r and abs(pv[m] - cy) <= r
-                    and _sampson(pu[m] - cx, pv[m] - cy, a, b, c, s) < tol_px):
-                pe[k] = e
-                pm[k] = m
-                k += 1
-    return pe[:k], pm[:k]
+            du, dv = pu[m] - cx, pv[m] - cy
+            if (abs(du) <= r and abs(dv) <= r
+                    and _near_sampson(du, dv, a, b, c, s, ia, ib, tol_px)):
+                if m < split:
+                    pe[k], pm[k] = e, m
+                    k += 1
+                else:
+                    re[j], rm[j] = e, m
+                    j += 1
+    return pe[:k], pm[:k], re[:j], rm[:j]
+
+
+@_compiled
+def _near_sampson(du: float, dv: float, a: float, b: float, c: float, s: float, ia: float,
+                  ib: float, tol_px: float) -> bool:  # pragma: no cover - compiled
+    """``_sampson(du, dv, a, b, c, s) < tol_px`` (``ia``, ``ib``: 1 / a, 1 / b), told
+    without a division where a margin allows: the squared distance is Q^2 / (4 G) (Q =
+    x^2 + y^2 - 1, G = (x / a)^2 + (y / b)^2, x and y in units of the axes), so Q^2 against
+    4 tol^2 G, computed with the reciprocals, decides unless the two lie within a relative
+    1e-6 of each other or G is below 1e-8 (their rounding, and the distance's 1e-12 guard
+    against G = 0, are then orders of magnitude below the margin); there the distance itself
+    is computed."""
+    x, y = (c * du + s * dv) * ia, (c * dv - s * du) * ib
+    q = x * x + y * y - 1.0
+    xa, yb = x * ia, y * ib
+    g = xa * xa + yb * yb
+    lhs, rhs = q * q, 4.0 * tol_px * tol_px * g
+    if g > 1e-8:  # the guard's share of the distance below 1e-8
+        if lhs < rhs * (1.0 - 1e-6):
+            return True
+        if lhs > rhs * (1.0 + 1e-6):
+            return False
+    return _sampson(du, dv, a, b, c, s) < tol_px
 
 
 @_compiled
@@ -344,6 +472,26 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
             k += 1
         out[e] = hits / counts[e]
     return out
+
+
+@_compiled
+def outline_rows(ellipses: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover
+    """Per ellipse of (E, 5) ``ellipses`` cx, cy, a, b, angle (deg): its outline's sample
+    count, max(16, ceil(perimeter)) with Ramanujan's perimeter (px), and its row cx, cy, a,
+    b, cos angle, sin angle ((E, 6)); see :func:`~stackpick_sim.vision.contrast.perimeter_px`
+    and :func:`~stackpick_sim.vision.merging.support_shares` (the same arithmetic)."""
+    n = ellipses.shape[0]
+    counts, rows = np.empty(n, np.int64), np.empty((n, 6))
+    for e in range(n):
+        a, b = ellipses[e, 2], ellipses[e, 3]
+        h = ((a - b) / (a + b)) ** 2
+        perimeter = math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
+        counts[e] = max(16, math.ceil(perimeter))
+        t = ellipses[e, 4] * (math.pi / 180.0)
+        rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3] = ellipses[e, 0], ellipses[e, 1], a, b
+        rows[e, 4], rows[e, 5] = math.cos(t), math.sin(t)
+    return counts, rows
 
 
 @_compiled
@@ -471,14 +619,14 @@ def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, 
 def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
                  active: NDArray[np.bool_], at: NDArray[np.int64], u: NDArray[np.float64],
                  v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
-                 points: NDArray[np.float64], dist_sq: float, cos_sq: float
+                 dist_sq: float, cos_sq: float
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
     (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
     ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
-    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels'
-    rows of the (N, 2) ``points`` as float32 (the fits' input); see
+    where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels
+    (u, v) as (K, 2) float32 rows (the fits' input); see
     :func:`~stackpick_sim.vision.refine.refine_all`."""
     n_e = forms.shape[0]
     sel = np.empty(at.shape[0], np.int64)
@@ -496,8 +644,8 @@ def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
     out = np.empty((count, 2), np.float32)
     for j in range(count):
         m = at[sel[j]]
-        out[j, 0] = np.float32(points[m, 0])
-        out[j, 1] = np.float32(points[m, 1])
+        out[j, 0] = np.float32(u[m])
+        out[j, 1] = np.float32(v[m])
     return sel[:count], bounds, out
 
 
@@ -1035,6 +1183,27 @@ def circle_solutions(q: NDArray[np.float64], evals: NDArray[np.float64],
 
 
 @_compiled
+def _set_indices(image: NDArray[np.uint8]) -> NDArray[np.int64]:  # pragma: no cover
+    """The flat indices (ascending) of the nonzero pixels of a C-ordered (H, W) uint8 image,
+    read eight bytes at a time (a sparse edge map is mostly zero words)."""
+    flat = image.ravel()
+    size = flat.shape[0]
+    words = size // 8
+    packed = flat[:words * 8].view(np.uint64)
+    out = np.empty(size, np.int64)
+    n = 0
+    for j in range(words):
+        if packed[j]:
+            for i in range(8 * j, 8 * j + 8):
+                out[n] = i
+                n += flat[i] != 0
+    for i in range(words * 8, size):
+        out[n] = i
+        n += flat[i] != 0
+    return out[:n]
+
+
+@_compiled
 def _stair_pass(padded: NDArray[np.uint8], at: NDArray[np.int64], n: int,
                 lut: NDArray[np.uint8], gone: NDArray[np.int64]) -> int:  # pragma: no cover
     """One pass of :func:`stairs_removed` over the first ``n`` edge pixels ``at`` (flat
@@ -1083,20 +1252,17 @@ def _stairs_pass_pair(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     (into it, ascending) of the pixels left at the front of the returned index array, and
     how many."""
     h, w = edges.shape
-    padded = np.zeros((h + 2, w + 2), np.uint8)
-    n = 0
-    for r in range(h):
-        for c in range(w):
-            on = int(edges[r, c] != 0)
-            padded[r + 1, c + 1] = on
-            n += on
-    # Branch-free appends (on dense edge maps branches would mispredict): one spare slot.
-    at = np.empty(n + 1, np.int64)
+    wp = w + 2
+    padded = np.zeros((h + 2, wp), np.uint8)
     flat = padded.ravel()
-    k = 0
-    for i in range(w + 3, (h + 1) * (w + 2) - 1):
-        at[k] = i
-        k += flat[i]
+    # The set pixels' flat indices (into the padded map, ascending), set to 1 in it.
+    found = _set_indices(edges)
+    n = found.shape[0]
+    at = np.empty(n + 1, np.int64)
+    for k in range(n):
+        i = found[k]
+        at[k] = (i // w + 1) * wp + i % w + 1
+        flat[at[k]] = 1
     gone = np.empty(n, np.int64)
     n = _stair_pass(padded, at, n, first, gone)
     n = _stair_pass(padded, at, n, second, gone)
@@ -1115,13 +1281,15 @@ def stairs_removed_pixels(edges: NDArray[np.uint8], first: NDArray[np.uint8],
     padded, at, n = _stairs_pass_pair(edges, first, second)
     wp = padded.shape[1]
     pts, g = np.empty((2, n)), np.empty((2, n))
+    kept = np.zeros(edges.shape, np.uint8)  # the map written pixel by pixel, not copied
     for k in range(n):
         r, c = at[k] // wp - 1, at[k] % wp - 1
+        kept[r, c] = 1
         pts[0, k], pts[1, k] = c, r
         x, y = np.float64(gx[r, c]), np.float64(gy[r, c])
         norm = max(np.hypot(x, y), 1e-9)
         g[0, k], g[1, k] = x / norm, y / norm
-    return np.ascontiguousarray(padded[1:-1, 1:-1]), pts, g
+    return kept, pts, g
 
 
 @_compiled
@@ -1334,14 +1502,27 @@ def level_histogram(small: NDArray[np.uint8]
     ``np.maximum`` over the channels and ``cv2.calcHist``)."""
     h, w, channels = small.shape
     level = np.empty((h, w), np.uint8)
-    counts = np.zeros(256)
-    for r in range(h):
-        for c in range(w):
-            top = small[r, c, 0]
+    flat, out = small.reshape(h * w, channels), level.ravel()
+    if channels == 3:  # the colour frames: the channel loop unrolled
+        for i in range(h * w):
+            out[i] = max(flat[i, 0], flat[i, 1], flat[i, 2])
+    else:
+        for i in range(h * w):
+            top = flat[i, 0]
             for k in range(1, channels):
-                top = max(top, small[r, c, k])
-            level[r, c] = top
-            counts[top] += 1.0
+                top = max(top, flat[i, k])
+            out[i] = top
+    # Integer counts (exact, as the float sums of ones), two interleaved tables: a run of
+    # equal levels (the belt) would otherwise wait on each increment's store.
+    tables = np.zeros((2, 256), np.int64)
+    for i in range(0, h * w - 1, 2):
+        tables[0, out[i]] += 1
+        tables[1, out[i + 1]] += 1
+    if (h * w) % 2:
+        tables[0, out[h * w - 1]] += 1
+    counts = np.empty(256)
+    for v in range(256):
+        counts[v] = np.float64(tables[0, v] + tables[1, v])
     return level, counts
 
 
@@ -1360,16 +1541,39 @@ def belt_box(small: NDArray[np.uint8], level: NDArray[np.uint8], belt: int, spre
     near = 0
     lo, hi = max(0, belt - spread), min(255, belt + spread)
     u0, v0, u1, v1 = w, h, -1, -1
+    # Per level, whether it is near the belt's and whether it is foreground: two table
+    # lookups per pixel instead of the tests.
+    is_near, is_fore = np.zeros(256, np.int64), np.zeros(256, np.bool_)
+    for x in range(256):
+        is_near[x] = lo <= x <= hi
+        is_fore[x] = abs(x - belt) > delta
     for r in range(h):
-        for c in range(w):
-            x = np.int64(level[r, c])
-            if lo <= x <= hi:
-                near += 1
+        row, levels = small[r], level[r]
+        if channels == 3:  # the colour frames: the sums in registers
+            s0, s1, s2 = sums[0], sums[1], sums[2]
+            for c in range(w):
+                on = is_near[levels[c]]
+                near += on
+                s0 += on * np.int64(row[c, 0])
+                s1 += on * np.int64(row[c, 1])
+                s2 += on * np.int64(row[c, 2])
+            sums[0], sums[1], sums[2] = s0, s1, s2
+        else:
+            for c in range(w):
+                on = is_near[levels[c]]
+                near += on
                 for k in range(channels):
-                    sums[k] += small[r, c, k]
-            if abs(x - belt) > delta:
-                u0, u1 = min(u0, c), max(u1, c)
-                v0, v1 = min(v0, r), max(v1, r)
+                    sums[k] += on * np.int64(row[c, k])
+        first, last = -1, -1
+        for c in range(w):
+            if is_fore[levels[c]]:
+                last = c
+                if first < 0:
+                    first = c
+        if first >= 0:  # the row's foreground spans first..last
+            u0, u1 = min(u0, first), max(u1, last)
+            v0 = min(v0, r)
+            v1 = r
     mean = np.zeros(channels)
     scale = 1.0 / near if near else 0.0
     for k in range(channels):
@@ -1426,25 +1630,97 @@ def fit_checks(raw: NDArray[np.float64], min_axis: float, max_axis: float, ratio
 
 
 @_compiled
-def ranged_rms(rows: NDArray[np.float64], pixels: NDArray[np.int32],
-               starts: NDArray[np.int64], stops: NDArray[np.int64], which: NDArray[np.bool_]
-               ) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    """Per ellipse e (column e of (6, E) ``rows``: cx, cy, a, b and the angle's cosine and
-    sine) with ``which[e]`` set, the RMS Sampson distance of the pixels
-    ``pixels[starts[e]:stops[e]]`` to it (their squares summed in order; 0 elsewhere); see
-    :func:`~stackpick_sim.vision.fitting.rms_residual` (the same sums)."""
-    n = rows.shape[1]
-    out = np.zeros(n)
-    for e in range(n):
-        if not which[e]:
-            continue
-        cx, cy, a, b, c, s = rows[0, e], rows[1, e], rows[2, e], rows[3, e], rows[4, e], rows[5, e]
-        total = 0.0
-        for k in range(starts[e], stops[e]):
-            d = _sampson(pixels[k, 0] - cx, pixels[k, 1] - cy, a, b, c, s)
-            total += d * d
-        out[e] = math.sqrt(total / (stops[e] - starts[e]))
+def _form_into(out: NDArray[np.float64], e: int, cx: float, cy: float, a: float, b: float,
+               t: float) -> None:  # pragma: no cover - compiled
+    """Row ``e`` of ``out``: the centre and quadratic form (cx, cy, A, H, B) of the ellipse
+    (cx, cy, a, b) at angle ``t`` (rad); see :func:`~stackpick_sim.vision.refine._form` (the
+    same arithmetic)."""
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / (a * a), 1.0 / (b * b)
+    out[e, 0], out[e, 1] = cx, cy
+    out[e, 2] = c * c * ia + s * s * ib
+    out[e, 3] = c * s * (ia - ib)
+    out[e, 4] = s * s * ia + c * c * ib
+
+
+@_compiled
+def ellipse_forms(rows: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover
+    """(E, 5) centres and quadratic forms (cx, cy, A, H, B) of the ellipses of (E, 5)
+    ``rows`` cx, cy, a, b, angle (deg); see :func:`~stackpick_sim.vision.refine._form` (the
+    same arithmetic)."""
+    out = np.empty((rows.shape[0], 5))
+    for e in range(rows.shape[0]):
+        _form_into(out, e, rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3],
+                   rows[e, 4] * (math.pi / 180.0))
     return out
+
+
+@_compiled
+def refit_checks(raw: NDArray[np.float64], which: NDArray[np.int64],
+                 forms: NDArray[np.float64], active: NDArray[np.bool_], min_axis: float,
+                 max_axis: float, ratio_sq: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                            NDArray[np.bool_]]:  # pragma: no cover - compiled
+    """:func:`fit_checks` of the direct fits ``raw`` (K, 5) of the ellipses ``which`` (K,);
+    in place, the row ``which[k]`` of ``forms`` (E, 5) becomes the form (:func:`ellipse_forms`)
+    of each fit that passes, and ``active[which[k]]`` is cleared for each that fails."""
+    rows, degrees, ok = fit_checks(raw, min_axis, max_axis, ratio_sq)
+    for k in range(which.shape[0]):
+        if ok[k]:
+            _form_into(forms, which[k], rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3],
+                       rows[k, 4])
+        else:
+            active[which[k]] = False
+    return rows, degrees, ok
+
+
+@_compiled
+def fit_screen(pixels: NDArray, counts: NDArray[np.int64], shortest: int, min_bow: float
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                          NDArray[np.int64]]:  # pragma: no cover - compiled
+    """The pieces of (N, 2) ``pixels`` (one after another, ``counts[i]`` pixels each) worth a
+    fit: at least ``shortest`` pixels and a :func:`bows` of at least ``min_bow`` px; their
+    indices (ascending) and where each starts and stops in ``pixels``."""
+    bow = bows(pixels, counts)
+    m = counts.shape[0]
+    tried = np.empty(m, np.int64)
+    starts, stops = np.empty(m, np.int64), np.empty(m, np.int64)
+    k = 0
+    start = 0
+    for i in range(m):
+        if counts[i] >= shortest and bow[i] >= min_bow:
+            tried[k], starts[k], stops[k] = i, start, start + counts[i]
+            k += 1
+        start += counts[i]
+    return tried[:k], starts[:k], stops[:k]
+
+
+@_compiled
+def level_fits(raw: NDArray[np.float64], pixels: NDArray, starts: NDArray[np.int64],
+               stops: NDArray[np.int64], min_axis: float, max_axis: float, ratio_sq: float,
+               max_residual: float
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                          NDArray[np.float64]]:  # pragma: no cover - compiled
+    """:func:`fit_checks` of the direct fits ``raw`` (K, 5) of the pieces
+    ``pixels[starts[k]:stops[k]]``, then the RMS Sampson distance of each piece to its fit
+    (its squares summed in order; 0 for the fits that fail): the rows, the angles
+    (deg), whether each fit passes and is within ``max_residual`` px, and the residuals."""
+    rows, degrees, ok = fit_checks(raw, min_axis, max_axis, ratio_sq)
+    k = raw.shape[0]
+    rms = np.zeros(k)
+    good = np.zeros(k, np.bool_)
+    for e in range(k):
+        if not ok[e]:
+            continue
+        cx, cy, a, b = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3]
+        c, s = math.cos(rows[e, 4]), math.sin(rows[e, 4])
+        total = 0.0
+        for j in range(starts[e], stops[e]):
+            d = _sampson(pixels[j, 0] - cx, pixels[j, 1] - cy, a, b, c, s)
+            total += d * d
+        rms[e] = math.sqrt(total / (stops[e] - starts[e]))
+        good[e] = rms[e] <= max_residual
+    return rows, degrees, good, rms
 
 
 @_compiled
@@ -1503,6 +1779,21 @@ def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArr
         if keep[j]:
             end[rows[j], cols[j]] = _padded_box(cut_flat, at[j], wp) <= 2
     return np.ascontiguousarray(cut_padded[1:-1, 1:-1]), end, True
+
+
+@_compiled
+def junctions_cut_uv(edges: NDArray[np.uint8], uv: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8],
+                                bool]:  # pragma: no cover - compiled
+    """:func:`junctions_cut` of the pixels given as (2, M) rows u, v (whole numbers, as the
+    edge stage lists them; one that is not: not valid)."""
+    n = uv.shape[1]
+    rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
+    for j in range(n):
+        rows[j], cols[j] = np.int64(uv[1, j]), np.int64(uv[0, j])
+        if rows[j] != uv[1, j] or cols[j] != uv[0, j]:
+            return np.zeros((1, 1), np.uint8), np.zeros((1, 1), np.uint8), False
+    return junctions_cut(edges, rows, cols)
 
 
 @_compiled
@@ -1667,6 +1958,7 @@ def warm_up() -> None:
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     stride_magnitudes(img, img, 4, 8.0)
+    strongest_gradients(np.zeros((3, 2, 4, 4), np.int16))
     for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
         chain_hits(pts, np.zeros(1, np.int64), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
@@ -1675,10 +1967,12 @@ def warm_up() -> None:
     junction_ends(col, col, np.zeros((1, 2)), np.zeros(1, np.int64), np.ones((1, 8)), 1.0,
                   1.0, 1.0, 1.0)
     along_select(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
-                 np.zeros(1, np.int64), col, col, col, col, np.zeros((1, 2)), 1.0, 1.0)
+                 np.zeros(1, np.int64), col, col, col, col, 1.0, 1.0)
+    box_runs(col, col, col, col, col)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
     near_pairs(col, col, np.ones((6, 1)), col, 1.0)
+    near_pairs_split(col, col, np.ones((6, 1)), col, 1.0, 1)
     bows(np.zeros((1, 2)), counts)
     segments_rms(np.ones((6, 1)), np.zeros((1, 2)), np.array([0, 1], np.int64), counts - 1,
                  counts)
@@ -1686,9 +1980,14 @@ def warm_up() -> None:
                 0.5)
     bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
-    ranged_rms(np.ones((6, 1)), np.zeros((1, 2), np.int32), np.zeros(1, np.int64), counts,
-               np.ones(1, np.bool_))
+    for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
+        fit_screen(pixels, counts, 1, 0.0)
+        level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)
+    ellipse_forms(np.ones((1, 5)))
+    refit_checks(np.ones((1, 5)), np.zeros(1, np.int64), np.ones((1, 5)), np.ones(1, np.bool_),
+                 1.0, 1.0, 1.0)
     outline_support(np.zeros((4, 4), np.uint8), np.ones((1, 6)), counts, col, col, 1)
+    outline_rows(np.ones((1, 5)))
     outline_contrasts(col, col, col, col, img, img, col, np.zeros((1, 1), np.int64), 8.0)
     contrast_peaks(col, col, col, col, img, img, col, 1, 8.0, 1.0, True)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
@@ -1703,6 +2002,7 @@ def warm_up() -> None:
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     grid = np.zeros((4, 4), np.uint8)
     _, end, _ = junctions_cut(grid, *set_pixels(grid))
+    junctions_cut_uv(grid, np.zeros((2, 1)))
     pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
     chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
                1.0)

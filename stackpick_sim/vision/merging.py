@@ -40,6 +40,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
     within_pairs,
+    within_pairs_split,
 )
 
 #: The default settings (see MergeParams: the reasons for each).
@@ -130,15 +131,12 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8], radius: 
     dilated map."""
     if not ellipses:
         return np.zeros(0)
-    counts, rows = [], []
-    for e in ellipses:
-        counts.append(max(16, math.ceil(perimeter_px(e))))
-        t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
-    circles = [unit_circle(n) for n in counts]
-    # The rounded samples (as boundary_samples' points) looked up in one compiled pass.
-    return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
-                                   np.array(rows, np.float64), np.array(counts, np.int64),
+    # The sample counts and the rows in one compiled pass, then the rounded samples (as
+    # boundary_samples' points) looked up in another.
+    counts, rows = kernels.outline_rows(np.array(
+        [(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses], np.float64))
+    circles = [unit_circle(n) for n in counts.tolist()]
+    return kernels.outline_support(np.ascontiguousarray(support, np.uint8), rows, counts,
                                    np.concatenate([q[0] for q in circles]),
                                    np.concatenate([q[1] for q in circles]), radius)
 
@@ -260,10 +258,8 @@ def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]
         everything = all_pixels.astype(np.float64)
         done = sum(chains[i].shape[0] for i in seg_of_piece)
         pixels, points = all_pixels[:done], everything[:done]  # int32: the fits' input
-        g_all, p_all = within_pairs(params, everything, tol_px)
-        piece = p_all < done
-        pair_g, pair_p = g_all[piece], p_all[piece]
-        rest = (g_all[~piece], p_all[~piece])
+        pair_g, pair_p, *later = within_pairs_split(params, everything, tol_px, done)
+        rest = (later[0], later[1])
     else:
         pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
         points = pixels.astype(np.float64)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from typing import cast
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -27,7 +28,12 @@ from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import contrast_threshold, outline_columns
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
-from stackpick_sim.vision.fitting import ellipse_distances, fit_ellipse, plausible
+from stackpick_sim.vision.fitting import (
+    EQ2_CHECKED_RATIO_SQ,
+    ellipse_distances,
+    fit_ellipse,
+    plausible,
+)
 from stackpick_sim.vision.wall import column_median
 
 #: The default settings of the refine stage (see RefineParams: the reasons for each).
@@ -204,45 +210,55 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
-    n = len(current)
-    a, cx, cy = np.array([(e.a, e.cx, e.cy) for e in current]).T.copy()
-    reach = a + params.tolerances_px[0] + 1
     # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv).
     u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
     gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
-    pe, pm = kernels.box_pairs(u, v, cx, cy, reach)
-    # The pairs run ellipse by ellipse: per ellipse, a range of them.
-    starts = np.zeros(n + 1, np.int64)
-    np.cumsum(np.bincount(pe, minlength=n), out=starts[1:])
-    pixels_in = np.ascontiguousarray(points, np.float64)
-    active = np.ones(n, np.bool_)
+    # Each fit's quadratic form, a row rewritten after its refit.
+    given = np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in current], np.float64)
+    forms = kernels.ellipse_forms(given)
+    reach = given[:, 2] + params.tolerances_px[0] + 1
+    # The (ellipse, pixel) pairs in each ellipse's box, ellipse by ellipse: per ellipse, a
+    # range of them.
+    pm, starts = kernels.box_runs(u, v, forms[:, 0].copy(), forms[:, 1].copy(), reach)
+    active = np.ones(len(current), np.bool_)
     previous: dict[int, bytes] = {}
-    # Each fit's quadratic form, a row rewritten before the round after its refit.
-    forms = np.array([_form(e) for e in current], np.float64)
-    refitted: list[int] = []
+    cos_sq = params.min_normal_cos * params.min_normal_cos
+    least = max(5, params.min_pixels)  # fit_ellipse's own least
+    max_axis = fits_params.max_axis_diagonals * math.hypot(*shape)
+    live = len(current)
     for tol in params.tolerances_px:
-        for e in refitted:
-            forms[e] = _form(current[e])
-        refitted = []
-        # The pairs along each active fit, and their pixels, in one compiled pass.
-        # (Pixel coordinates are exact in float32, the fits' input.)
+        # The pairs along each active fit, and their pixels, in one compiled pass (pixel
+        # coordinates are exact in float32, the fits' input).
         sel, at, pixels = kernels.along_select(forms, starts, active, pm, u, v, gu, gv,
-                                               pixels_in, 4.0 * tol * tol,
-                                               params.min_normal_cos * params.min_normal_cos)
+                                               4.0 * tol * tol, cos_sq)
         bounds = at.tolist()
+        tried, raw = [], []
         for e in active.nonzero()[0].tolist():
             lo, hi = bounds[e], bounds[e + 1]
             key = sel[lo:hi].tobytes()
             if previous.get(e) == key:
                 continue  # the same pixels as the fit in hand: the same fit
             previous[e] = key
-            fit = fit_ellipse(pixels[lo:hi]) if hi - lo >= params.min_pixels else None
-            if fit is None or not plausible(fit, shape, fits_params):
+            if hi - lo < least:
                 active[e] = False
+                live -= 1
                 continue
-            current[e] = fit
-            refitted.append(e)
-        if not active.any():
+            (cx, cy), (w, h), angle = cv2.fitEllipseDirect(pixels[lo:hi])
+            raw.append((cx, cy, w, h, angle))
+            tried.append(e)
+        if tried:
+            # fit_ellipse's checks and plausible's bounds on all the round's fits at once,
+            # the forms of those that pass rewritten and the others stopped.
+            rows, degrees, ok = kernels.refit_checks(
+                np.array(raw, np.float64), np.array(tried, np.int64), forms, active,
+                fits_params.min_axis_px, max_axis, EQ2_CHECKED_RATIO_SQ)
+            for e, good, (cx, cy, a, b, _), deg in zip(tried, ok.tolist(), rows.tolist(),
+                                                        degrees.tolist(), strict=True):
+                if good:
+                    current[e] = Ellipse.of(cx, cy, a, b, deg)
+                else:
+                    live -= 1
+        if not live:
             break
     return current
 

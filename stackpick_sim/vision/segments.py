@@ -115,8 +115,8 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
         return EdgeSegments(chains=(), edges=edges)
     # Hole boundaries (with a parent) repeat their outer contour's pixels.
     parents = hierarchy[0][:, 3].tolist()
-    kept = [cast("NDArray[np.int32]", c.reshape(-1, 2))
-            for c, parent in zip(contours, parents, strict=True)
+    # The contours as OpenCV gives them, (N, 1, 2) each: reshaped once, concatenated.
+    kept = [c for c, parent in zip(contours, parents, strict=True)
             if parent == -1 and c.shape[0] >= shortest]
     if not kept:
         return EdgeSegments(chains=(), edges=edges)
@@ -124,11 +124,14 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
         longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
         kept = [kept[i] for i in sorted(longest[:max_contours])]
     ordered, bounds, closed = kernels.ordered_chains(
-        np.concatenate(kept), np.array([c.shape[0] for c in kept], np.int64), end, shortest)
-    # Each chain's polygon (OpenCV), then the cuts of all chains in one pass.
+        cast("NDArray[np.int32]", np.concatenate(kept).reshape(-1, 2)),
+        np.array([c.shape[0] for c in kept], np.int64),
+        end, shortest)
+    # Each chain's polygon (OpenCV reads an (N, 2) int32 array as N points), then the cuts
+    # of all chains in one pass.
     starts = bounds.tolist()
-    polys = [cast("NDArray[np.int32]", cv2.approxPolyDP(ordered[i:j].reshape(-1, 1, 2),
-                                                        params.poly_epsilon_px, shut))
+    polys = [cast("NDArray[np.int32]", cv2.approxPolyDP(ordered[i:j], params.poly_epsilon_px,
+                                                        shut))
              for i, j, shut in zip(starts, starts[1:], closed.tolist(), strict=False)]
     if not polys:
         return EdgeSegments(chains=(), edges=edges)
@@ -145,8 +148,9 @@ def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
     """:func:`~stackpick_sim.vision.kernels.junctions_cut` of the 0/1 map ``edges`` on its
     set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's."""
     if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
-        cut, end, valid = kernels.junctions_cut(edges, pixels[:, 1].astype(np.int64),
-                                                pixels[:, 0].astype(np.int64))
+        # The (2, M) rows u, v the columns are a view of, when they are.
+        uv = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
+        cut, end, valid = kernels.junctions_cut_uv(edges, np.asarray(uv, np.float64))
         if valid:
             return cut, end
     rows, cols = kernels.set_pixels(edges)
