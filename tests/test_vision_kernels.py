@@ -978,19 +978,6 @@ def test_refit_checks_are_fit_checks_then_the_forms_and_stops(rng: np.random.Gen
 
 
 @pytest.mark.parametrize("dtype", [np.int32, np.float64])
-def test_fit_screen_keeps_the_long_bowed_pieces(rng: np.random.Generator, dtype: type) -> None:
-    counts = rng.integers(1, 40, 30).astype(np.int64)
-    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(dtype)
-    pixels[:counts[0], 1] = 7  # a straight piece
-    tried, starts, stops = kernels.fit_screen(pixels, counts, 10, 2.0)
-    bows = kernels.bows(pixels, counts)
-    want = [i for i in range(30) if counts[i] >= 10 and bows[i] >= 2.0]
-    assert tried.tolist() == want and 0 not in want
-    ends = np.cumsum(counts)
-    assert np.array_equal(stops, ends[want]) and np.array_equal(starts, (ends - counts)[want])
-
-
-@pytest.mark.parametrize("dtype", [np.int32, np.float64])
 def test_level_fits_are_the_fit_checks_then_their_residuals(rng: np.random.Generator,
                                                        dtype: type) -> None:
     pixels = rng.integers(0, 300, (500, 2)).astype(dtype)
@@ -1012,6 +999,44 @@ def test_level_fits_are_the_fit_checks_then_their_residuals(rng: np.random.Gener
     assert np.array_equal(got[0], rows) and np.array_equal(got[1], degrees)
     assert np.array_equal(got[2], ok & (rms <= 60.0)) and np.array_equal(got[3], rms)
     assert 0 < int(got[2].sum()) < int(ok.sum())
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.float64])
+def test_level_step_is_level_fits_then_the_halves_screened(rng: np.random.Generator,
+                                                          dtype: type) -> None:
+    counts = rng.integers(1, 60, 30).astype(np.int64)
+    pixels = rng.integers(0, 300, (int(counts.sum()), 2)).astype(dtype)
+    pixels[:counts[0], 1] = 7  # a straight piece
+    pieces, tried = kernels.chain_pieces(pixels, counts, 10, 2.0)
+    # The long bowed chains.
+    bows = kernels.bows(pixels, counts)
+    want = np.array([i for i in range(30) if counts[i] >= 10 and bows[i] >= 2.0], np.int64)
+    ends = np.cumsum(counts)
+    starts, stops = (ends - counts)[want], ends[want]
+    assert 0 not in want
+    assert np.array_equal(pieces, np.stack([ends - counts, ends, np.arange(30)]))
+    assert np.array_equal(tried, np.column_stack([want, starts, stops, want]))
+    k = want.shape[0]
+    raw = np.column_stack([rng.uniform(50, 250, k), rng.uniform(50, 250, k),
+                           rng.uniform(-5, 200, k), rng.uniform(1, 200, k),
+                           rng.uniform(0, 360, k)])
+    limits = (2.0, 150.0, EQ2_CHECKED_RATIO_SQ, 60.0)
+    rows, good, nxt, nxt_tried = kernels.level_step(raw, pixels, pieces, tried, *limits, 20,
+                                                    10, 2.0)
+    fits, degrees, ok, rms = kernels.level_fits(raw, pixels, starts, stops, *limits)
+    assert np.array_equal(good, ok) and 0 < int(ok.sum()) < k
+    assert np.array_equal(rows, np.column_stack([fits[:, :4], degrees, rms]))
+    # The halves of the pieces not accepted of at least 20 pixels, in order, then screened.
+    accepted = set(want[ok].tolist())
+    halves = [h for i in range(30) if i not in accepted and counts[i] >= 20
+              for h in ((ends[i] - counts[i], ends[i] - counts[i] + counts[i] // 2, i),
+                        (ends[i] - counts[i] + counts[i] // 2, ends[i], i))]
+    assert nxt.T.tolist() == [list(h) for h in halves]
+    sizes = nxt[1] - nxt[0]
+    bows = kernels.bows(np.concatenate([pixels[lo:hi] for lo, hi, _ in halves]), sizes)
+    screened = [i for i in range(len(halves)) if sizes[i] >= 10 and bows[i] >= 2.0]
+    assert nxt_tried.tolist() == [[i, *halves[i]] for i in screened] and screened
+    assert kernels.level_step(raw, pixels, pieces, tried, *limits, 0, 10, 2.0)[2].size == 0
 
 
 def test_stairs_removed_pixels_are_the_map_then_its_edge_pixels(

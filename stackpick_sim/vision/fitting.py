@@ -15,6 +15,7 @@ residual tests and the merging counts look at.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from typing import cast
@@ -245,60 +246,43 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3,
             + fit_or_split(points[half:], shape, depth - 1, params))
 
 
-#: A piece of a chain being fitted: (chain index, path of halves taken, e.g. "01", pixels).
-_Piece = tuple[int, str, NDArray]
-
-
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
-    """:func:`fit_or_split` of every chain, level by level: the straightness test of all
-    pieces of one level is one compiled pass, their fits' checks with the residuals another
-    (only the direct fit runs per piece). Returns (chain index, points, ellipse, residual) per
-    accepted piece, in the order :func:`fit_or_split` gives them chain after chain."""
-    pending: list[_Piece] = [(i, "", c) for i, c in enumerate(chains)]
-    found: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
-    max_axis = params.max_axis_diagonals * math.hypot(*shape)
-    for level in range(depth + 1):
-        if not pending:
-            break
-        accepted, failed = _fit_level(pending, max_axis, params)
-        found += accepted
-        if level == depth:
-            break
-        pending = _halves(failed, params.min_fit_px)
-    found.sort(key=lambda f: f[0])
-    return [(key[0], pts_, e, r) for key, pts_, e, r in found]
-
-
-def _fit_level(pending: list[_Piece], max_axis: float, params: FitParams
-               ) -> tuple[list[tuple[tuple[int, str], NDArray, Ellipse, float]],
-                          list[_Piece]]:
-    """The pieces long enough, bowed enough, with a plausible direct fit (semi-major axis
-    at most ``max_axis`` px) within ``params.max_residual_px``, as ((chain, path), pixels,
-    ellipse, residual), and the others."""
-    pieces = [p[2] for p in pending]
-    counts = np.array([q.shape[0] for q in pieces], np.int64)
-    pixels = np.concatenate(pieces)
+    """:func:`fit_or_split` of every chain, level by level: the straightness test of the
+    chains is one compiled pass, then per level the fits' checks with their residuals, the
+    halves of the pieces that failed and their straightness test another (only the direct
+    fit runs per piece). Returns (chain index, points, ellipse, residual) per accepted piece,
+    in the order :func:`fit_or_split` gives them chain after chain."""
+    if not chains:
+        return []
+    sizes = [c.shape[0] for c in chains]
+    pixels = np.concatenate(chains)
     if pixels.dtype != _INT32:  # int32 chains, as the stages pass them, read as they are
         pixels = pixels.astype(np.float64)
-    # The straightness test, then the fits' checks and residuals, each one compiled pass.
-    tried, starts, stops = kernels.fit_screen(pixels, counts, max(5, params.min_fit_px),
-                                              params.min_bow_px)
-    if not tried.size:
-        return [], pending
-    at = tried.tolist()
-    rows, degrees, good, rms = kernels.level_fits(
-        _direct_rows([pieces[k] for k in at]), pixels, starts, stops, params.min_axis_px,
-        max_axis, EQ2_CHECKED_RATIO_SQ, params.max_residual_px)
-    accepted: list[tuple[tuple[int, str], NDArray, Ellipse, float]] = []
-    fitted = set()
-    for k, ok, (cx, cy, a, b, _), ang, r in zip(at, good.tolist(), rows.tolist(),
-                                                degrees.tolist(), rms.tolist(), strict=True):
-        if ok:
-            i, path, pts_ = pending[k]
-            accepted.append(((i, path), pts_, Ellipse.of(cx, cy, a, b, ang), r))
-            fitted.add(k)
-    return accepted, [p for k, p in enumerate(pending) if k not in fitted]
+    shortest = max(5, params.min_fit_px)
+    pieces, tried = kernels.chain_pieces(pixels, np.array(sizes, np.int64), shortest,
+                                         params.min_bow_px)
+    limits = (params.min_axis_px, params.max_axis_diagonals * math.hypot(*shape),
+              EQ2_CHECKED_RATIO_SQ, params.max_residual_px)
+    found: list[tuple[int, int, NDArray, Ellipse, float]] = []
+    offsets = [0, *itertools.accumulate(sizes)]
+    for level in range(depth + 1):
+        # Each tried piece: the chain itself on the first level, else a view of it.
+        at = tried.tolist()
+        arrays = [chains[c] if level == 0 else chains[c][lo - offsets[c]:hi - offsets[c]]
+                  for _, lo, hi, c in at]
+        rows, good, pieces, tried = kernels.level_step(
+            _direct_rows(arrays), pixels, pieces, tried, *limits,
+            0 if level == depth else 2 * params.min_fit_px, shortest, params.min_bow_px)
+        found += [(lo, c, q, Ellipse.of(cx, cy, a, b, ang), r)
+                  for (_, lo, _, c), q, ok, (cx, cy, a, b, ang, r)
+                  in zip(at, arrays, good.tolist(), rows.tolist(), strict=True) if ok]
+        if not pieces.shape[1]:
+            break
+    # The accepted pieces of a chain are disjoint: their order along the concatenated pixels
+    # is fit_or_split's (first halves first).
+    found.sort(key=lambda f: f[0])
+    return [(c, q, e, r) for _, c, q, e, r in found]
 
 
 def _direct_rows(pieces: list[NDArray]) -> NDArray[np.float64]:
@@ -312,13 +296,3 @@ def _direct_rows(pieces: list[NDArray]) -> NDArray[np.float64]:
         (cx, cy), (w, h), angle = cv2.fitEllipseDirect(q)
         out.append((cx, cy, w, h, angle))
     return np.array(out, np.float64).reshape(-1, 5)
-
-
-def _halves(failed: list[_Piece], min_fit_px: int) -> list[_Piece]:
-    """The two halves of each failed piece long enough to fit both (``min_fit_px`` each)."""
-    pending: list[_Piece] = []
-    for i, path, pts_ in failed:
-        if pts_.shape[0] >= 2 * min_fit_px:
-            half = pts_.shape[0] // 2
-            pending += [(i, path + "0", pts_[:half]), (i, path + "1", pts_[half:])]
-    return pending

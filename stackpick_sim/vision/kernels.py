@@ -402,6 +402,30 @@ def _near_sampson(du: float, dv: float, a: float, b: float, c: float, s: float, 
 
 
 @_compiled
+def _bow(pixels: NDArray, start: int, stop: int) -> float:  # pragma: no cover - compiled
+    """:func:`bows` of the one piece ``pixels[start:stop]`` (the same sums, in pixel order)."""
+    n = stop - start
+    su = 0.0
+    sv = 0.0
+    for j in range(start, stop):
+        su += pixels[j, 0]
+        sv += pixels[j, 1]
+    mu, mv = su / n, sv / n
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    for j in range(start, stop):
+        cu, cv = pixels[j, 0] - mu, pixels[j, 1] - mv
+        sxx += cu * cu
+        syy += cv * cv
+        sxy += cu * cv
+    k = max(1, n)
+    half_trace, det = 0.5 * (sxx + syy) / k, (sxx * syy - sxy * sxy) / (k * k)
+    smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
+    return math.sqrt(max(0.0, smallest))
+
+
+@_compiled
 def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
          ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """RMS spread (px) across its principal line of each piece of (N, 2) ``pixels``, the
@@ -410,26 +434,8 @@ def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
     out = np.empty(counts.shape[0])
     start = 0
     for i in range(counts.shape[0]):
-        n = counts[i]
-        su = 0.0
-        sv = 0.0
-        for j in range(start, start + n):
-            su += pixels[j, 0]
-            sv += pixels[j, 1]
-        mu, mv = su / n, sv / n
-        sxx = 0.0
-        syy = 0.0
-        sxy = 0.0
-        for j in range(start, start + n):
-            cu, cv = pixels[j, 0] - mu, pixels[j, 1] - mv
-            sxx += cu * cu
-            syy += cv * cv
-            sxy += cu * cv
-        k = max(1, n)
-        half_trace, det = 0.5 * (sxx + syy) / k, (sxx * syy - sxy * sxy) / (k * k)
-        smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
-        out[i] = math.sqrt(max(0.0, smallest))
-        start += n
+        out[i] = _bow(pixels, start, start + counts[i])
+        start += counts[i]
     return out
 
 
@@ -1675,27 +1681,6 @@ def refit_checks(raw: NDArray[np.float64], which: NDArray[np.int64],
 
 
 @_compiled
-def fit_screen(pixels: NDArray, counts: NDArray[np.int64], shortest: int, min_bow: float
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64],
-                          NDArray[np.int64]]:  # pragma: no cover - compiled
-    """The pieces of (N, 2) ``pixels`` (one after another, ``counts[i]`` pixels each) worth a
-    fit: at least ``shortest`` pixels and a :func:`bows` of at least ``min_bow`` px; their
-    indices (ascending) and where each starts and stops in ``pixels``."""
-    bow = bows(pixels, counts)
-    m = counts.shape[0]
-    tried = np.empty(m, np.int64)
-    starts, stops = np.empty(m, np.int64), np.empty(m, np.int64)
-    k = 0
-    start = 0
-    for i in range(m):
-        if counts[i] >= shortest and bow[i] >= min_bow:
-            tried[k], starts[k], stops[k] = i, start, start + counts[i]
-            k += 1
-        start += counts[i]
-    return tried[:k], starts[:k], stops[:k]
-
-
-@_compiled
 def level_fits(raw: NDArray[np.float64], pixels: NDArray, starts: NDArray[np.int64],
                stops: NDArray[np.int64], min_axis: float, max_axis: float, ratio_sq: float,
                max_residual: float
@@ -1721,6 +1706,89 @@ def level_fits(raw: NDArray[np.float64], pixels: NDArray, starts: NDArray[np.int
         rms[e] = math.sqrt(total / (stops[e] - starts[e]))
         good[e] = rms[e] <= max_residual
     return rows, degrees, good, rms
+
+
+@_compiled
+def range_screen(pixels: NDArray, starts: NDArray[np.int64], stops: NDArray[np.int64],
+                 shortest: int, min_bow: float
+                 ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """The pieces worth a fit among the pieces ``pixels[starts[i]:stops[i]]``: the indices
+    (ascending) of those of at least ``shortest`` pixels with a :func:`bows` of at least
+    ``min_bow`` px."""
+    tried = np.empty(starts.shape[0], np.int64)
+    k = 0
+    for i in range(starts.shape[0]):
+        if (stops[i] - starts[i] >= shortest
+                and _bow(pixels, starts[i], stops[i]) >= min_bow):
+            tried[k] = i
+            k += 1
+    return tried[:k]
+
+
+@_compiled
+def _tried_rows(pixels: NDArray, pieces: NDArray[np.int64], shortest: int, min_bow: float
+                ) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """:func:`range_screen` of the pieces (3, P) (start, stop in ``pixels`` and chain of each)
+    as (K, 4) rows: the piece's index, start, stop and chain."""
+    tried = range_screen(pixels, pieces[0], pieces[1], shortest, min_bow)
+    rows = np.empty((tried.shape[0], 4), np.int64)
+    for k in range(tried.shape[0]):
+        i = tried[k]
+        rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3] = i, pieces[0, i], pieces[1, i], pieces[2, i]
+    return rows
+
+
+@_compiled
+def chain_pieces(pixels: NDArray, counts: NDArray[np.int64], shortest: int, min_bow: float
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The pieces (3, S) start, stop and chain of the chains of (N, 2) ``pixels`` (one after
+    another, ``counts[i]`` pixels each) and :func:`range_screen` of them (as
+    :func:`_tried_rows`)."""
+    pieces = np.empty((3, counts.shape[0]), np.int64)
+    start = 0
+    for i in range(counts.shape[0]):
+        pieces[0, i], pieces[1, i], pieces[2, i] = start, start + counts[i], i
+        start += counts[i]
+    return pieces, _tried_rows(pixels, pieces, shortest, min_bow)
+
+
+@_compiled
+def level_step(raw: NDArray[np.float64], pixels: NDArray, pieces: NDArray[np.int64],
+               tried: NDArray[np.int64], min_axis: float, max_axis: float, ratio_sq: float,
+               max_residual: float, split_px: int, shortest: int, min_bow: float
+               ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.int64],
+                          NDArray[np.int64]]:  # pragma: no cover - compiled
+    """One level of :func:`~stackpick_sim.vision.fitting.fit_all`: :func:`level_fits` of the
+    direct fits ``raw`` (K, 5) of the ``tried`` pieces (K, 4) (:func:`_tried_rows`) of
+    ``pieces`` (3, P) (start, stop in ``pixels`` and chain of each), with its ``min_axis``, ``max_axis``, ``ratio_sq`` and
+    ``max_residual``; then the next level's pieces: the two halves (in order) of every piece not
+    accepted of at least ``split_px`` pixels (none when ``split_px`` is 0) and which of them
+    pass :func:`range_screen` (``shortest``, ``min_bow``). Returns the (K, 6) rows cx, cy, a,
+    b, angle (deg) and residual, which of them are accepted, the next (3, P') pieces and
+    their tried ones (:func:`_tried_rows`)."""
+    starts, stops = tried[:, 1].copy(), tried[:, 2].copy()
+    rows, degrees, good, rms = level_fits(raw, pixels, starts, stops, min_axis, max_axis,
+                                          ratio_sq, max_residual)
+    k = raw.shape[0]
+    out = np.empty((k, 6))
+    out[:, :4] = rows[:, :4]
+    out[:, 4] = degrees
+    out[:, 5] = rms
+    done = np.zeros(pieces.shape[1], np.bool_)
+    for e in range(k):
+        done[tried[e, 0]] = good[e]
+    halves = np.empty((3, 2 * pieces.shape[1]), np.int64)
+    m = 0
+    for i in range(pieces.shape[1]):
+        lo, hi = pieces[0, i], pieces[1, i]
+        if done[i] or split_px == 0 or hi - lo < split_px:
+            continue
+        mid = lo + (hi - lo) // 2
+        halves[0, m], halves[1, m], halves[2, m] = lo, mid, pieces[2, i]
+        halves[0, m + 1], halves[1, m + 1], halves[2, m + 1] = mid, hi, pieces[2, i]
+        m += 2
+    nxt = halves[:, :m].copy()
+    return out, good, nxt, _tried_rows(pixels, nxt, shortest, min_bow)
 
 
 @_compiled
@@ -1981,8 +2049,10 @@ def warm_up() -> None:
     bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
-        fit_screen(pixels, counts, 1, 0.0)
         level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)
+    for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
+        pieces, tried = chain_pieces(pixels, counts, 1, 0.0)
+        level_step(np.ones((1, 5)), pixels, pieces, tried, 1.0, 1.0, 1.0, 1.0, 2, 1, 0.0)
     ellipse_forms(np.ones((1, 5)))
     refit_checks(np.ones((1, 5)), np.zeros(1, np.int64), np.ones((1, 5)), np.ones(1, np.bool_),
                  1.0, 1.0, 1.0)
