@@ -1760,12 +1760,12 @@ def level_step(raw: NDArray[np.float64], pixels: NDArray, pieces: NDArray[np.int
                           NDArray[np.int64]]:  # pragma: no cover - compiled
     """One level of :func:`~stackpick_sim.vision.fitting.fit_all`: :func:`level_fits` of the
     direct fits ``raw`` (K, 5) of the ``tried`` pieces (K, 4) (:func:`_tried_rows`) of
-    ``pieces`` (3, P) (start, stop in ``pixels`` and chain of each), with its ``min_axis``, ``max_axis``, ``ratio_sq`` and
-    ``max_residual``; then the next level's pieces: the two halves (in order) of every piece not
-    accepted of at least ``split_px`` pixels (none when ``split_px`` is 0) and which of them
-    pass :func:`range_screen` (``shortest``, ``min_bow``). Returns the (K, 6) rows cx, cy, a,
-    b, angle (deg) and residual, which of them are accepted, the next (3, P') pieces and
-    their tried ones (:func:`_tried_rows`)."""
+    ``pieces`` (3, P) (start, stop in ``pixels`` and chain of each), with its ``min_axis``,
+    ``max_axis``, ``ratio_sq`` and ``max_residual``; then the next level's pieces: the two
+    halves (in order) of every piece not accepted of at least ``split_px`` pixels (none when
+    ``split_px`` is 0) and those of them worth a fit (:func:`_tried_rows`: ``shortest``,
+    ``min_bow``). Returns the (K, 6) rows cx, cy, a, b, angle (deg) and residual, which of
+    them are accepted, the next (3, P') pieces and their tried ones."""
     starts, stops = tried[:, 1].copy(), tried[:, 2].copy()
     rows, degrees, good, rms = level_fits(raw, pixels, starts, stops, min_axis, max_axis,
                                           ratio_sq, max_residual)
