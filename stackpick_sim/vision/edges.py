@@ -82,15 +82,13 @@ def colour_gradients(image: NDArray[np.uint8]) -> tuple[NDArray[np.int16], NDArr
     if image.ndim == 2:
         dx, dy = cv2.spatialGradient(image)
         return cast("NDArray[np.int16]", dx), cast("NDArray[np.int16]", dy)
-    # One channel at a time through one plane buffer (extractChannel and spatialGradient,
-    # the 3x3 Sobel pair with the same border, cost a third of split and two Sobel calls),
-    # each channel's pair into one stacked buffer, then the strongest channel per pixel in
-    # one compiled pass (kernels.strongest_gradients).
+    # The planes in one split (a third less than extracting them one by one), each plane's
+    # 3x3 Sobel pair by spatialGradient (a third of the cost of two Sobel calls) into one
+    # stacked buffer, then the strongest channel per pixel in one compiled pass
+    # (kernels.strongest_gradients).
     h, w, channels = image.shape
-    plane = np.empty((h, w), np.uint8)
     stacked = np.empty((channels, 2, h, w), np.int16)
-    for c in range(channels):
-        cv2.extractChannel(image, c, plane)
+    for c, plane in enumerate(cv2.split(image)):
         cv2.spatialGradient(plane, stacked[c, 0], stacked[c, 1])
     return kernels.strongest_gradients(stacked)
 
