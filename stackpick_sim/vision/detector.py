@@ -672,12 +672,17 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     assert choice.index is not None
     if cues.radius_of is None:
         return choice
+    chosen = merged[choice.index].ellipse
+    # A second fit of the chosen face (one holds the other's centre) is no other face: the
+    # better-supported fit the fallback chose stays, though the other may read nearer.
     cut = [i for i, ev in enumerate(choice.evidence)
            if i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
-           and ev.support >= params.hidden_min_support]
+           and ev.support >= params.hidden_min_support
+           and not (holds_centre(merged[i].ellipse, chosen)
+                    or holds_centre(chosen, merged[i].ellipse))]
     if not cut:
         return choice
-    faces = [merged[choice.index].ellipse, *(merged[i].ellipse for i in cut)]
+    faces = [chosen, *(merged[i].ellipse for i in cut)]
     nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
     return choice if not nearest else replace(choice, index=cut[nearest - 1])
 

@@ -331,10 +331,13 @@ def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
         if radius is None:
             return None
         # The unit-radius solutions' depths scaled on floats (the same values as
-        # circle_poses' scaled centres, without their arrays).
+        # circle_poses' scaled centres, without their arrays). A steeply tilted face near
+        # the image border can have a solution whose centre lies behind the camera (its
+        # plane seen nearly edge on): the mirror image of that circle through the camera
+        # images to the same ellipse, so its depth is the centre's distance either way.
         unit = unit_circle_poses(face, intrinsics)
-        depths.append(0.5 * (float(unit[0].centre_cam[2]) * radius
-                             + float(unit[1].centre_cam[2]) * radius))
+        depths.append(0.5 * (abs(float(unit[0].centre_cam[2])) * radius
+                             + abs(float(unit[1].centre_cam[2])) * radius))
     nearest = int(np.argmin(depths))
     rivals = [d for face, d in zip(faces, depths, strict=True)
               if not (holds_centre(face, faces[nearest])
