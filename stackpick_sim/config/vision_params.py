@@ -25,7 +25,7 @@ SKIPPABLE_STAGES: tuple[str, ...] = ("roi", "refine", "gate")
 #: The top rule's fallbacks, in the order they are tried when no ellipse passes the rule
 #: (each is described by the failure class it handles in :class:`TopParams`).
 FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed",
-                              "arc_pairs", "spare_refit", "all_arcs")
+                              "arc_pairs", "spare_refit", "all_arcs", "nearest_cut")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -320,7 +320,12 @@ class TopParams(Section):
       refits onto its own faint boundary).
     - ``all_arcs``: pairs that also take in the chains no fit was kept for and the parts of
       chains cut at junctions, else the unobstructed one, else one with its own rim inside:
-      the least constrained, so the last.
+      the least constrained of the arc pairs.
+    - ``nearest_cut``: of the fitted faces and those of pairs of every arc at least half
+      visible (``hidden_min_support``), one with no T-junction and no edge inside that lies
+      clearly nearer (``depth_tie_m``) than every other: a top face across faces of its
+      colour and shade, its boundary with them showing no contrast along more of its
+      outline than ``unobstructed_min_support`` allows (needs the object kinds' colours).
     """
 
     SECTION: ClassVar[str] = "top"

@@ -656,7 +656,50 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # A face clearly nearer than such a refit is above it (a top face the merge never
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
-    return _arc_fallbacks(found, merged, choice, spare, config)
+    merged, choice = _arc_fallbacks(found, merged, choice, spare, config)
+    if choice.index is None and "nearest_cut" in use:
+        merged, choice = _nearest_cut(found, merged, choice, cues, config)
+    return merged, choice
+
+
+def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The last fallback (``nearest_cut``): of the fitted faces and those of pairs of every
+    arc (:func:`last_resort_arcs`) at least half visible (support at least
+    ``top.hidden_min_support``, as the scoring counts faces), the one clearly nearer the
+    camera than every other (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`,
+    ``top.depth_tie_m``), in its best-supported fit cut short by nothing (no T-junction, no
+    edge inside; a fit that took in part of its wall reads nearer still): a top
+    face across faces of its colour and shade, whose boundary with them shows no contrast
+    along more of its outline than the ``unobstructed`` fallback allows, while no face that
+    passes or fails on support alone was found. An arc pairs' face so chosen is added to
+    ``merged``; otherwise both come back unchanged (and without face radii)."""
+    if cues.radius_of is None:
+        return merged, choice
+    check_time(found.deadline, "top")
+    grad = found.edges("top")
+    arc_chains, arcs = _every_arc(found, config)
+    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, found.points, found.grads,
+                                   found.crop, found.gate, config)
+    faces = [m.ellipse for m in merged] + extra
+    evidence = (*choice.evidence, *alone.evidence)
+    half = [i for i, ev in enumerate(evidence) if ev.support >= config.top.hidden_min_support]
+    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.radius_of,
+                               config.top) if len(half) > 1 else None)
+    if nearest is None:
+        return merged, choice
+    # The nearest face's fits (one holds the other's centre: no rivals of it) cut short by
+    # nothing, the best-supported first.
+    face = faces[half[nearest]]
+    cut = [i for i in half if not evidence[i].occluded_ends and not evidence[i].interior_edge_px
+           and (holds_centre(faces[i], face) or holds_centre(face, faces[i]))]
+    if not cut:
+        return merged, choice
+    i = max(cut, key=lambda k: evidence[k].support)
+    if i < len(merged):
+        return merged, replace(choice, index=i, reason="")
+    return _with_face(merged, choice, faces[i], evidence[i], found.chains, grad,
+                      config.merging)
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
