@@ -84,6 +84,7 @@ from stackpick_sim.vision.occlusion import (
     clearly_nearest,
     hidden_by_no_outline,
     holds_centre,
+    rim_only,
     select_resting_rimmed,
     select_rimmed,
     select_top,
@@ -640,6 +641,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         choice = replace(choice, index=fallback, reason="")
         if config.top.nearer_hidden:
             choice = _nearer_hidden(merged, choice, cues, config.top)
+        if config.top.nearer_rimmed:
+            choice = _nearer_rimmed(found, merged, choice, cues, config.top)
         return _nearer_arcs(found, merged, choice, cues, config)
     check_time(found.deadline, "top")
     retried = False
@@ -700,6 +703,32 @@ def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, c
         return merged, replace(choice, index=i, reason="")
     return _with_face(merged, choice, faces[i], evidence[i], found.chains, grad,
                       config.merging)
+
+
+def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                   params: TopParams) -> TopChoice:
+    """``choice`` (the ``unobstructed`` fallback's), unless a whole face whose only interior
+    edges are its own rim (:func:`~stackpick_sim.vision.occlusion.rim_only`: no T-junction,
+    support at least ``params.min_support``), refitted on its innermost consistent edge
+    (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`; the fit itself took in a
+    same-colour lower face's sliver beyond it, so it reads too near), lies clearly nearer the
+    camera than it (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): a top face over
+    lower faces of its colour, which fails the rule on its own rim alone, above the face the
+    fallback chose, whose occluder only clips its rim. The rimmed fit is chosen (as the
+    ``rimmed`` fallback chooses it). Unchanged without face radii."""
+    assert choice.index is not None
+    if cues.radius_of is None:
+        return choice
+    ellipses = [m.ellipse for m in merged]
+    rimmed = rim_only(ellipses, choice.evidence, found.points)
+    if not rimmed:
+        return choice
+    grad = found.edges("top")
+    refits = [refit_on_contrast(ellipses[i], grad, True, params) or ellipses[i]
+              for i in rimmed]
+    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop, cues.radius_of,
+                              params)
+    return choice if not nearest else replace(choice, index=rimmed[nearest - 1])
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
