@@ -383,7 +383,8 @@ class TopParams(Section):
     rendered paper-scene frames; a fit's depth error is ~1 mm."""
     support_tie: float = 0.02
     """Candidates whose supports (shares [0, 1]) differ by less than this are tied; the
-    larger ellipse, nearer the camera for equal radii, wins."""
+    ellipse of the longer semi-major axis, nearer the camera for equal radii whatever the
+    tilt (a tilted face's area shrinks with the tilt's cosine), wins."""
     unobstructed_min_support: float = 0.75
     """Share [0, 1] of its outline a face with no T-junction and no edge inside must show for
     the ``unobstructed`` fallback (and to join the depth test): an occluder's outline runs

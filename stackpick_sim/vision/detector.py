@@ -629,8 +629,10 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
                config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule, in order, until one gives a face, those of the
     ``top.fallbacks`` named (:class:`~stackpick_sim.config.vision_params.TopParams`): the
-    unobstructed face and the contrast retry (each unless a face of arc pairs is clearly
-    nearer than its choice), then :func:`_arc_fallbacks`."""
+    unobstructed face (unless a face cut short by nothing, :func:`_nearer_hidden`, a rimmed
+    face, :func:`_nearer_rimmed`, or a face of arc pairs is clearly nearer) and the contrast
+    retry (unless a face of arc pairs is clearly nearer than its choice), then
+    :func:`_arc_fallbacks`, then :func:`_nearest_cut`."""
     use, limits = config.top.fallbacks, config.limits
     grad = found.edges("top")
     spare: tuple[int, Ellipse, OcclusionEvidence] | None = None

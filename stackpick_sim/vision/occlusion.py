@@ -26,11 +26,11 @@ that verdict.
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by ``depth_tie_m`` wins (a second fit of the same face is no rival); faces that
 failed on support alone with nothing crossing them take part in this test too. Otherwise the
-best-supported candidate wins (ties within ``support_tie`` go to the larger ellipse, which is
-nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
-the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
-(``unobstructed_min_support``), lies under nothing visible; its gaps are boundaries too faint
-to see.
+best-supported candidate wins (ties within ``support_tie`` go to the longer semi-major axis,
+nearer the camera for equal radii whatever the tilt). When no ellipse passes,
+:func:`select_unobstructed` is the last resort: a face with no T-junction and no edge inside
+it, most of whose outline shows (``unobstructed_min_support``), lies under nothing visible;
+its gaps are boundaries too faint to see.
 After the detector's contrast refit, :func:`select_rimmed` is the next: a whole face whose
 only interior edges lie within ``rim_band_px`` of its outline (its own faint rim, fitted on a
 same-colour lower face's sliver beyond it). Such a face can also lie on the face the rule
@@ -398,8 +398,8 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
 def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
                   edge_points: NDArray[np.float64]) -> int | None:
     """Index of the best-supported of the :func:`rim_only` ellipses (ties within
-    ``support_tie`` to the larger), or None: a last resort when no ellipse passes the rule,
-    nor after the contrast refit (see TopParams.rim_band_px)."""
+    ``support_tie`` to the longer semi-major axis), or None: a last resort when no ellipse
+    passes the rule, nor after the contrast refit (see TopParams.rim_band_px)."""
     ok = rim_only(ellipses, evidence, edge_points)
     return _best_supported(ok, ellipses, evidence) if ok else None
 
