@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import tomllib
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -155,54 +155,63 @@ def _type_name(hint: Any) -> str:
 def _convert(value: Any, hint: Any, key: str) -> Any:
     """Check ``value`` (as TOML gives it) against the annotation ``hint`` and convert it."""
     origin = typing.get_origin(hint)
-    bad = ConfigError(f"{key} = {value!r} has the wrong type; expected {_type_name(hint)}")
     if dataclasses.is_dataclass(hint):
         if not isinstance(value, Mapping):
             raise ConfigError(f"{key} must be a table of keys, got {value!r}")
         return _build(typing.cast(type, hint), value, f"{key}.")
     if origin is dict:
-        if not isinstance(value, Mapping):
-            raise ConfigError(f"{key} must be a table of tables, got {value!r}")
-        value_cls = typing.get_args(hint)[1]
-        out = {}
-        for name, v in value.items():
-            try:
-                out[name] = _convert(v, value_cls, f"{key}.{name}")
-            except ConfigError as exc:  # name the entry instead of the generic ``*``
-                raise ConfigError(str(exc).replace(f"{key}.*.", f"{key}.{name}.")) from None
-        return out
+        return _convert_tables(value, typing.get_args(hint)[1], key)
     if origin is tuple:
-        args = typing.get_args(hint)
-        if not isinstance(value, list | tuple):
-            raise bad
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(v, args[0], key) for v in value)
-        if len(value) != len(args):
-            raise bad
-        return tuple(_convert(v, a, key) for v, a in zip(value, args, strict=True))
+        return _convert_list(value, hint, key)
     if origin is typing.Literal:
         allowed = typing.get_args(hint)
         if value not in allowed:
             raise ConfigError(f"{key} = {value!r} is not allowed; choose one of "
                               f"{', '.join(repr(a) for a in allowed)}")
         return value
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise bad
-        return value
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad
-        return value
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise bad
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise bad
-        return value
+    if hint in _SCALARS:
+        if not _SCALARS[hint](value):
+            raise _wrong_type(value, hint, key)
+        return float(value) if hint is float else value
     raise TypeError(f"unsupported config annotation {hint!r} at {key}")  # a bug, not bad input
+
+
+#: What a TOML value must be to fill a field of each scalar type (a bool is no number).
+_SCALARS: dict[type, Callable[[Any], bool]] = {
+    bool: lambda v: isinstance(v, bool),
+    int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+    float: lambda v: isinstance(v, int | float) and not isinstance(v, bool),
+    str: lambda v: isinstance(v, str),
+}
+
+
+def _wrong_type(value: Any, hint: Any, key: str) -> ConfigError:
+    return ConfigError(f"{key} = {value!r} has the wrong type; expected {_type_name(hint)}")
+
+
+def _convert_tables(value: Any, value_cls: Any, key: str) -> dict[str, Any]:
+    """A ``dict[str, X]`` field: each entry converted to ``value_cls``, errors naming it."""
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{key} must be a table of tables, got {value!r}")
+    out = {}
+    for name, v in value.items():
+        try:
+            out[name] = _convert(v, value_cls, f"{key}.{name}")
+        except ConfigError as exc:  # name the entry instead of the generic ``*``
+            raise ConfigError(str(exc).replace(f"{key}.*.", f"{key}.{name}.")) from None
+    return out
+
+
+def _convert_list(value: Any, hint: Any, key: str) -> tuple[Any, ...]:
+    """A tuple field: ``tuple[X, ...]`` of any length, or one of fixed length and types."""
+    args = typing.get_args(hint)
+    if not isinstance(value, list | tuple):
+        raise _wrong_type(value, hint, key)
+    if len(args) == 2 and args[1] is Ellipsis:
+        return tuple(_convert(v, args[0], key) for v in value)
+    if len(value) != len(args):
+        raise _wrong_type(value, hint, key)
+    return tuple(_convert(v, a, key) for v, a in zip(value, args, strict=True))
 
 
 def _build(cls: type, data: Mapping[str, Any], prefix: str) -> Any:

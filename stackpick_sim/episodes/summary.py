@@ -21,6 +21,7 @@ import numpy as np
 from stackpick_sim.episodes.record import (
     FAILURES,
     RUNNER_FAILURES,
+    EpisodeRecord,
     Record,
     SceneErrorRecord,
     episodes_of,
@@ -51,43 +52,69 @@ def _stats(values: Sequence[float | None]) -> dict[str, float | int | None]:
             "p95": float(np.percentile(v, 95)), "max": float(v.max())}
 
 
-def summarize(records: Sequence[Record]) -> dict[str, Any]:
-    """The summary as a JSON-friendly dict (the content of ``summary.json``)."""
-    episodes = episodes_of(records)
+def _outcomes(episodes: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """Successes, their rate with its 95 % interval, and the count of each failure."""
     n = len(episodes)
     wins = sum(1 for r in episodes if r.success)
     lo, hi = wilson_interval(wins, n)
     failures = Counter(r.failure for r in episodes if r.failure)
-    ok = [r for r in episodes if r.success]
-    breakdown_keys = sorted({k for r in episodes for k in r.wall_breakdown_s})
+    return {
+        "successes": wins,
+        "success_rate": wins / n if n else None,
+        "success_ci95": [lo, hi],
+        "failures": {reason: failures.get(reason, 0)
+                     for reason in (*FAILURES, *RUNNER_FAILURES)},
+    }
+
+
+def _errors(episodes: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """Statistics of the first detection's errors and of the pick-time prediction's."""
     detections = [r.detection for r in episodes]
     return {
-        "episodes": n,
+        "detection": {key: _stats([None if d is None else getattr(d, key) for d in detections])
+                      for key in ("center_error_px", "theta_x_error_deg", "theta_y_error_deg")},
+        "prediction_error_px": _stats([r.prediction_error_px for r in episodes]),
+        "prediction_error_mm": _stats([r.prediction_error_mm for r in episodes]),
+    }
+
+
+def _times(episodes: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """Statistics of the successful picks' cycle times and of the episodes' wall times."""
+    breakdown_keys = sorted({k for r in episodes for k in r.wall_breakdown_s})
+    return {
+        "cycle_time_s": _stats([r.cycle_time_s for r in episodes if r.success]),
+        "wall_s": _stats([r.wall_s for r in episodes]),
+        "scene_build_wall_s": _stats([r.scene_build_wall_s for r in episodes]),
+        "wall_breakdown_s": {k: _stats([r.wall_breakdown_s.get(k) for r in episodes])
+                             for k in breakdown_keys},
+    }
+
+
+def _tables(episodes: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """The first rows of the paper's Table 1 (detection) and Table 2 (pick estimate)."""
+    return {
+        "table1": [{"seed": r.seed, **r.detection.as_dict()} for r in episodes
+                   if r.detection is not None][:TABLE_ROWS],
+        "table2": [{"seed": r.seed, **r.pick_estimate.as_dict()} for r in episodes
+                   if r.pick_estimate is not None][:TABLE_ROWS],
+    }
+
+
+def summarize(records: Sequence[Record]) -> dict[str, Any]:
+    """The summary as a JSON-friendly dict (the content of ``summary.json``)."""
+    episodes = episodes_of(records)
+    return {
+        "episodes": len(episodes),
         "scene_errors": [{"seed": r.seed, "error": r.error} for r in records
                          if isinstance(r, SceneErrorRecord)],
         "scenes": sorted({r.scene for r in episodes}),
         "detector": sorted({r.detector for r in episodes}),
         "tracker_frame": sorted({r.tracker_frame for r in episodes}),
         "belt_speed": sorted({r.belt_speed for r in episodes}),
-        "successes": wins,
-        "success_rate": wins / n if n else None,
-        "success_ci95": [lo, hi],
-        "failures": {reason: failures.get(reason, 0)
-                     for reason in (*FAILURES, *RUNNER_FAILURES)},
-        "detection": {key: _stats([getattr(d, key) if d is not None else None
-                                   for d in detections])
-                      for key in ("center_error_px", "theta_x_error_deg", "theta_y_error_deg")},
-        "prediction_error_px": _stats([r.prediction_error_px for r in episodes]),
-        "prediction_error_mm": _stats([r.prediction_error_mm for r in episodes]),
-        "cycle_time_s": _stats([r.cycle_time_s for r in ok]),
-        "wall_s": _stats([r.wall_s for r in episodes]),
-        "scene_build_wall_s": _stats([r.scene_build_wall_s for r in episodes]),
-        "wall_breakdown_s": {k: _stats([r.wall_breakdown_s.get(k) for r in episodes])
-                             for k in breakdown_keys},
-        "table1": [{"seed": r.seed, **r.detection.as_dict()} for r in episodes
-                   if r.detection is not None][:TABLE_ROWS],
-        "table2": [{"seed": r.seed, **r.pick_estimate.as_dict()} for r in episodes
-                   if r.pick_estimate is not None][:TABLE_ROWS],
+        **_outcomes(episodes),
+        **_errors(episodes),
+        **_times(episodes),
+        **_tables(episodes),
     }
 
 

@@ -41,6 +41,7 @@ from stackpick_sim.estimation import (
     ConstantVelocityTracker,
     EstimationError,
     TrackerConfig,
+    UpdateResult,
     backproject_to_plane,
     belt_accel_psd,
     plane_backprojection_jacobian,
@@ -452,21 +453,22 @@ class TargetEstimator:
         m = EDGE_MARGIN_PX
         return (m <= e.cx <= self.k.width - 1 - m and m <= e.cy <= self.k.height - 1 - m)
 
-    def _fuse(self, obs: Observation, cand: Candidate, pixel_std: float | None = None) -> bool:
-        first = not self._zs and cand.centre_cam is not None
-        if first:
-            self._add_pose(obs, cand)  # the plane height is needed to back-project
-        z = self._measurement(obs, cand.pixel)
-        sigma = self.pixel_std if pixel_std is None else pixel_std
+    def _covariance(self, obs: Observation, cand: Candidate, sigma: float) -> FloatArray:
+        """The measurement's covariance in the tracker's frame: the pixel noise ``sigma`` (px)
+        and the face's wobble on the belt (``FACE_WOBBLE_STD``, m), one of them carried
+        through the back-projection's Jacobian."""
         if self.frame == "belt":
             g = plane_backprojection_jacobian(cand.pixel, self.k, obs.world_T_cam,
                                               np.array([0.0, 0.0, self.face_z]))[:2]
-            r = sigma**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
-        else:
-            px_per_m = np.linalg.inv(plane_backprojection_jacobian(
-                cand.pixel, self.k, obs.world_T_cam, self._plane())[:2])
-            r = sigma**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
-            self._into_view(obs)
+            return sigma**2 * g @ g.T + FACE_WOBBLE_STD**2 * np.eye(2)
+        px_per_m = np.linalg.inv(plane_backprojection_jacobian(
+            cand.pixel, self.k, obs.world_T_cam, self._plane())[:2])
+        return sigma**2 * np.eye(2) + FACE_WOBBLE_STD**2 * px_per_m @ px_per_m.T
+
+    def _step(self, obs: Observation, z: FloatArray, r: FloatArray) -> UpdateResult:
+        """One tracker step on measurement ``z`` (covariance ``r``): an update, or in the
+        image frame the two-point start from the kept first measurement, carried into this
+        frame's view; keeps or drops that first measurement by the step's outcome."""
         if self.frame == "image" and not self.tracker.initialised and self._first is not None:
             # The two-point start differences pixels: both must be of this frame's pose.
             t0, z0, r0, pose0 = self._first
@@ -480,6 +482,17 @@ class TargetEstimator:
                 self._first = None
             elif not result.reason.startswith("initialising: need"):
                 self._first = (obs.capture_time, z, r, obs.world_T_cam)
+        return result
+
+    def _fuse(self, obs: Observation, cand: Candidate, pixel_std: float | None = None) -> bool:
+        first = not self._zs and cand.centre_cam is not None
+        if first:
+            self._add_pose(obs, cand)  # the plane height is needed to back-project
+        z = self._measurement(obs, cand.pixel)
+        r = self._covariance(obs, cand, self.pixel_std if pixel_std is None else pixel_std)
+        if self.frame == "image":
+            self._into_view(obs)
+        result = self._step(obs, z, r)
         self.nis += min(result.mahalanobis_sq, self.tracker.config.gate_chi2)
         # A measurement the tracker keeps as the first of its start is the track's latest.
         accepted = bool(result) or result.reason.startswith(("initialising: first",

@@ -159,12 +159,7 @@ class LocalExecutor:
                 busy = [s for s in self._slots if s.task is not None]
                 if not busy:
                     return
-                timeout = max(0.0, min(s.deadline for s in busy) - time.monotonic())
-                handles: list[Connection | int] = []
-                for s in busy:
-                    assert s.conn is not None and s.proc is not None
-                    handles += [s.conn, s.proc.sentinel]
-                wait(handles, None if timeout == float("inf") else timeout)
+                self._wait(busy)
                 now = time.monotonic()
                 for s in busy:
                     result = self._collect(s, now)
@@ -172,6 +167,16 @@ class LocalExecutor:
                         yield result
         finally:
             self.close()
+
+    @staticmethod
+    def _wait(busy: Sequence[_Slot]) -> None:
+        """Block until a busy worker sends, dies, or reaches its episode deadline."""
+        timeout = max(0.0, min(s.deadline for s in busy) - time.monotonic())
+        handles: list[Connection | int] = []
+        for s in busy:
+            assert s.conn is not None and s.proc is not None
+            handles += [s.conn, s.proc.sentinel]
+        wait(handles, None if timeout == float("inf") else timeout)
 
     def close(self) -> None:
         """Stop every worker (politely, then by force)."""

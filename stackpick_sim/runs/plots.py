@@ -165,6 +165,23 @@ def _strip_panel(ax: Any, groups: Mapping[str, Records], keys: tuple[str, ...], 
     ax.legend(fontsize=7)
 
 
+def _success_line(ax: Any, rs: Sequence[Mapping[str, Any]], x_key: str, label: str) -> None:
+    """One line of the success plot: rate against ``x_key`` (numbers, else categories),
+    with Wilson error bars and each cell's successes/episodes beside its point."""
+    try:
+        xs: list[Any] = [float(r["settings"][x_key]) for r in rs]
+    except ValueError:  # not numbers: categorical axis
+        xs = [r["settings"][x_key] for r in rs]
+    ys = [100 * r["success_rate"] for r in rs]
+    # A Wilson bound equals the rate up to rounding at 0/n and n/n: clip at 0.
+    err = [[max(0.0, y - 100 * r["success_ci95"][0]) for y, r in zip(ys, rs, strict=True)],
+           [max(0.0, 100 * r["success_ci95"][1] - y) for y, r in zip(ys, rs, strict=True)]]
+    ax.errorbar(xs, ys, yerr=err, marker="o", capsize=4, label=label)
+    for x, y, r in zip(xs, ys, rs, strict=True):
+        ax.annotate(f"{r['successes']}/{r['episodes']}", (x, y), textcoords="offset points",
+                    xytext=(6, 6 if y < 50 else -12), fontsize=7)
+
+
 def success_vs_param_figure(rows: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> Any:
     """Success rate against the first swept key, one line per setting of the others, with
     the 95 % Wilson intervals as error bars and each cell's successes/episodes beside it."""
@@ -176,19 +193,7 @@ def success_vs_param_figure(rows: Sequence[Mapping[str, Any]], keys: Sequence[st
         label = ", ".join(f"{k}={r['settings'][k]}" for k in others) or "all"
         groups.setdefault(label, []).append(r)
     for label, rs in groups.items():
-        rs = [r for r in rs if r["episodes"]]
-        try:
-            xs: list[Any] = [float(r["settings"][x_key]) for r in rs]
-        except ValueError:  # not numbers: categorical axis
-            xs = [r["settings"][x_key] for r in rs]
-        ys = [100 * r["success_rate"] for r in rs]
-        # A Wilson bound equals the rate up to rounding at 0/n and n/n: clip at 0.
-        err = [[max(0.0, y - 100 * r["success_ci95"][0]) for y, r in zip(ys, rs, strict=True)],
-               [max(0.0, 100 * r["success_ci95"][1] - y) for y, r in zip(ys, rs, strict=True)]]
-        ax.errorbar(xs, ys, yerr=err, marker="o", capsize=4, label=label)
-        for x, y, r in zip(xs, ys, rs, strict=True):
-            ax.annotate(f"{r['successes']}/{r['episodes']}", (x, y), textcoords="offset points",
-                        xytext=(6, 6 if y < 50 else -12), fontsize=7)
+        _success_line(ax, [r for r in rs if r["episodes"]], x_key, label)
     ax.set_title(f"pick success vs. {x_key}")
     ax.set_xlabel(x_key)
     ax.set_ylabel("success rate, % (95 % Wilson interval)")

@@ -43,34 +43,50 @@ def _stats(values: list[float]) -> dict[str, float]:
             "p95": float(np.percentile(a, 95)), "n": len(values)}
 
 
+def _detection_rates(scores: list[FrameScore]) -> dict[str, float]:
+    """True and false positives, false negatives summed over the frames; precision, recall and
+    F-measure of those sums (0 where undefined)."""
+    tp, fp, fn = (sum(x.true_pos for x in scores), sum(x.false_pos for x in scores),
+                  sum(x.false_neg for x in scores))
+    precision = tp / (tp + fp) if tp + fp else 0.0
+    recall = tp / (tp + fn) if tp + fn else 0.0
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    return {"true_pos": tp, "false_pos": fp, "false_neg": fn,
+            "precision": precision, "recall": recall, "f_measure": f1}
+
+
+def _error_stats(found: list[FrameScore]) -> dict[str, dict[str, float]]:
+    """Centre and tilt error statistics over the frames whose top was found (a missing
+    error is left out)."""
+    def of(name: str) -> dict[str, float]:
+        return _stats([v for v in (getattr(x, name) for x in found) if v is not None])
+
+    return {name: of(name) for name in ("centre_err_px", "theta_x_err_deg", "theta_y_err_deg")}
+
+
+def _stage_medians(outputs: list[MethodOutput]) -> dict[str, float]:
+    """Median time of each stage over the frames that report it, ms."""
+    stages: dict[str, list[float]] = {}
+    for o in outputs:
+        for k, v in o.stages_ms.items():
+            stages.setdefault(k, []).append(v)
+    return {k: float(np.median(v)) for k, v in stages.items()}
+
+
 def summarise(record: MethodRecord) -> dict[str, Any]:
     """JSON-friendly summary of one method."""
     s = record.scores
     with_top = [x for x in s if x.has_top]
     found = [x for x in with_top if x.success]
-    tp, fp, fn = (sum(x.true_pos for x in s), sum(x.false_pos for x in s),
-                  sum(x.false_neg for x in s))
-    precision = tp / (tp + fp) if tp + fp else 0.0
-    recall = tp / (tp + fn) if tp + fn else 0.0
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
-    stages: dict[str, list[float]] = {}
-    for o in record.outputs:
-        for k, v in o.stages_ms.items():
-            stages.setdefault(k, []).append(v)
     return {
         "frames": len(s), "frames_with_top": len(with_top), "top_found": len(found),
         "top_success": len(found) / len(with_top) if with_top else math.nan,
         "failed_seeds": [x.seed for x in with_top if not x.success],
-        "true_pos": tp, "false_pos": fp, "false_neg": fn,
-        "precision": precision, "recall": recall, "f_measure": f1,
-        "centre_err_px": _stats([x.centre_err_px for x in found if x.centre_err_px is not None]),
-        "theta_x_err_deg": _stats([x.theta_x_err_deg for x in found
-                                   if x.theta_x_err_deg is not None]),
-        "theta_y_err_deg": _stats([x.theta_y_err_deg for x in found
-                                   if x.theta_y_err_deg is not None]),
+        **_detection_rates(s),
+        **_error_stats(found),
         "time_ms": _stats([o.total_ms for o in record.outputs]),
         "detector_ms": _stats([o.detector_ms for o in record.outputs]),
-        "stages_ms_median": {k: float(np.median(v)) for k, v in stages.items()},
+        "stages_ms_median": _stage_medians(record.outputs),
     }
 
 

@@ -79,6 +79,18 @@ def best_match(ellipse: Ellipse, faces: list[TruthFace],
     return best, best_iou
 
 
+def _one_to_one(pairs: list[tuple[float, int, int]]) -> tuple[set[int], set[int]]:
+    """Greedy one-to-one matching of (IoU, detection, face) pairs, highest IoU first: the
+    detections and the faces used."""
+    used_det: set[int] = set()
+    used_face: set[int] = set()
+    for _, i, j in sorted(pairs, reverse=True):
+        if i not in used_det and j not in used_face:
+            used_det.add(i)
+            used_face.add(j)
+    return used_det, used_face
+
+
 def count_matches(ellipses: tuple[Ellipse, ...], frame: BenchFrame) -> tuple[int, int, int]:
     """(true positives, false positives, false negatives) of all ellipses of one frame."""
     counted = [f for f in frame.faces if f.ellipse is not None
@@ -92,12 +104,7 @@ def count_matches(ellipses: tuple[Ellipse, ...], frame: BenchFrame) -> tuple[int
             iou = _iou(e, f.ellipse, frame.shape)
             if iou > MATCH_IOU:
                 pairs.append((iou, i, j))
-    used_det: set[int] = set()
-    used_face: set[int] = set()
-    for _, i, j in sorted(pairs, reverse=True):
-        if i not in used_det and j not in used_face:
-            used_det.add(i)
-            used_face.add(j)
+    used_det, used_face = _one_to_one(pairs)
     false_pos = 0
     for i, e in enumerate(ellipses):
         if i in used_det:
