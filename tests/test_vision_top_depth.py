@@ -113,7 +113,8 @@ def test_a_rimmed_face_nearer_than_the_unobstructed_choice_is_top() -> None:
     # inside. The unobstructed fallback takes a lower face whose occluder only clips its rim
     # (support 0.77); the top face, refitted inside, reads ~5 cm nearer.
     frame = _frame(70216)
-    assert _top_iou(frame) > MATCH_IOU
+    # The refit, not the fit round the slivers, is the face.
+    assert _top_iou(frame) > 0.95
     assert _top_iou(frame, nearer_rimmed=False) < MATCH_IOU
 
 

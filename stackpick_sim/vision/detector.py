@@ -644,7 +644,7 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         if config.top.nearer_hidden:
             choice = _nearer_hidden(merged, choice, cues, config.top)
         if config.top.nearer_rimmed:
-            choice = _nearer_rimmed(found, merged, choice, cues, config.top)
+            merged, choice = _nearer_rimmed(found, merged, choice, cues, config.top)
         return _nearer_arcs(found, merged, choice, cues, config)
     check_time(found.deadline, "top")
     retried = False
@@ -708,7 +708,7 @@ def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, c
 
 
 def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
-                   params: TopParams) -> TopChoice:
+                   params: TopParams) -> tuple[list[MergedEllipse], TopChoice]:
     """``choice`` (the ``unobstructed`` fallback's), unless a whole face whose only interior
     edges are its own rim (:func:`~stackpick_sim.vision.occlusion.rim_only`: no T-junction,
     support at least ``params.min_support``), refitted on its innermost consistent edge
@@ -716,21 +716,32 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     same-colour lower face's sliver beyond it, so it reads too near), lies clearly nearer the
     camera than it (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): a top face over
     lower faces of its colour, which fails the rule on its own rim alone, above the face the
-    fallback chose, whose occluder only clips its rim. The rimmed fit is chosen (as the
-    ``rimmed`` fallback chooses it). Unchanged without face radii."""
+    fallback chose, whose occluder only clips its rim. Its refit replaces it in ``merged``
+    and is chosen (``inner``: the pose's final fit keeps off the silhouette's edge pixels
+    beyond it). Both unchanged without face radii."""
     assert choice.index is not None
     if cues.radius_of is None:
-        return choice
+        return merged, choice
     ellipses = [m.ellipse for m in merged]
     rimmed = rim_only(ellipses, choice.evidence, found.points)
     if not rimmed:
-        return choice
+        return merged, choice
     grad = found.edges("top")
     refits = [refit_on_contrast(ellipses[i], grad, True, params) or ellipses[i]
               for i in rimmed]
     nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop, cues.radius_of,
                               params)
-    return choice if not nearest else replace(choice, index=rimmed[nearest - 1])
+    if not nearest:
+        return merged, choice
+    i, refit = rimmed[nearest - 1], refits[nearest - 1]
+    if refit is ellipses[i]:
+        return merged, replace(choice, index=i)
+    # The refit is the face (the pose's final fit keeps off the lower face's silhouette
+    # beyond it, as for the inner refit).
+    evidence = select_top([refit], grad, edge_points=found.points, params=params).evidence[0]
+    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
+    return merged, replace(choice, index=i, inner=True,
+                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
