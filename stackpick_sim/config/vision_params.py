@@ -502,9 +502,9 @@ class TopParams(Section):
     """After the ``unobstructed`` fallback's choice, a whole face whose only interior edges
     lie in its rim band (``rim_band_px``: its own faint rim inside a same-colour lower face's
     sliver that its fit took in), refitted on its innermost consistent edge, that lies
-    clearly nearer (``depth_tie_m``) takes the choice as that refit: a top face over lower faces of its
-    colour fails the rule on that rim alone, while the face the fallback chose is a lower one
-    whose occluder only clips its rim (needs the object kinds' colours)."""
+    clearly nearer (``depth_tie_m``) takes the choice as that refit: a top face over lower
+    faces of its colour fails the rule on that rim alone, while the face the fallback chose
+    is a lower one whose occluder only clips its rim (needs the object kinds' colours)."""
     inner_refit: bool = False
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller
