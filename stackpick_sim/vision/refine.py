@@ -16,6 +16,7 @@ faint arcs included, with outliers dropped (:func:`refine_on_profile`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import cast
 
 import cv2
@@ -24,17 +25,19 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
-from stackpick_sim.vision.contrast import contrast_threshold, outline_columns
+from stackpick_sim.vision import kernels, kernels_refine
+from stackpick_sim.vision.contrast import (
+    contrast_threshold,
+    perimeter_px,
+    unit_circle,
+)
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
     EQ2_CHECKED_RATIO_SQ,
-    ellipse_distances,
     fit_ellipse,
     plausible,
 )
-from stackpick_sim.vision.wall import column_median
 
 #: The default settings of the refine stage (see RefineParams: the reasons for each).
 DEFAULT = RefineParams()
@@ -280,27 +283,55 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     :class:`~stackpick_sim.config.vision_params.PoseParams` for the rounds and the outliers).
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
-    reach, step, least = params.profile_reach_px, params.profile_step_px, params.profile_min_share
-    steps = np.arange(-reach, reach + 1e-9, step)  # the search offsets, px
+    steps = _profile_steps(params)
+
+    def peaks_of(current: Ellipse) -> tuple[NDArray[np.float64], int]:
+        # The outline samples, the (n, k) sample grid across them and each sample's peak,
+        # in one compiled pass (contrast.outline_columns' samples).
+        ct, st = unit_circle(max(16, math.ceil(perimeter_px(current))))
+        return kernels_refine.outline_peaks(image.gx, image.gy, _terms(current), ct, st,
+                                            steps, params.profile_step_px,
+                                            threshold), ct.shape[0]
+
+    return _profile_rounds(ellipse, peaks_of, shape, params, fits_params)
+
+
+def _profile_steps(params: PoseParams) -> NDArray[np.float64]:
+    """The profile search's offsets across the outline, px."""
+    reach = params.profile_reach_px
+    return np.arange(-reach, reach + 1e-9, params.profile_step_px)
+
+
+def _terms(ellipse: Ellipse) -> NDArray[np.float64]:
+    """(cx, cy, a, b, cos angle, sin angle) of ``ellipse``, as the compiled passes take it."""
+    t = math.radians(ellipse.angle_deg)
+    return np.array([ellipse.cx, ellipse.cy, ellipse.a, ellipse.b, math.cos(t), math.sin(t)])
+
+
+def _profile_rounds(ellipse: Ellipse,
+                    peaks_of: Callable[[Ellipse], tuple[NDArray[np.float64], int]],
+                    shape: tuple[int, int], params: PoseParams, fits_params: FitParams
+                    ) -> Ellipse:
+    """:func:`refine_on_profile`'s rounds from ``ellipse``, ``peaks_of(current)`` giving
+    the (K, 2) profile peaks of the current fit's outline and its sample count."""
+    least = params.profile_min_share
     current = ellipse
     for round_ in range(params.profile_rounds):
-        pu, pv, nu, nv = outline_columns(current)
-        n = pu.shape[0]
-        # The (n, k) sample grid across the outline and each sample's peak, in one pass.
-        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, steps, step,
-                                      threshold)
+        peaks, n = peaks_of(current)
         if peaks.shape[0] < least * n:
             return current
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape, fits_params):
             return current
         if round_ == params.profile_rounds - 1:
-            d = ellipse_distances(fit, peaks)
-            inliers = d <= max(params.outlier_min_px,
-                               params.outlier_medians * float(column_median(d)))
-            kept = np.count_nonzero(inliers)
+            # The peaks within outlier_medians median distances of the fit (and
+            # outlier_min_px), in one compiled pass: as ellipse_distances, column_median and
+            # the mask.
+            inliers = kernels_refine.profile_inliers(peaks, _terms(fit), params.outlier_min_px,
+                                                     params.outlier_medians)
+            kept = inliers.shape[0]
             # All inliers: the refit would repeat the fit on the same points.
-            if least * n <= kept < inliers.size:
-                fit = fit_ellipse(peaks[inliers]) or fit
+            if least * n <= kept < peaks.shape[0]:
+                fit = fit_ellipse(inliers) or fit
         current = fit if plausible(fit, shape, fits_params) else current
     return current
