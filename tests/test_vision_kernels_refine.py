@@ -84,3 +84,10 @@ def test_warm_up_compiles_every_pass_for_the_types_the_detector_passes() -> None
     out = subprocess.run([sys.executable, "-c", script, str(frames)], capture_output=True,
                          text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_shift_rows_adds_the_offset_to_every_row(rng: np.random.Generator) -> None:
+    rows = rng.integers(-500, 500, (40, 2)).astype(np.int32)
+    want = rows + np.array([7, -3], np.int32)
+    kernels_refine.shift_rows(rows, 7, -3)
+    assert rows.dtype == np.int32 and rows.tobytes() == want.tobytes()

@@ -65,10 +65,20 @@ def profile_inliers(peaks: NDArray[np.float64], terms: NDArray[np.float64], leas
     return out[:kept]
 
 
+@_compiled
+def shift_rows(rows: NDArray[np.int32], du: int, dv: int) -> None:  # pragma: no cover
+    """(N, 2) int32 ``rows`` (u, v) plus (du, dv), in place (``rows += (du, dv)``: the same
+    values without numpy's broadcast over rows of two)."""
+    for k in range(rows.shape[0]):
+        rows[k, 0] += du
+        rows[k, 1] += dv
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) these kernels for the argument types the detector
     passes (see :func:`~stackpick_sim.vision.kernels.warm_up`, which calls this)."""
     profile_inliers(np.zeros((1, 2)), np.ones(6), 0.3, 3.0)
+    shift_rows(np.zeros((1, 2), np.int32), 1, 1)
     fixed = np.ones(1)  # the cached unit circles are read-only
     fixed.setflags(write=False)
     img = np.zeros((4, 4), np.int16)
