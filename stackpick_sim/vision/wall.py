@@ -221,21 +221,31 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
     ``belt`` the bare belt's (or None); the band's depths and margin are ``params``'
     (``wall_depths``, ``wall_margin_px``)."""
+    return solution_evidences(_solution_array(solutions), ellipse, intrinsics, image, face,
+                              belt, params)
+
+
+def solution_evidences(solutions: NDArray[np.float64], ellipse: Ellipse,
+                       intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
+                       face: NDArray[np.float64], belt: NDArray[np.float64] | None = None,
+                       params: PoseParams = DEFAULT_POSE) -> list[WallEvidence]:
+    """:func:`wall_evidences` of the S solutions given as one (S, 2, 3) float64 array
+    (normal_cam, centre_cam per solution; C order)."""
     # The bands, their pixels outside the face and the colour test, in one compiled pass
     # (kernels_pose.wall_hits: solution_bands, then band_evidences' test, the same
     # arithmetic).
     pixels = image if image.ndim == 3 else image[:, :, None]
+    if not (pixels.flags.c_contiguous and pixels.flags.writeable):
+        pixels = np.require(pixels, requirements=("C", "W"))
     c = pixels.shape[2]
     ct, st = unit_circle(WALL_RIM_POINTS)
+    colour = _per_channel(face, c)
     counts, hits = kernels_pose.wall_hits(
-        _solution_array(solutions), ct, st, _depths(params.wall_depths),
-        np.array([_terms(ellipse)], np.float64),
-        np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64),
-        params.wall_margin_px, np.require(pixels, requirements=("C", "W")),
-        _per_channel(face, c),
-        np.array([params.band_brightness_margin, params.band_chroma_tolerance,
-                  params.band_min_brightness, params.band_belt_delta], np.float64),
-        np.zeros(c) if belt is None else _per_channel(belt, c), belt is not None)
+        solutions, ct, st, _depths(params.wall_depths), _terms(ellipse),
+        (intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy), params.wall_margin_px,
+        pixels, colour, (params.band_brightness_margin, params.band_chroma_tolerance,
+                         params.band_min_brightness, params.band_belt_delta),
+        colour if belt is None else _per_channel(belt, c), belt is not None)
     return _evidences(counts, hits)
 
 
@@ -269,6 +279,10 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
 def _per_channel(colour: NDArray[np.float64], channels: int) -> NDArray[np.float64]:
     """A colour (one value per channel, or one for all) as a (channels,) float64 array the
     compiled pass takes (C order, writable; ``colour`` itself where it is one)."""
+    if (type(colour) is np.ndarray and colour.shape == (channels,)
+            and colour.dtype == np.float64 and colour.flags.c_contiguous
+            and colour.flags.writeable):
+        return colour
     flat = np.asarray(colour, np.float64).reshape(-1)
     if flat.shape[0] != channels:
         return np.broadcast_to(flat, (channels,)).copy()
