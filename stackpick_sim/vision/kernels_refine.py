@@ -66,6 +66,22 @@ def profile_inliers(peaks: NDArray[np.float64], terms: NDArray[np.float64], leas
 
 
 @_compiled
+def subpixel_along_rows(points: NDArray[np.float64], grads: NDArray[np.float64],
+                        cx: float, cy: float, fa: float, fh: float, fb: float, reach: float,
+                        dist_sq: float, cos_sq: float, gx: NDArray[np.int16],
+                        gy: NDArray[np.int16], max_shift: float
+                        ) -> NDArray[np.float32]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.kernels.subpixel_along` of the edge pixels (2, M)
+    ``points`` (u row, v row) with unit gradients (2, M) ``grads`` and the ellipse's form
+    (cx, cy, A, H, B) given as scalars: (K, 2) float32 sub-pixel positions in pixel
+    order."""
+    form = np.empty(5)
+    form[0], form[1], form[2], form[3], form[4] = cx, cy, fa, fh, fb
+    return kernels.subpixel_along(points[0], points[1], grads[0], grads[1], form, reach,
+                                  dist_sq, cos_sq, gx, gy, max_shift)
+
+
+@_compiled
 def shift_rows(rows: NDArray[np.int32], du: int, dv: int) -> None:  # pragma: no cover
     """(N, 2) int32 ``rows`` (u, v) plus (du, dv), in place (``rows += (du, dv)``: the same
     values without numpy's broadcast over rows of two)."""
@@ -79,6 +95,9 @@ def warm_up() -> None:
     passes (see :func:`~stackpick_sim.vision.kernels.warm_up`, which calls this)."""
     profile_inliers(np.zeros((1, 2)), np.ones(6), 0.3, 3.0)
     shift_rows(np.zeros((1, 2), np.int32), 1, 1)
+    grid = np.zeros((4, 4), np.int16)
+    subpixel_along_rows(np.zeros((2, 1)), np.zeros((2, 1)), 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0,
+                        1.0, grid, grid, 0.5)
     fixed = np.ones(1)  # the cached unit circles are read-only
     fixed.setflags(write=False)
     img = np.zeros((4, 4), np.int16)

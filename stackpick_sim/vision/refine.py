@@ -103,20 +103,26 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
     the ``min_normal_cos`` cone of its normal, the fit within ``fits_params``' axis
     bounds; fewer than ``min_pixels`` keep ``ellipse``)."""
     tol = params.subpixel_tolerance_px
-    def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.ascontiguousarray(c, np.float64)
-
     # One compiled pass: the pixels near the ellipse (its box grown by the tolerance), those
-    # along it, their sub-pixel positions (float32: the fit's input type).
-    pts = kernels.subpixel_along(col(points[:, 0]), col(points[:, 1]), col(grads[:, 0]),
-                                 col(grads[:, 1]), np.array(_form(ellipse)),
-                                 ellipse.a + tol + 1, 4.0 * tol * tol,
-                                 min_normal_cos * min_normal_cos, image.gx, image.gy,
-                                 MAX_SHIFT_PX)
+    # along it, their sub-pixel positions (float32: the fit's input type). The pixels and
+    # gradients as (2, M) rows (the edge stage's arrays are their transposes).
+    cx, cy, fa, fh, fb = _form(ellipse)
+    pts = kernels_refine.subpixel_along_rows(
+        _rows(points), _rows(grads), cx, cy, fa, fh, fb, ellipse.a + tol + 1, 4.0 * tol * tol,
+        min_normal_cos * min_normal_cos, image.gx, image.gy, MAX_SHIFT_PX)
     if pts.shape[0] < min_pixels:
         return ellipse
     fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape, fits_params) else ellipse
+
+
+def _rows(columns: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(M, 2) values as (2, M) C-ordered float64 rows (the transpose itself where it is
+    one)."""
+    rows = columns.T
+    if rows.dtype == np.float64 and rows.flags.c_contiguous:
+        return rows
+    return np.ascontiguousarray(rows, np.float64)
 
 
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
