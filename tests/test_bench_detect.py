@@ -95,7 +95,9 @@ def test_cli_writes_tables_for_a_data_set(tmp_path: Path,
     code = main(["bench-detect", "--data", str(data), "--out", str(out),
                  "--methods", "ours,findellipses", "--quiet"])
     assert code == 0
-    assert "bench-detect" not in capsys.readouterr().err  # --quiet: no progress bar
+    err = capsys.readouterr().err
+    assert "bench-detect" not in err  # --quiet: no progress bar
+    assert "has no index.json" in err  # the kinds are --scene's: said once
     results = json.loads((out / "results.json").read_text())
     ours = results["methods"]["ours"]
     assert ours["frames"] == 2 and ours["top_success"] == 1.0
@@ -113,3 +115,19 @@ def test_dataset_kinds_read_from_the_index(tmp_path: Path) -> None:
     (tmp_path / "index.json").write_text(json.dumps({"scene": {"object_types": types}}))
     assert dataset_kinds(tmp_path) == ((0.035, (0.85, 0.6, 0.25), 0.03),
                                        (0.025, (0.3, 0.6, 0.85), 0.025))
+
+
+def test_a_data_set_without_index_takes_the_kinds_of_the_scene(tmp_path: Path) -> None:
+    from stackpick_sim.config.loader import load_scene
+    from stackpick_sim.vision.benchmark.frames import iter_dataset
+
+    write_frame(tmp_path, 5)
+    cfg = load_scene("paper")
+    (frame,) = iter_dataset(tmp_path, None, cfg)
+    radii = sorted(k[0] for k in frame.kinds)
+    assert radii == sorted(t.radius for t in cfg.object_types.values())
+    # with an index, its recorded scene's kinds
+    types = {"only": {"radius": 0.05, "height": 0.02, "rgba": [0.2, 0.2, 0.2, 1.0]}}
+    (tmp_path / "index.json").write_text(json.dumps({"scene": {"object_types": types}}))
+    (frame,) = iter_dataset(tmp_path, None, cfg)
+    assert frame.kinds == ((0.05, (0.2, 0.2, 0.2), 0.02),)

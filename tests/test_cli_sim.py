@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import cv2
 import pytest
@@ -40,6 +41,25 @@ def test_dataset_writes_one_image_and_json_per_seed(tmp_path: Path) -> None:
     index = json.loads((tmp_path / "index.json").read_text())
     assert [s["seed"] for s in index["seeds"]] == [0, 1, 2]
     assert index["scene"]["camera"]["noise_std"] == 2.0
+
+
+def test_a_stopped_dataset_run_leaves_its_index(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    from stackpick_sim.cli import dataset_cmd
+
+    real = dataset_cmd.seeded_look_frame
+
+    def stop_at_the_second(cfg: Any, seed: int) -> Any:
+        if seed == 1:
+            raise KeyboardInterrupt  # the user stops a long run
+        return real(cfg, seed)
+
+    monkeypatch.setattr(dataset_cmd, "seeded_look_frame", stop_at_the_second)
+    assert main(["dataset", "--scene", "cluttered", "--seeds", "0:3", "--out", str(tmp_path),
+                 "--quiet"]) == 130  # the exit code of an interrupted command
+    index = json.loads((tmp_path / "index.json").read_text())
+    assert [s["seed"] for s in index["seeds"]] == [0]
+    assert index["scene"]["name"] == "cluttered"  # the kinds a benchmark of it needs
 
 
 @pytest.mark.parametrize("make_out", ["missing_parent", "a_file"])

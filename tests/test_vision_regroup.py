@@ -129,7 +129,10 @@ def test_unobstructed_contrast_refit_is_the_very_last_resort(
     retry = detector_module._retry_on_contrast
     monkeypatch.setattr(detector_module, "_retry_on_contrast",
                         lambda *a, **k: (*retry(*a, **k)[:2], None))
-    # (The pairs with the unfitted chains, after it, are left out too.)
+    # (The pairs with the unfitted chains, after it, are left out too, and so is the last
+    # fallback, which takes the nearest face's fit that took in part of the lower outline.)
     monkeypatch.setattr(detector_module, "last_resort_arcs",
                         lambda pieces, *_: (tuple(pieces), list(range(len(pieces)))))
+    monkeypatch.setattr(detector_module, "_nearest_cut",
+                        lambda found, merged, choice, cues, config: (merged, choice))
     assert detect(image, CONFIG).top_ellipse is None

@@ -27,7 +27,7 @@ from stackpick_sim.cli.common import (
 )
 from stackpick_sim.config.scene_config import SceneConfig
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.files import write_text
+from stackpick_sim.files import shown, write_text
 from stackpick_sim.geometry import tilt_angles
 from stackpick_sim.pipeline import Detector, Frame, Hints
 from stackpick_sim.registry import TRUTH_STAGES, PluginError, load
@@ -125,6 +125,9 @@ def run(args: argparse.Namespace) -> int:
         seeds = dataset_seeds(args.data) if args.seeds is None else parse_seeds(args.seeds)
         present = set(dataset_seeds(args.data))
         seeds = [s for s in seeds if s in present]
+        if not (args.data / "index.json").exists():
+            print(f"warning: {shown(args.data)} has no index.json; the object kinds, belt "
+                  f"height and face height are scene {cfg.name!r}'s (--scene)", file=sys.stderr)
         frames = iter_dataset(args.data, seeds, cfg)
         source = f"data set {args.data}"
     else:

@@ -25,7 +25,7 @@ SKIPPABLE_STAGES: tuple[str, ...] = ("roi", "refine", "gate")
 #: The top rule's fallbacks, in the order they are tried when no ellipse passes the rule
 #: (each is described by the failure class it handles in :class:`TopParams`).
 FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed",
-                              "arc_pairs", "spare_refit", "all_arcs")
+                              "arc_pairs", "spare_refit", "all_arcs", "nearest_cut")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -320,7 +320,12 @@ class TopParams(Section):
       refits onto its own faint boundary).
     - ``all_arcs``: pairs that also take in the chains no fit was kept for and the parts of
       chains cut at junctions, else the unobstructed one, else one with its own rim inside:
-      the least constrained, so the last.
+      the least constrained of the arc pairs.
+    - ``nearest_cut``: of the fitted faces and those of pairs of every arc at least half
+      visible (``hidden_min_support``), one with no T-junction and no edge inside that lies
+      clearly nearer (``depth_tie_m``) than every other: a top face across faces of its
+      colour and shade, its boundary with them showing no contrast along more of its
+      outline than ``unobstructed_min_support`` allows (needs the object kinds' colours).
     """
 
     SECTION: ClassVar[str] = "top"
@@ -378,7 +383,8 @@ class TopParams(Section):
     rendered paper-scene frames; a fit's depth error is ~1 mm."""
     support_tie: float = 0.02
     """Candidates whose supports (shares [0, 1]) differ by less than this are tied; the
-    larger ellipse, nearer the camera for equal radii, wins."""
+    ellipse of the longer semi-major axis, nearer the camera for equal radii whatever the
+    tilt (a tilted face's area shrinks with the tilt's cosine), wins."""
     unobstructed_min_support: float = 0.75
     """Share [0, 1] of its outline a face with no T-junction and no edge inside must show for
     the ``unobstructed`` fallback (and to join the depth test): an occluder's outline runs
@@ -492,6 +498,13 @@ class TopParams(Section):
     shade shows no contrast along its boundary with them, which can leave it below the
     unobstructed test's support, while the face that test chose is a lower one whose
     occluder only clips its rim (needs the object kinds' colours)."""
+    nearer_rimmed: bool = True
+    """After the ``unobstructed`` fallback's choice, a whole face whose only interior edges
+    lie in its rim band (``rim_band_px``: its own faint rim inside a same-colour lower face's
+    sliver that its fit took in), refitted on its innermost consistent edge, that lies
+    clearly nearer (``depth_tie_m``) takes the choice as that refit: a top face over lower
+    faces of its colour fails the rule on that rim alone, while the face the fallback chose
+    is a lower one whose occluder only clips its rim (needs the object kinds' colours)."""
     inner_refit: bool = False
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller

@@ -86,6 +86,7 @@ from stackpick_sim.vision.occlusion import (
     clearly_nearest,
     hidden_by_no_outline,
     holds_centre,
+    rim_only,
     select_resting_rimmed,
     select_rimmed,
     select_top,
@@ -630,8 +631,10 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
                config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """When no ellipse passed the top rule, in order, until one gives a face, those of the
     ``top.fallbacks`` named (:class:`~stackpick_sim.config.vision_params.TopParams`): the
-    unobstructed face and the contrast retry (each unless a face of arc pairs is clearly
-    nearer than its choice), then :func:`_arc_fallbacks`."""
+    unobstructed face (unless a face cut short by nothing, :func:`_nearer_hidden`, a rimmed
+    face, :func:`_nearer_rimmed`, or a face of arc pairs is clearly nearer) and the contrast
+    retry (unless a face of arc pairs is clearly nearer than its choice), then
+    :func:`_arc_fallbacks`, then :func:`_nearest_cut`."""
     use, limits = config.top.fallbacks, config.limits
     grad = found.edges("top")
     spare: tuple[int, Ellipse, OcclusionEvidence] | None = None
@@ -642,6 +645,8 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         choice = replace(choice, index=fallback, reason="")
         if config.top.nearer_hidden:
             choice = _nearer_hidden(merged, choice, cues, config.top)
+        if config.top.nearer_rimmed:
+            merged, choice = _nearer_rimmed(found, merged, choice, cues, config.top)
         return _nearer_arcs(found, merged, choice, cues, config)
     check_time(found.deadline, "top")
     retried = False
@@ -658,7 +663,87 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # A face clearly nearer than such a refit is above it (a top face the merge never
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
-    return _arc_fallbacks(found, merged, choice, spare, config)
+    merged, choice = _arc_fallbacks(found, merged, choice, spare, config)
+    if choice.index is None and "nearest_cut" in use:
+        merged, choice = _nearest_cut(found, merged, choice, cues, config)
+    return merged, choice
+
+
+def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The last fallback (``nearest_cut``): of the fitted faces and those of pairs of every
+    arc (:func:`last_resort_arcs`) at least half visible (support at least
+    ``top.hidden_min_support``, as the scoring counts faces), the one clearly nearer the
+    camera than every other (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`,
+    ``top.depth_tie_m``), in its best-supported fit cut short by nothing (no T-junction, no
+    edge inside; a fit that took in part of its wall reads nearer still): a top
+    face across faces of its colour and shade, whose boundary with them shows no contrast
+    along more of its outline than the ``unobstructed`` fallback allows, while no face that
+    passes or fails on support alone was found. An arc pairs' face so chosen is added to
+    ``merged``; otherwise both come back unchanged (and without face radii)."""
+    if cues.radius_of is None:
+        return merged, choice
+    check_time(found.deadline, "top")
+    grad = found.edges("top")
+    arc_chains, arcs = _every_arc(found, config)
+    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, found.points, found.grads,
+                                   found.crop, found.gate, config)
+    faces = [m.ellipse for m in merged] + extra
+    evidence = (*choice.evidence, *alone.evidence)
+    half = [i for i, ev in enumerate(evidence) if ev.support >= config.top.hidden_min_support]
+    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.radius_of,
+                               config.top) if len(half) > 1 else None)
+    if nearest is None:
+        return merged, choice
+    # The nearest face's fits (one holds the other's centre: no rivals of it) cut short by
+    # nothing, the best-supported first.
+    face = faces[half[nearest]]
+    cut = [i for i in half if not evidence[i].occluded_ends and not evidence[i].interior_edge_px
+           and (holds_centre(faces[i], face) or holds_centre(face, faces[i]))]
+    if not cut:
+        return merged, choice
+    i = max(cut, key=lambda k: evidence[k].support)
+    if i < len(merged):
+        return merged, replace(choice, index=i, reason="")
+    return _with_face(merged, choice, faces[i], evidence[i], found.chains, grad,
+                      config.merging)
+
+
+def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                   params: TopParams) -> tuple[list[MergedEllipse], TopChoice]:
+    """``choice`` (the ``unobstructed`` fallback's), unless a whole face whose only interior
+    edges are its own rim (:func:`~stackpick_sim.vision.occlusion.rim_only`: no T-junction,
+    support at least ``params.min_support``), refitted on its innermost consistent edge
+    (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`; the fit itself took in a
+    same-colour lower face's sliver beyond it, so it reads too near), lies clearly nearer the
+    camera than it (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): a top face over
+    lower faces of its colour, which fails the rule on its own rim alone, above the face the
+    fallback chose, whose occluder only clips its rim. Its refit replaces it in ``merged``
+    and is chosen (``inner``: the pose's final fit keeps off the silhouette's edge pixels
+    beyond it). Both unchanged without face radii."""
+    assert choice.index is not None
+    if cues.radius_of is None:
+        return merged, choice
+    ellipses = [m.ellipse for m in merged]
+    rimmed = rim_only(ellipses, choice.evidence, found.points)
+    if not rimmed:
+        return merged, choice
+    grad = found.edges("top")
+    refits = [refit_on_contrast(ellipses[i], grad, True, params) or ellipses[i]
+              for i in rimmed]
+    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop, cues.radius_of,
+                              params)
+    if not nearest:
+        return merged, choice
+    i, refit = rimmed[nearest - 1], refits[nearest - 1]
+    if refit is ellipses[i]:
+        return merged, replace(choice, index=i)
+    # The refit is the face (the pose's final fit keeps off the lower face's silhouette
+    # beyond it, as for the inner refit).
+    evidence = select_top([refit], grad, edge_points=found.points, params=params).evidence[0]
+    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
+    return merged, replace(choice, index=i, inner=True,
+                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -674,12 +759,17 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     assert choice.index is not None
     if cues.radius_of is None:
         return choice
+    chosen = merged[choice.index].ellipse
+    # A second fit of the chosen face (one holds the other's centre) is no other face: the
+    # better-supported fit the fallback chose stays, though the other may read nearer.
     cut = [i for i, ev in enumerate(choice.evidence)
            if i != choice.index and not ev.occluded_ends and not ev.interior_edge_px
-           and ev.support >= params.hidden_min_support]
+           and ev.support >= params.hidden_min_support
+           and not (holds_centre(merged[i].ellipse, chosen)
+                    or holds_centre(chosen, merged[i].ellipse))]
     if not cut:
         return choice
-    faces = [merged[choice.index].ellipse, *(merged[i].ellipse for i in cut)]
+    faces = [chosen, *(merged[i].ellipse for i in cut)]
     nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
     return choice if not nearest else replace(choice, index=cut[nearest - 1])
 

@@ -26,11 +26,11 @@ that verdict.
 Given each face's radius (from its colour) and the intrinsics, a candidate nearer the camera
 than every other by ``depth_tie_m`` wins (a second fit of the same face is no rival); faces that
 failed on support alone with nothing crossing them take part in this test too. Otherwise the
-best-supported candidate wins (ties within ``support_tie`` go to the larger ellipse, which is
-nearer the camera for equal radii). When no ellipse passes, :func:`select_unobstructed` is
-the last resort: a face with no T-junction and no edge inside it, most of whose outline shows
-(``unobstructed_min_support``), lies under nothing visible; its gaps are boundaries too faint
-to see.
+best-supported candidate wins (ties within ``support_tie`` go to the longer semi-major axis,
+nearer the camera for equal radii whatever the tilt). When no ellipse passes,
+:func:`select_unobstructed` is the last resort: a face with no T-junction and no edge inside
+it, most of whose outline shows (``unobstructed_min_support``), lies under nothing visible;
+its gaps are boundaries too faint to see.
 After the detector's contrast refit, :func:`select_rimmed` is the next: a whole face whose
 only interior edges lie within ``rim_band_px`` of its outline (its own faint rim, fitted on a
 same-colour lower face's sliver beyond it). Such a face can also lie on the face the rule
@@ -264,10 +264,13 @@ def clearly_nearest(faces: list[Ellipse], intrinsics: CameraIntrinsics,
         if radius is None:
             return None
         # The unit-radius solutions' depths scaled on floats (the same values as
-        # circle_poses' scaled centres, without their arrays).
+        # circle_poses' scaled centres, without their arrays). A steeply tilted face near
+        # the image border can have a solution whose centre lies behind the camera (its
+        # plane seen nearly edge on): the mirror image of that circle through the camera
+        # images to the same ellipse, so its depth is the centre's distance either way.
         unit = unit_circle_poses(face, intrinsics)
-        depths.append(0.5 * (float(unit[0].centre_cam[2]) * radius
-                             + float(unit[1].centre_cam[2]) * radius))
+        depths.append(0.5 * (abs(float(unit[0].centre_cam[2])) * radius
+                             + abs(float(unit[1].centre_cam[2])) * radius))
     nearest = int(np.argmin(depths))
     rivals = [d for face, d in zip(faces, depths, strict=True)
               if not (holds_centre(face, faces[nearest])
@@ -328,8 +331,8 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
 def select_rimmed(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
                   edge_points: NDArray[np.float64]) -> int | None:
     """Index of the best-supported of the :func:`rim_only` ellipses (ties within
-    ``support_tie`` to the larger), or None: a last resort when no ellipse passes the rule,
-    nor after the contrast refit (see TopParams.rim_band_px)."""
+    ``support_tie`` to the longer semi-major axis), or None: a last resort when no ellipse
+    passes the rule, nor after the contrast refit (see TopParams.rim_band_px)."""
     ok = rim_only(ellipses, evidence, edge_points)
     return _best_supported(ok, ellipses, evidence) if ok else None
 
@@ -387,11 +390,14 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
 def _best_supported(indices: Sequence[int], ellipses: Sequence[Ellipse],
                     evidence: Sequence[OcclusionEvidence]) -> int:
     """The best-supported of ``indices`` (non-empty); ties within the evidence's
-    ``support_tie`` go to the larger ellipse, which is nearer the camera for equal radii."""
+    ``support_tie`` go to the ellipse of the longer semi-major axis, which is nearer the
+    camera for equal radii whatever the faces' tilts (about f r / z; the area shrinks with
+    the tilt's cosine, so a tilted face resting on a flatter one of its size reads smaller
+    by area)."""
     best = max(evidence[i].support for i in indices)
     tie = evidence[indices[0]].params.support_tie
     return max((i for i in indices if evidence[i].support >= best - tie),
-               key=lambda i: ellipses[i].area)
+               key=lambda i: ellipses[i].a)
 
 
 def unobstructed(ev: OcclusionEvidence) -> bool:

@@ -146,12 +146,13 @@ def iter_dataset(directory: Path, seeds: Sequence[int] | None,
     """Frames of a data set directory (all present, or the given seeds that are present).
 
     The object kinds, belt height and ``objects.max_face_height`` come from the scene
-    recorded in the data set's index.json (the latter two else from ``cfg``)."""
+    recorded in the data set's index.json, else from ``cfg`` (a directory without an index:
+    without the kinds the detector would know no face radius or colour)."""
     present = dataset_seeds(directory)
     have = set(present)
     wanted = present if seeds is None else [s for s in seeds if s in have]
     scene = _recorded_scene(directory)
-    kinds = _scene_kinds(scene)
+    kinds = _scene_kinds(scene) if scene else _kinds(dict(cfg.object_types))
     belt_top_z = float(scene.get("conveyor", {}).get("top_z", cfg.conveyor.top_z))
     max_face_height = float(scene.get("objects", {}).get("max_face_height",
                                                           cfg.objects.max_face_height))
