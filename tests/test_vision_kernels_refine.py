@@ -91,3 +91,25 @@ def test_shift_rows_adds_the_offset_to_every_row(rng: np.random.Generator) -> No
     want = rows + np.array([7, -3], np.int32)
     kernels_refine.shift_rows(rows, 7, -3)
     assert rows.dtype == np.int32 and rows.tobytes() == want.tobytes()
+
+
+def test_subpixel_along_rows_is_subpixel_along_of_the_columns(rng: np.random.Generator) -> None:
+    gx = rng.integers(-400, 400, (60, 80)).astype(np.int16)
+    gy = rng.integers(-400, 400, (60, 80)).astype(np.int16)
+    points = np.stack([rng.uniform(0, 79, 500), rng.uniform(0, 59, 500)])
+    angle = rng.uniform(0, 2 * np.pi, 500)
+    grads = np.stack([np.cos(angle), np.sin(angle)])
+    kept = 0
+    for e in _ellipses(rng, 20):
+        t = math.radians(e.angle_deg)
+        c, s = math.cos(t), math.sin(t)
+        ia, ib = 1.0 / (e.a * e.a), 1.0 / (e.b * e.b)
+        form = (e.cx, e.cy, c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib)
+        want = kernels.subpixel_along(points[0].copy(), points[1].copy(), grads[0].copy(),
+                                      grads[1].copy(), np.array(form), e.a + 2.2, 5.76, 0.5,
+                                      gx, gy, 0.5)
+        got = kernels_refine.subpixel_along_rows(points, grads, *form, e.a + 2.2, 5.76, 0.5,
+                                                 gx, gy, 0.5)
+        assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
+        kept += got.shape[0]
+    assert kept > 0
