@@ -491,9 +491,8 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
                       if ev.support >= config.report.min_support or i == choice.index],
                      [m.ellipse for m in merged], choice, config.report)
     ellipses = tuple(
-        DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
-                        segments=merged[i].segments, residual_px=merged[i].residual_px,
-                        support=merged[i].support, evidence=choice.evidence[i])
+        DetectedEllipse.of(_moved(merged[i].ellipse, du, dv), merged[i].segments,
+                           merged[i].residual_px, merged[i].support, choice.evidence[i])
         for i in keep)
     chains = state.chains
     frame_chains = chains if du == dv == 0 else _shifted(chains, du, dv)
