@@ -276,8 +276,5 @@ def warm_up() -> None:
     colour = np.ones(3)
     plane_axes(0.0, 0.0, 1.0)
     band_points_of(np.ones((2, 2, 3)), fixed, fixed, fixed)
-    solutions = np.ones((2, 2, 3))
-    for shared in (False, True):  # fresh solutions, and unit_circle_poses' read-only ones
-        solutions.setflags(write=not shared)
-        wall_hits(solutions, fixed, fixed, fixed, (1.0,) * 6, (1.0,) * 4, 1.0,
-                  np.zeros((4, 4, 3), np.uint8), colour, (1.0,) * 4, colour, True)
+    wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, (1.0,) * 6, (1.0,) * 4, 1.0,
+              np.zeros((4, 4, 3), np.uint8), colour, (1.0,) * 4, colour, True)

@@ -16,7 +16,6 @@ faint arcs included, with outliers dropped (:func:`refine_on_profile`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import cast
 
 import cv2
@@ -26,11 +25,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels, kernels_refine
-from stackpick_sim.vision.contrast import (
-    contrast_threshold,
-    perimeter_px,
-    unit_circle,
-)
+from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
@@ -289,41 +284,16 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     :class:`~stackpick_sim.config.vision_params.PoseParams` for the rounds and the outliers).
     """
     threshold = contrast_threshold(image) * SOBEL_GAIN
-    steps = _profile_steps(params)
-
-    def peaks_of(current: Ellipse) -> tuple[NDArray[np.float64], int]:
-        # The outline samples, the (n, k) sample grid across them and each sample's peak,
-        # in one compiled pass (contrast.outline_columns' samples).
-        ct, st = unit_circle(max(16, math.ceil(perimeter_px(current))))
-        return kernels_refine.outline_peaks(image.gx, image.gy, _terms(current), ct, st,
-                                            steps, params.profile_step_px,
-                                            threshold), ct.shape[0]
-
-    return _profile_rounds(ellipse, peaks_of, shape, params, fits_params)
-
-
-def _profile_steps(params: PoseParams) -> NDArray[np.float64]:
-    """The profile search's offsets across the outline, px."""
-    reach = params.profile_reach_px
-    return np.arange(-reach, reach + 1e-9, params.profile_step_px)
-
-
-def _terms(ellipse: Ellipse) -> NDArray[np.float64]:
-    """(cx, cy, a, b, cos angle, sin angle) of ``ellipse``, as the compiled passes take it."""
-    t = math.radians(ellipse.angle_deg)
-    return np.array([ellipse.cx, ellipse.cy, ellipse.a, ellipse.b, math.cos(t), math.sin(t)])
-
-
-def _profile_rounds(ellipse: Ellipse,
-                    peaks_of: Callable[[Ellipse], tuple[NDArray[np.float64], int]],
-                    shape: tuple[int, int], params: PoseParams, fits_params: FitParams
-                    ) -> Ellipse:
-    """:func:`refine_on_profile`'s rounds from ``ellipse``, ``peaks_of(current)`` giving
-    the (K, 2) profile peaks of the current fit's outline and its sample count."""
-    least = params.profile_min_share
+    reach, step, least = params.profile_reach_px, params.profile_step_px, params.profile_min_share
+    steps = np.arange(-reach, reach + 1e-9, step)  # the search offsets, px
     current = ellipse
     for round_ in range(params.profile_rounds):
-        peaks, n = peaks_of(current)
+        ct, st = unit_circle(max(16, math.ceil(perimeter_px(current))))
+        n = ct.shape[0]
+        # The outline samples (contrast.outline_columns'), the (n, k) sample grid across
+        # them and each sample's peak, in one compiled pass.
+        peaks = kernels_refine.outline_peaks(image.gx, image.gy, _terms(current), ct, st,
+                                             steps, step, threshold)
         if peaks.shape[0] < least * n:
             return current
         fit = fit_ellipse(peaks)
@@ -331,8 +301,8 @@ def _profile_rounds(ellipse: Ellipse,
             return current
         if round_ == params.profile_rounds - 1:
             # The peaks within outlier_medians median distances of the fit (and
-            # outlier_min_px), in one compiled pass: as ellipse_distances, column_median and
-            # the mask.
+            # outlier_min_px), in one compiled pass: ellipse_distances, column_median and
+            # the mask, the kept peaks as float32 (the fit's input).
             inliers = kernels_refine.profile_inliers(peaks, _terms(fit), params.outlier_min_px,
                                                      params.outlier_medians)
             kept = inliers.shape[0]
@@ -341,3 +311,9 @@ def _profile_rounds(ellipse: Ellipse,
                 fit = fit_ellipse(inliers) or fit
         current = fit if plausible(fit, shape, fits_params) else current
     return current
+
+
+def _terms(ellipse: Ellipse) -> NDArray[np.float64]:
+    """(cx, cy, a, b, cos angle, sin angle) of ``ellipse``, as the compiled passes take it."""
+    t = math.radians(ellipse.angle_deg)
+    return np.array([ellipse.cx, ellipse.cy, ellipse.a, ellipse.b, math.cos(t), math.sin(t)])

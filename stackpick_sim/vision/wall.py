@@ -221,16 +221,6 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     of ``ellipse``, in one array pass (the same results); ``face`` is the face's colour,
     ``belt`` the bare belt's (or None); the band's depths and margin are ``params``'
     (``wall_depths``, ``wall_margin_px``)."""
-    return solution_evidences(_solution_array(solutions), ellipse, intrinsics, image, face,
-                              belt, params)
-
-
-def solution_evidences(solutions: NDArray[np.float64], ellipse: Ellipse,
-                       intrinsics: CameraIntrinsics, image: NDArray[np.uint8],
-                       face: NDArray[np.float64], belt: NDArray[np.float64] | None = None,
-                       params: PoseParams = DEFAULT_POSE) -> list[WallEvidence]:
-    """:func:`wall_evidences` of the S solutions given as one (S, 2, 3) float64 array
-    (normal_cam, centre_cam per solution; C order)."""
     # The bands, their pixels outside the face and the colour test, in one compiled pass
     # (kernels_pose.wall_hits: solution_bands, then band_evidences' test, the same
     # arithmetic).
@@ -240,12 +230,14 @@ def solution_evidences(solutions: NDArray[np.float64], ellipse: Ellipse,
     c = pixels.shape[2]
     ct, st = unit_circle(WALL_RIM_POINTS)
     colour = _per_channel(face, c)
+    # Without a belt colour the pass does not read it: the face's stands in.
+    belt_colour = colour if belt is None else _per_channel(belt, c)
     counts, hits = kernels_pose.wall_hits(
-        solutions, ct, st, _depths(params.wall_depths), _terms(ellipse),
+        _solution_array(solutions), ct, st, _depths(params.wall_depths), _terms(ellipse),
         (intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy), params.wall_margin_px,
         pixels, colour, (params.band_brightness_margin, params.band_chroma_tolerance,
                          params.band_min_brightness, params.band_belt_delta),
-        colour if belt is None else _per_channel(belt, c), belt is not None)
+        belt_colour, belt is not None)
     return _evidences(counts, hits)
 
 
