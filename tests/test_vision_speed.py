@@ -8,6 +8,7 @@ import pytest
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outlines
+from stackpick_sim.vision.detection import DetectedEllipse
 from stackpick_sim.vision.edges import RING, STAIR_LUTS, colour_gradients, remove_stairs
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
 from stackpick_sim.vision.merging import _repeats
@@ -26,6 +27,15 @@ def test_ellipse_of_is_the_constructor() -> None:
     assert e == plain and hash(e) == hash(plain) and repr(e) == repr(plain)
     with pytest.raises(AttributeError):
         e.cx = 3.0  # type: ignore[misc]
+
+
+def test_detected_ellipse_of_is_the_constructor() -> None:
+    e = Ellipse.of(1.5, 2.5, 30.0, 20.0, 45.0)
+    fast = DetectedEllipse.of(e, (0, 3), 0.25, 0.75)
+    plain = DetectedEllipse(ellipse=e, segments=(0, 3), residual_px=0.25, support=0.75)
+    assert fast == plain and repr(fast) == repr(plain)
+    with pytest.raises(AttributeError):
+        fast.support = 1.0  # type: ignore[misc]
 
 
 @pytest.mark.parametrize("shift", [-20, -17, -16, -2, -1, 0, 1, 2, 15, 16, 40])

@@ -23,6 +23,7 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -43,6 +44,7 @@ from stackpick_sim.config.vision_params import (
 )
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision import kernels_refine
 from stackpick_sim.vision.contrast import refit_on_contrast, widest_inset_px
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import (
@@ -489,12 +491,11 @@ def pose_stage(state: State, config: DetectorConfig) -> State:
                       if ev.support >= config.report.min_support or i == choice.index],
                      [m.ellipse for m in merged], choice, config.report)
     ellipses = tuple(
-        DetectedEllipse(ellipse=_moved(merged[i].ellipse, du, dv),
-                        segments=merged[i].segments, residual_px=merged[i].residual_px,
-                        support=merged[i].support, evidence=choice.evidence[i])
+        DetectedEllipse.of(_moved(merged[i].ellipse, du, dv), merged[i].segments,
+                           merged[i].residual_px, merged[i].support, choice.evidence[i])
         for i in keep)
     chains = state.chains
-    frame_chains = chains if du == dv == 0 else _shifted(chains, np.array([du, dv], np.int32))
+    frame_chains = chains if du == dv == 0 else _shifted(chains, du, dv)
     if choice.index is None:
         return state.updated(detection=Detection(ellipses=ellipses, segments=frame_chains,
                                                  timings_ms=state.timings_ms,
@@ -1273,20 +1274,15 @@ def _profile_refit(ellipse: Ellipse, work: NDArray[np.uint8], grad: EdgeImage,
     return _moved(fit, c0, r0)
 
 
-def _shifted(chains: tuple[NDArray[np.int32], ...], offset: NDArray[np.int32]
+def _shifted(chains: tuple[NDArray[np.int32], ...], du: int, dv: int
              ) -> tuple[NDArray[np.int32], ...]:
-    """Each (N_i, 2) chain plus ``offset`` (2,), in one array pass (views of one array)."""
+    """Each (N_i, 2) chain plus (du, dv), in one compiled pass (views of one array)."""
     if not chains:
         return chains
     every = np.concatenate(chains)
-    every += offset
-    out = []
-    start = 0
-    for c in chains:
-        stop = start + c.shape[0]
-        out.append(every[start:stop])
-        start = stop
-    return tuple(out)
+    kernels_refine.shift_rows(every, du, dv)
+    bounds = list(itertools.accumulate(map(len, chains), initial=0))
+    return tuple(map(every.__getitem__, map(slice, bounds[:-1], bounds[1:])))
 
 
 def _moved(ellipse: Ellipse, du: float, dv: float) -> Ellipse:

@@ -2089,3 +2089,6 @@ def warm_up() -> None:
     from stackpick_sim.vision import kernels_pose  # the evidence's and pose's passes (too)
 
     kernels_pose.warm_up()
+    from stackpick_sim.vision import kernels_refine  # the top face's final fit's passes
+
+    kernels_refine.warm_up()

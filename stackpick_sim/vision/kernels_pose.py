@@ -223,13 +223,14 @@ def band_points_of(solutions: NDArray[np.float64], ct: NDArray[np.float64],
 
 @_compiled
 def wall_hits(solutions: NDArray[np.float64], ct: NDArray[np.float64],
-              st: NDArray[np.float64], depths: NDArray[np.float64],
-              terms: NDArray[np.float64], camera: NDArray[np.float64], margin_px: float,
-              image: NDArray[np.uint8], colour: NDArray[np.float64], settings: NDArray[np.float64],
-              belt: NDArray[np.float64], use_belt: bool
+              st: NDArray[np.float64], depths: NDArray[np.float64], face: tuple[float, ...],
+              camera: tuple[float, float, float, float], margin_px: float,
+              image: NDArray[np.uint8], colour: NDArray[np.float64],
+              settings: tuple[float, float, float, float], belt: NDArray[np.float64],
+              use_belt: bool
               ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:  # pragma: no cover - compiled
     """:func:`~stackpick_sim.vision.kernels.band_hits` of the wall bands of the S unit-radius
-    solutions (S, 2, 3) (normal, centre) of one face (``terms``: its cx, cy, angle's cosine
+    solutions (S, 2, 3) (normal, centre) of one face (``face``: its cx, cy, angle's cosine
     and sine, a, b): their rims (``ct``, ``st``) at the ``depths``
     (:func:`~stackpick_sim.vision.kernels.band_points`), projected by ``camera`` (fx, fy, cx,
     cy) and kept more than ``margin_px`` outside the face (:func:`~stackpick_sim.vision.
@@ -245,6 +246,9 @@ def wall_hits(solutions: NDArray[np.float64], ct: NDArray[np.float64],
                                  solutions[s, 1, 2]) + settings[0]
     band = band_points_of(solutions, ct, st, depths)
     per = band.shape[2]
+    terms = np.empty((1, 6))
+    for k in range(6):
+        terms[0, k] = face[k]
     pu, pv, keep = kernels.project_outside(band.reshape(3, 1, n_s * per), terms, camera[0],
                                            camera[1], camera[2], camera[3], margin_px)
     colours = np.empty((n_s, colour.shape[0]))
@@ -272,5 +276,5 @@ def warm_up() -> None:
     colour = np.ones(3)
     plane_axes(0.0, 0.0, 1.0)
     band_points_of(np.ones((2, 2, 3)), fixed, fixed, fixed)
-    wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, rows, np.ones(4), 1.0,
-              np.zeros((4, 4, 3), np.uint8), colour, np.ones(4), colour, True)
+    wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, (1.0,) * 6, (1.0,) * 4, 1.0,
+              np.zeros((4, 4, 3), np.uint8), colour, (1.0,) * 4, colour, True)

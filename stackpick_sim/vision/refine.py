@@ -24,17 +24,15 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
-from stackpick_sim.vision.contrast import contrast_threshold, outline_columns
+from stackpick_sim.vision import kernels, kernels_refine
+from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
     EQ2_CHECKED_RATIO_SQ,
-    ellipse_distances,
     fit_ellipse,
     plausible,
 )
-from stackpick_sim.vision.wall import column_median
 
 #: The default settings of the refine stage (see RefineParams: the reasons for each).
 DEFAULT = RefineParams()
@@ -100,20 +98,26 @@ def refine_subpixel(ellipse: Ellipse, image: EdgeImage, points: NDArray[np.float
     the ``min_normal_cos`` cone of its normal, the fit within ``fits_params``' axis
     bounds; fewer than ``min_pixels`` keep ``ellipse``)."""
     tol = params.subpixel_tolerance_px
-    def col(c: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.ascontiguousarray(c, np.float64)
-
     # One compiled pass: the pixels near the ellipse (its box grown by the tolerance), those
-    # along it, their sub-pixel positions (float32: the fit's input type).
-    pts = kernels.subpixel_along(col(points[:, 0]), col(points[:, 1]), col(grads[:, 0]),
-                                 col(grads[:, 1]), np.array(_form(ellipse)),
-                                 ellipse.a + tol + 1, 4.0 * tol * tol,
-                                 min_normal_cos * min_normal_cos, image.gx, image.gy,
-                                 MAX_SHIFT_PX)
+    # along it, their sub-pixel positions (float32: the fit's input type). The pixels and
+    # gradients as (2, M) rows (the edge stage's arrays are their transposes).
+    cx, cy, fa, fh, fb = _form(ellipse)
+    pts = kernels_refine.subpixel_along_rows(
+        _rows(points), _rows(grads), cx, cy, fa, fh, fb, ellipse.a + tol + 1, 4.0 * tol * tol,
+        min_normal_cos * min_normal_cos, image.gx, image.gy, MAX_SHIFT_PX)
     if pts.shape[0] < min_pixels:
         return ellipse
     fit = fit_ellipse(pts)
     return fit if fit is not None and plausible(fit, shape, fits_params) else ellipse
+
+
+def _rows(columns: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(M, 2) values as (2, M) C-ordered float64 rows (the transpose itself where it is
+    one)."""
+    rows = columns.T
+    if rows.dtype == np.float64 and rows.flags.c_contiguous:
+        return rows
+    return np.ascontiguousarray(rows, np.float64)
 
 
 def edge_points(image: EdgeImage) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -284,23 +288,32 @@ def refine_on_profile(ellipse: Ellipse, image: EdgeImage, shape: tuple[int, int]
     steps = np.arange(-reach, reach + 1e-9, step)  # the search offsets, px
     current = ellipse
     for round_ in range(params.profile_rounds):
-        pu, pv, nu, nv = outline_columns(current)
-        n = pu.shape[0]
-        # The (n, k) sample grid across the outline and each sample's peak, in one pass.
-        peaks = kernels.profile_peaks(image.gx, image.gy, pu, pv, nu, nv, steps, step,
-                                      threshold)
+        ct, st = unit_circle(max(16, math.ceil(perimeter_px(current))))
+        n = ct.shape[0]
+        # The outline samples (contrast.outline_columns'), the (n, k) sample grid across
+        # them and each sample's peak, in one compiled pass.
+        peaks = kernels_refine.outline_peaks(image.gx, image.gy, _terms(current), ct, st,
+                                             steps, step, threshold)
         if peaks.shape[0] < least * n:
             return current
         fit = fit_ellipse(peaks)
         if fit is None or not plausible(fit, shape, fits_params):
             return current
         if round_ == params.profile_rounds - 1:
-            d = ellipse_distances(fit, peaks)
-            inliers = d <= max(params.outlier_min_px,
-                               params.outlier_medians * float(column_median(d)))
-            kept = np.count_nonzero(inliers)
+            # The peaks within outlier_medians median distances of the fit (and
+            # outlier_min_px), in one compiled pass: ellipse_distances, column_median and
+            # the mask, the kept peaks as float32 (the fit's input).
+            inliers = kernels_refine.profile_inliers(peaks, _terms(fit), params.outlier_min_px,
+                                                     params.outlier_medians)
+            kept = inliers.shape[0]
             # All inliers: the refit would repeat the fit on the same points.
-            if least * n <= kept < inliers.size:
-                fit = fit_ellipse(peaks[inliers]) or fit
+            if least * n <= kept < peaks.shape[0]:
+                fit = fit_ellipse(inliers) or fit
         current = fit if plausible(fit, shape, fits_params) else current
     return current
+
+
+def _terms(ellipse: Ellipse) -> NDArray[np.float64]:
+    """(cx, cy, a, b, cos angle, sin angle) of ``ellipse``, as the compiled passes take it."""
+    t = math.radians(ellipse.angle_deg)
+    return np.array([ellipse.cx, ellipse.cy, ellipse.a, ellipse.b, math.cos(t), math.sin(t)])

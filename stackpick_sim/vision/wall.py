@@ -225,17 +225,19 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     # (kernels_pose.wall_hits: solution_bands, then band_evidences' test, the same
     # arithmetic).
     pixels = image if image.ndim == 3 else image[:, :, None]
+    if not (pixels.flags.c_contiguous and pixels.flags.writeable):
+        pixels = np.require(pixels, requirements=("C", "W"))
     c = pixels.shape[2]
     ct, st = unit_circle(WALL_RIM_POINTS)
+    colour = _per_channel(face, c)
+    # Without a belt colour the pass does not read it: the face's stands in.
+    belt_colour = colour if belt is None else _per_channel(belt, c)
     counts, hits = kernels_pose.wall_hits(
-        _solution_array(solutions), ct, st, _depths(params.wall_depths),
-        np.array([_terms(ellipse)], np.float64),
-        np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64),
-        params.wall_margin_px, np.require(pixels, requirements=("C", "W")),
-        _per_channel(face, c),
-        np.array([params.band_brightness_margin, params.band_chroma_tolerance,
-                  params.band_min_brightness, params.band_belt_delta], np.float64),
-        np.zeros(c) if belt is None else _per_channel(belt, c), belt is not None)
+        _solution_array(solutions), ct, st, _depths(params.wall_depths), _terms(ellipse),
+        (intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy), params.wall_margin_px,
+        pixels, colour, (params.band_brightness_margin, params.band_chroma_tolerance,
+                         params.band_min_brightness, params.band_belt_delta),
+        belt_colour, belt is not None)
     return _evidences(counts, hits)
 
 
@@ -269,6 +271,10 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
 def _per_channel(colour: NDArray[np.float64], channels: int) -> NDArray[np.float64]:
     """A colour (one value per channel, or one for all) as a (channels,) float64 array the
     compiled pass takes (C order, writable; ``colour`` itself where it is one)."""
+    if (type(colour) is np.ndarray and colour.shape == (channels,)
+            and colour.dtype == np.float64 and colour.flags.c_contiguous
+            and colour.flags.writeable):
+        return colour
     flat = np.asarray(colour, np.float64).reshape(-1)
     if flat.shape[0] != channels:
         return np.broadcast_to(flat, (channels,)).copy()
