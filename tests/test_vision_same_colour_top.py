@@ -15,30 +15,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from dev_frames import GREY, GREY_DATA, K, dev_frame
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.episodes.detectors import scene_detector_config
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou
-from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
+from stackpick_sim.geometry import Ellipse, mask_iou
+from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector, detect
 from stackpick_sim.vision.params import TopParams
 
-DATA = Path(__file__).parent / "data" / "cluttered_dev_frames"
-GREY_DATA = Path(__file__).parent / "data" / "grey_dev_frames"
-#: The paper scene with both kinds light grey.
-GREY = ("object_types.large.rgba=[0.7,0.7,0.7,1.0]", "object_types.small.rgba=[0.7,0.7,0.7,1.0]")
 SHAPE = (240, 320)
-K = CameraIntrinsics.from_fovy(45.0, 320, 240)
-
-
-def _frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
-           overrides: tuple[str, ...] = ()) -> BenchFrame:
-    cfg = load_scene(scene, overrides)
-    kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
-                  for t in cfg.object_types.values())
-    return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
 
 
 #: The top rule with the inner refit on and off (the default).
@@ -60,13 +48,13 @@ def test_a_top_face_fitted_round_same_colour_slivers_is_refitted_inside() -> Non
     # Cluttered frame 70233: a blue top face seen square on lies over two lower blue faces
     # nearly concentric with it; the fit runs round slivers of both (5 and 11 px wide), whose
     # boundary with the top face is a step of 6-10 grey levels the edge map misses.
-    frame = _frame(70233)
+    frame = dev_frame(70233)
     assert _top_iou(frame, INNER) > 0.9
     assert _top_iou(frame, PLAIN) < MATCH_IOU
 
 
 def test_the_inner_refit_follows_its_reach_and_least_shrink() -> None:
-    frame = _frame(70233)
+    frame = dev_frame(70233)
     full = _top_iou(frame, INNER)
     # Within the contrast fallback's 6 px, the 11 px sliver is only partly left out.
     assert _top_iou(frame, replace(INNER, inner_refit_reach_px=6)) < full - 0.05
@@ -80,7 +68,7 @@ def test_a_small_top_face_nearly_concentric_on_a_large_one_is_refitted_inside() 
     # Grey frame 71169 (both kinds light grey): a small top face lies nearly concentric on a
     # large lower one, the fit runs round the large face's silhouette, and the top face's
     # far side lies ~17 px inside it: beyond a 12 px reach, the large face stays chosen.
-    frame = _frame(71169, GREY_DATA, "paper", GREY)
+    frame = dev_frame(71169, GREY_DATA, "paper", GREY)
     assert _top_iou(frame, INNER) > 0.9
     assert _top_iou(frame, replace(INNER, inner_refit_reach_px=12)) < MATCH_IOU
 
@@ -138,6 +126,6 @@ def test_a_face_cut_short_by_nothing_nearer_than_the_unobstructed_choice_is_top(
     # faces and shows no contrast along a third of its outline (support 0.66, nothing
     # crossing it); the unobstructed fallback takes a lower blue face whose occluder only
     # clips its rim (0.84). The top face reads ~3 cm nearer.
-    frame = _frame(70136)
+    frame = dev_frame(70136)
     assert _top_iou(frame) > MATCH_IOU
     assert _top_iou(frame, TopParams(nearer_hidden=False)) < MATCH_IOU

@@ -7,34 +7,20 @@ over faces of its colour by its depth (`nearer_rimmed`, `nearest_cut`)."""
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
+from dev_frames import GREY, GREY_DATA, K, dev_frame
 
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou
-from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
+from stackpick_sim.geometry import Ellipse, mask_iou
+from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
 from stackpick_sim.vision.occlusion import clearly_nearest, select_top
 from stackpick_sim.vision.params import TopParams
 from stackpick_sim.vision.pose import unit_circle_poses
-
-DATA = Path(__file__).parent / "data" / "cluttered_dev_frames"
-GREY_DATA = Path(__file__).parent / "data" / "grey_dev_frames"
-#: The paper scene with both kinds light grey.
-GREY = ("object_types.large.rgba=[0.7,0.7,0.7,1.0]", "object_types.small.rgba=[0.7,0.7,0.7,1.0]")
-K = CameraIntrinsics.from_fovy(45.0, 320, 240)
-
-
-def _frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
-           overrides: tuple[str, ...] = ()) -> BenchFrame:
-    cfg = load_scene(scene, overrides)
-    kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
-                  for t in cfg.object_types.values())
-    return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
 
 
 def _top_iou(frame: BenchFrame, scene: str = "cluttered", overrides: tuple[str, ...] = (),
@@ -72,7 +58,7 @@ def test_a_solution_behind_the_camera_reads_its_mirror_depth() -> None:
 
 
 def test_a_border_face_no_longer_reads_nearest_on_a_cluttered_frame() -> None:
-    frame = _frame(79049)
+    frame = dev_frame(79049)
     assert _top_iou(frame) > MATCH_IOU
 
 
@@ -80,7 +66,7 @@ def test_the_unobstructed_choice_keeps_its_face_against_its_second_fit() -> None
     # Cluttered frame 79070: no face passes; the unobstructed fallback takes the top face's
     # fit (support 0.82), and a second, worse fit of the same face (0.67, 5 px off) reads a
     # little nearer. It is no other face for the nearer-hidden step to take.
-    frame = _frame(79070)
+    frame = dev_frame(79070)
     assert _top_iou(frame) > MATCH_IOU
 
 
@@ -103,7 +89,7 @@ def test_a_tilted_grey_top_face_wins_the_tie_with_the_flatter_face_it_rests_on()
     # Grey frame 71007 (both kinds light grey: no radii from colour): the top face (tilted
     # 32 deg) rests on a flatter face of its kind; both show whole and the rest test does not
     # find the lean.
-    frame = _frame(71007, GREY_DATA, "paper", GREY)
+    frame = dev_frame(71007, GREY_DATA, "paper", GREY)
     assert _top_iou(frame, "paper", GREY) > MATCH_IOU
 
 
@@ -112,7 +98,7 @@ def test_a_rimmed_face_nearer_than_the_unobstructed_choice_is_top() -> None:
     # two lower blue faces and its fit takes in their slivers: it fails on its own rim
     # inside. The unobstructed fallback takes a lower face whose occluder only clips its rim
     # (support 0.77); the top face, refitted inside, reads ~5 cm nearer.
-    frame = _frame(70216)
+    frame = dev_frame(70216)
     # The refit, not the fit round the slivers, is the face.
     assert _top_iou(frame) > 0.95
     assert _top_iou(frame, nearer_rimmed=False) < MATCH_IOU
@@ -123,7 +109,7 @@ def test_the_face_clearly_nearest_cut_short_by_nothing_is_the_last_fallback() ->
     # a face. The top face (blue) lies across blue faces; its best fit from arc pairs shows
     # 0.72 of its outline, nothing crossing it, and reads 1.3 cm nearer than every other
     # face at least half visible.
-    frame = _frame(70226)
+    frame = dev_frame(70226)
     assert _top_iou(frame) > MATCH_IOU
     without = tuple(f for f in TopParams().fallbacks if f != "nearest_cut")
     assert _top_iou(frame, fallbacks=without) == 0.0

@@ -586,11 +586,7 @@ def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoi
     if test.image is None or not any(ev.interior_edge_px >= test.min_edge_share
                                      * ev.perimeter_px for ev in choice.evidence):
         return merged, choice
-    check_time(state.deadline, "top")
-    grad = state.edges("top")
-    arc_chains, arcs = _every_arc(state, config)
-    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
-                                   state.crop, state.gate, config)
+    grad, extra, alone = _every_arc_face(state, config)
     # Only whole faces with markings across them can be chosen so (the rule's evidence of
     # each ellipse is its own: the union's is the same).
     extra = [e for e, ev in zip(extra, alone.evidence, strict=True)
@@ -682,11 +678,7 @@ def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     ``merged``; otherwise both come back unchanged (and without face radii)."""
     if cues.radius_of is None:
         return merged, choice
-    check_time(found.deadline, "top")
-    grad = found.edges("top")
-    arc_chains, arcs = _every_arc(found, config)
-    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, found.points, found.grads,
-                                   found.crop, found.gate, config)
+    grad, extra, alone = _every_arc_face(found, config)
     faces = [m.ellipse for m in merged] + extra
     evidence = (*choice.evidence, *alone.evidence)
     half = [i for i, ev in enumerate(evidence) if ev.support >= config.top.hidden_min_support]
@@ -853,6 +845,19 @@ def _within_gate(merged: list[MergedEllipse], gate: tuple[float, float] | None
     if gate is None:
         return merged
     return [m for m in merged if gate[0] <= m.ellipse.a <= gate[1]]
+
+
+def _every_arc_face(state: State, config: DetectorConfig
+                    ) -> tuple[EdgeImage, list[Ellipse], TopChoice]:
+    """The top stage's edge image, the faces of pairs of every arc
+    (:func:`_every_arc`, :func:`_arc_pair_faces`) and the top rule's evidence of them alone;
+    OutOfTime past the stage's deadline."""
+    check_time(state.deadline, "top")
+    grad = state.edges("top")
+    arc_chains, arcs = _every_arc(state, config)
+    extra, alone = _arc_pair_faces(arcs, arc_chains, grad, state.points, state.grads,
+                                   state.crop, state.gate, config)
+    return grad, extra, alone
 
 
 def _every_arc(state: State, config: DetectorConfig
