@@ -313,12 +313,13 @@ import sys
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_pose, kernels_refine, kernels_top
 from stackpick_sim.vision.benchmark.frames import load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.detector import TopObjectDetector
 kernels.warm_up()
-compiled = {n: k for n, k in vars(kernels).items() if isinstance(k, CPUDispatcher)}
+compiled = {f"{m.__name__}.{n}": k for m in (kernels, kernels_top, kernels_pose, kernels_refine)
+            for n, k in vars(m).items() if isinstance(k, CPUDispatcher)}
 warm = {n: set(k.signatures) for n, k in compiled.items()}
 scene = load_scene("paper")
 kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
@@ -335,6 +336,7 @@ print(sorted(n for n, k in compiled.items() if set(k.signatures) - warm[n]))
 
 
 def test_warm_up_compiles_every_argument_type_the_detector_passes() -> None:
+    # Every compiled pass of the four kernel modules, on colour and grey frames.
     frames = Path(__file__).parent / "data" / "paper_dev_frames"
     out = subprocess.run([sys.executable, "-c", _COMPILES_AFTER_WARM_UP, str(frames)],
                          capture_output=True, text=True, check=True)

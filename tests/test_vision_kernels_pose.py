@@ -6,13 +6,9 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from test_vision_kernels import _COMPILES_AFTER_WARM_UP
 
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
@@ -232,14 +228,3 @@ def test_wall_hits_are_the_bands_then_their_colour_test(rng: np.random.Generator
         assert wall_evidences(solutions, e, k, image, face, belt_rgb, params) == want
         shares += [w.share for w in want]
     assert 0.0 < max(shares) < 1.0
-
-
-def test_warm_up_compiles_every_pass_for_the_types_the_detector_passes() -> None:
-    script = _COMPILES_AFTER_WARM_UP.replace("vars(kernels)", "vars(kernels_pose)").replace(
-        "from stackpick_sim.vision import kernels\n",
-        "from stackpick_sim.vision import kernels, kernels_pose\n")
-    assert "vars(kernels_pose)" in script and "kernels_pose\n" in script
-    frames = Path(__file__).parent / "data" / "paper_dev_frames"
-    out = subprocess.run([sys.executable, "-c", script, str(frames)], capture_output=True,
-                         text=True, check=True)
-    assert out.stdout.strip() == "[]", out.stdout

@@ -4,13 +4,9 @@ they chain (bit-identical)."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from test_vision_kernels import _COMPILES_AFTER_WARM_UP
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels, kernels_refine
@@ -73,17 +69,6 @@ def test_profile_inliers_match_distances_median_and_mask(rng: np.random.Generato
             kept_some |= 0 < got.shape[0] < n
             dropped_some |= got.shape[0] < n
     assert kept_some and dropped_some
-
-
-def test_warm_up_compiles_every_pass_for_the_types_the_detector_passes() -> None:
-    script = _COMPILES_AFTER_WARM_UP.replace("vars(kernels)", "vars(kernels_refine)").replace(
-        "from stackpick_sim.vision import kernels\n",
-        "from stackpick_sim.vision import kernels, kernels_refine\n")
-    assert "vars(kernels_refine)" in script and "kernels_refine\n" in script
-    frames = Path(__file__).parent / "data" / "paper_dev_frames"
-    out = subprocess.run([sys.executable, "-c", script, str(frames)], capture_output=True,
-                         text=True, check=True)
-    assert out.stdout.strip() == "[]", out.stdout
 
 
 def test_shift_rows_adds_the_offset_to_every_row(rng: np.random.Generator) -> None:

@@ -4,14 +4,10 @@ its fit is OpenCV's, and the inside test gives Ellipse.inside's flags."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.typing import NDArray
-from test_vision_kernels import _COMPILES_AFTER_WARM_UP
 
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels_top, regroup
@@ -151,15 +147,3 @@ def test_two_part_medians_match_the_array_form(rng: np.random.Generator) -> None
             assert np.array_equal(own, column_median(colours[within]))
             assert np.array_equal(other, column_median(colours[beyond]))
     assert both_seen > 20
-
-
-def test_warm_up_compiles_every_argument_type_the_detector_passes() -> None:
-    # The check of the stage kernels' warm-up, on this module's kernels.
-    script = _COMPILES_AFTER_WARM_UP.replace("vars(kernels)", "vars(kernels_top)").replace(
-        "from stackpick_sim.vision import kernels\n",
-        "from stackpick_sim.vision import kernels, kernels_top\n")
-    assert "vars(kernels_top)" in script and "kernels_top\n" in script
-    frames = Path(__file__).parent / "data" / "paper_dev_frames"
-    out = subprocess.run([sys.executable, "-c", script, str(frames)], capture_output=True,
-                         text=True, check=True)
-    assert out.stdout.strip() == "[]", out.stdout
