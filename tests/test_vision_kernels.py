@@ -147,6 +147,20 @@ def _ellipse_rows(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
                       a * rng.uniform(0.3, 1.0, n), np.cos(t), np.sin(t)])
 
 
+def _near_pairs(pu: np.ndarray, pv: np.ndarray, rows: np.ndarray, reach: np.ndarray,
+                tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The (ellipse, point) pairs of every point: near_pairs_split with none split off."""
+    pe, pm, _, _ = kernels.near_pairs_split(pu, pv, rows, reach, tol, pu.shape[0])
+    return pe, pm
+
+
+def _bows(pixels: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The bow of each piece of ``pixels`` (``counts[i]`` pixels each, one after another)."""
+    ends = np.cumsum(counts)
+    return np.array([kernels._bow(pixels, int(e - n), int(e)) for e, n in zip(ends, counts,
+                                                                             strict=True)])
+
+
 def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
         rng: np.random.Generator) -> None:
     rows = _ellipse_rows(rng, 6)
@@ -161,7 +175,7 @@ def test_near_pairs_are_the_box_pairs_closer_than_the_tolerance(
     d = kernels.grouped_distances(rows, np.bincount(be, minlength=6).astype(np.int64),
                                   pu[bm], pv[bm])
     close = d < 1.5
-    got = kernels.near_pairs(pu, pv, rows, reach, 1.5)
+    got = _near_pairs(pu, pv, rows, reach, 1.5)
     assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
     assert 0 < close.sum() < close.size
     first = got[1] < 1200
@@ -204,7 +218,7 @@ def test_near_pairs_decide_points_at_the_tolerance_as_the_distance_does(
     d = kernels.grouped_distances(rows, np.bincount(be, minlength=5).astype(np.int64),
                                   pu[bm], pv[bm])
     close = d < tol
-    got = kernels.near_pairs(pu, pv, rows, reach, tol)
+    got = _near_pairs(pu, pv, rows, reach, tol)
     assert np.array_equal(got[0], be[close]) and np.array_equal(got[1], bm[close])
     assert 5 * 2 * 200 * 3 <= close.sum() < close.size  # the three inner offsets at least
 
@@ -221,11 +235,11 @@ def test_bows_match_the_per_piece_sums(rng: np.random.Generator) -> None:
     sxx, syy, sxy = (np.bincount(which, weights=w) for w in (cu * cu, cv * cv, cu * cv))
     half, det = 0.5 * (sxx + syy) / counts, (sxx * syy - sxy * sxy) / (counts * counts)
     want = np.sqrt(np.maximum(0.0, half - np.sqrt(np.maximum(0.0, half * half - det))))
-    got = kernels.bows(pixels, counts)
+    got = _bows(pixels, counts)
     assert np.array_equal(got, want)
     # And a straight run has none.
     line = np.column_stack([np.arange(20.0), 2.0 * np.arange(20.0)])
-    assert kernels.bows(line, np.array([20], np.int64))[0] < 1e-6
+    assert _bows(line, np.array([20], np.int64))[0] < 1e-6
 
 
 def test_outline_support_is_the_lookup_of_the_rounded_samples(
@@ -1011,7 +1025,7 @@ def test_level_step_is_level_fits_then_the_halves_screened(rng: np.random.Genera
     pixels[:counts[0], 1] = 7  # a straight piece
     pieces, tried = kernels.chain_pieces(pixels, counts, 10, 2.0)
     # The long bowed chains.
-    bows = kernels.bows(pixels, counts)
+    bows = _bows(pixels, counts)
     want = np.array([i for i in range(30) if counts[i] >= 10 and bows[i] >= 2.0], np.int64)
     ends = np.cumsum(counts)
     starts, stops = (ends - counts)[want], ends[want]
@@ -1035,7 +1049,7 @@ def test_level_step_is_level_fits_then_the_halves_screened(rng: np.random.Genera
                         (ends[i] - counts[i] + counts[i] // 2, ends[i], i))]
     assert nxt.T.tolist() == [list(h) for h in halves]
     sizes = nxt[1] - nxt[0]
-    bows = kernels.bows(np.concatenate([pixels[lo:hi] for lo, hi, _ in halves]), sizes)
+    bows = _bows(np.concatenate([pixels[lo:hi] for lo, hi, _ in halves]), sizes)
     screened = [i for i in range(len(halves)) if sizes[i] >= 10 and bows[i] >= 2.0]
     assert nxt_tried.tolist() == [[i, *halves[i]] for i in screened] and screened
     assert kernels.level_step(raw, pixels, pieces, tried, *limits, 0, 10, 2.0)[2].size == 0
@@ -1083,7 +1097,7 @@ def test_near_pairs_beyond_one_per_point_are_all_listed(rng: np.random.Generator
     t = rng.uniform(0, 2 * np.pi, 40)
     pu = rows[0, 0] + rows[4, 0] * rows[2, 0] * np.cos(t) - rows[5, 0] * rows[3, 0] * np.sin(t)
     pv = rows[1, 0] + rows[5, 0] * rows[2, 0] * np.cos(t) + rows[4, 0] * rows[3, 0] * np.sin(t)
-    got_e, got_m = kernels.near_pairs(pu, pv, rows, rows[2] + 3.0, 1.0)
+    got_e, got_m = _near_pairs(pu, pv, rows, rows[2] + 3.0, 1.0)
     assert np.array_equal(got_e, np.arange(5).repeat(40))
     assert np.array_equal(got_m, np.tile(np.arange(40), 5))
 

@@ -337,25 +337,16 @@ def pair_lies(points: NDArray[np.int32], n: int, cx: float, cy: float, a: float,
 
 
 @_compiled
-def near_pairs(pu: NDArray[np.float64], pv: NDArray[np.float64], rows: NDArray[np.float64],
-               reach: NDArray[np.float64], tol_px: float
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
-    """(ellipse, point) index pairs, ellipse by ellipse and points ascending, of the points
-    (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
-    closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
-    column e of (6, E) ``rows``); see :func:`~stackpick_sim.vision.fitting.within_pairs`."""
-    pe, pm, _, _ = near_pairs_split(pu, pv, rows, reach, tol_px, pu.shape[0])
-    return pe, pm
-
-
-@_compiled
 def near_pairs_split(pu: NDArray[np.float64], pv: NDArray[np.float64],
                      rows: NDArray[np.float64], reach: NDArray[np.float64], tol_px: float,
                      split: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
                                           NDArray[np.int64],
                                           NDArray[np.int64]]:  # pragma: no cover - compiled
-    """:func:`near_pairs` as the (ellipse, point) pairs of the points before ``split`` and
-    those of the others (each in :func:`near_pairs`' order)."""
+    """(ellipse, point) index pairs, ellipse by ellipse and points ascending, of the points
+    (pu, pv) within ``reach[e]`` of ellipse e's centre on both axes (:func:`box_pairs`) and
+    closer than ``tol_px`` to it (Sampson distance, :func:`grouped_distances`; ellipse e is
+    column e of (6, E) ``rows``): those of the points before ``split``, then those of the
+    others; see :func:`~stackpick_sim.vision.fitting.within_pairs_split`."""
     n_e, n_p = rows.shape[1], pu.shape[0]
     count = _box_count(pu, pv, rows[0], rows[1], reach)
     pe, pm = np.empty(count, np.int64), np.empty(count, np.int64)
@@ -403,7 +394,9 @@ def _near_sampson(du: float, dv: float, a: float, b: float, c: float, s: float, 
 
 @_compiled
 def _bow(pixels: NDArray, start: int, stop: int) -> float:  # pragma: no cover - compiled
-    """:func:`bows` of the one piece ``pixels[start:stop]`` (the same sums, in pixel order)."""
+    """RMS spread (px) across its principal line of the piece ``pixels[start:stop]`` of
+    (N, 2) ``pixels``; see :func:`~stackpick_sim.vision.fitting.bow_px` (the same sums, in
+    pixel order)."""
     n = stop - start
     su = 0.0
     sv = 0.0
@@ -423,20 +416,6 @@ def _bow(pixels: NDArray, start: int, stop: int) -> float:  # pragma: no cover -
     half_trace, det = 0.5 * (sxx + syy) / k, (sxx * syy - sxy * sxy) / (k * k)
     smallest = half_trace - math.sqrt(max(0.0, half_trace * half_trace - det))
     return math.sqrt(max(0.0, smallest))
-
-
-@_compiled
-def bows(pixels: NDArray[np.float64], counts: NDArray[np.int64]
-         ) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    """RMS spread (px) across its principal line of each piece of (N, 2) ``pixels``, the
-    pieces running one after another (``counts[i]`` pixels each); see
-    :func:`~stackpick_sim.vision.fitting.bow_px` (the same sums, in pixel order)."""
-    out = np.empty(counts.shape[0])
-    start = 0
-    for i in range(counts.shape[0]):
-        out[i] = _bow(pixels, start, start + counts[i])
-        start += counts[i]
-    return out
 
 
 @_compiled
@@ -1713,7 +1692,7 @@ def range_screen(pixels: NDArray, starts: NDArray[np.int64], stops: NDArray[np.i
                  shortest: int, min_bow: float
                  ) -> NDArray[np.int64]:  # pragma: no cover - compiled
     """The pieces worth a fit among the pieces ``pixels[starts[i]:stops[i]]``: the indices
-    (ascending) of those of at least ``shortest`` pixels with a :func:`bows` of at least
+    (ascending) of those of at least ``shortest`` pixels with a :func:`_bow` of at least
     ``min_bow`` px."""
     tried = np.empty(starts.shape[0], np.int64)
     k = 0
@@ -2039,14 +2018,11 @@ def warm_up() -> None:
     box_runs(col, col, col, col, col)
     subpixel_along(col, col, col, col, np.ones(5), 1.0, 1.0, 1.0, img, img, 0.5)
     profile_peaks(img, img, col, col, col, col, np.zeros(3), 0.5, 1.0)
-    near_pairs(col, col, np.ones((6, 1)), col, 1.0)
     near_pairs_split(col, col, np.ones((6, 1)), col, 1.0, 1)
-    bows(np.zeros((1, 2)), counts)
     segments_rms(np.ones((6, 1)), np.zeros((1, 2)), np.array([0, 1], np.int64), counts - 1,
                  counts)
     lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
                 0.5)
-    bows(np.zeros((1, 2), np.int32), counts)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)
