@@ -20,8 +20,8 @@ from stackpick_sim.exceptions import ConfigError
 
 #: The detector's stages that may be skipped (the others are required): without ``roi`` the
 #: whole frame is searched, without ``refine`` the merged fits go on unrefined, without
-#: ``gate`` no size gate applies.
-SKIPPABLE_STAGES: tuple[str, ...] = ("roi", "refine", "gate")
+#: ``gate`` no size gate applies, without ``complete`` no face the merge missed is proposed.
+SKIPPABLE_STAGES: tuple[str, ...] = ("roi", "refine", "gate", "complete")
 #: The top rule's fallbacks, in the order they are tried when no ellipse passes the rule
 #: (each is described by the failure class it handles in :class:`TopParams`).
 FALLBACKS: tuple[str, ...] = ("unobstructed", "contrast", "nearer_arcs", "rimmed",
@@ -293,6 +293,35 @@ class GateParams(Section):
         super().__post_init__()
         _ordered(self, "slack")
 
+
+@dataclass(frozen=True, kw_only=True)
+class CompleteParams(Section):
+    """``complete`` stage: faces the merge never fitted, whose outline is faint along part of
+    its length (a steep top face's boundary with its own wall or a neighbour of its colour
+    and shade), proposed to the top rule from pairs of arcs when their whole outline shows
+    a consistent edge in the gradients (:mod:`~stackpick_sim.vision.faint_faces`)."""
+
+    SECTION: ClassVar[str] = "complete"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_contrast_share": (0.0, 1.0, ""), "same_face_iou": (0.0, 1.0, ""),
+        "max_faces": (0, 100, "faces")}
+
+    min_contrast_share: float = 0.9
+    """Share [0, 1] of a proposed face's outline that must show a consistent edge in the
+    gradients (windowed normal gradient above the ``edges.support_*`` threshold): a top face
+    shows its whole outline, its faint side too, while an ellipse through arcs of two
+    outlines, or a lower face, shows none along a part of it (rendering dither and a
+    pixel's rounding leave a few per cent of a whole face's samples below the threshold).
+    Merged ellipses that show this share are whole faces already: their arcs are not
+    paired."""
+    same_face_iou: float = 0.85
+    """An ellipse overlapping a merged one by at least this area intersection over union
+    (ratio) is that ellipse's face fitted again, not a face the merge missed: not proposed
+    (fits of one face on different arcs overlap by 0.9 and more; a face and the fit that
+    took in part of its wall, or a neighbour's arc, by 0.8 and less)."""
+    max_faces: int = 4
+    """At most this many faces proposed per frame (the most contrast first): a cap on the
+    top rule's extra work."""
 
 @dataclass(frozen=True, kw_only=True)
 class TopParams(Section):
@@ -893,6 +922,7 @@ class StageSections:
     merging: MergeParams = field(default_factory=MergeParams)
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
+    complete: CompleteParams = field(default_factory=CompleteParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)
