@@ -362,8 +362,9 @@ class VisionCfg(StageSections):
     defaults lie well above a pile frame's counts and change nothing on the project's
     scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
     ``[vision.segments]``, ``[vision.fits]``, ``[vision.merging]``, ``[vision.refine]``,
-    ``[vision.gate]``, ``[vision.top]``, ``[vision.markings]``, ``[vision.report]``,
-    ``[vision.pose]``, ``[vision.ellipses]``: stackpick_sim/config/vision_params.py)."""
+    ``[vision.gate]``, ``[vision.complete]``, ``[vision.top]``, ``[vision.markings]``,
+    ``[vision.report]``, ``[vision.pose]``, ``[vision.ellipses]``:
+    stackpick_sim/config/vision_params.py)."""
 
     max_pixels: int = 640 * 480
     """Images with more pixels are detected on a copy downscaled by the smallest integer
@@ -399,8 +400,8 @@ class VisionCfg(StageSections):
     reproducible, so it is for real-time use, not for seeded runs."""
     skip_stages: tuple[str, ...] = ()
     """Detector stages skipped, by name: any of ``roi`` (search the whole frame), ``refine``
-    (keep the merged fits unrefined), ``gate`` (no size gate); the others are required
-    (docs/detector.md)."""
+    (keep the merged fits unrefined), ``gate`` (no size gate), ``complete`` (propose no
+    face the merge missed); the others are required (docs/detector.md)."""
 
     def __post_init__(self) -> None:
         _require(set(self.skip_stages) <= set(SKIPPABLE_STAGES), "vision.skip_stages",
