@@ -35,8 +35,7 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-STAGES = ("roi", "edges", "segments", "fitting", "merging", "refine", "complete", "top", "pose",
-          "total")
+STAGES = ("roi", "edges", "segments", "fitting", "merging", "refine", "top", "pose", "total")
 
 #: Run in a child process with the code under test first on sys.path: time each frame.
 WORKER = r"""

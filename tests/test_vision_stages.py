@@ -48,7 +48,7 @@ def test_every_stage_is_timed_under_its_name(image: np.ndarray) -> None:
     found = detect(image, DetectorConfig(intrinsics=K))
     assert found.top is not None, found.reason
     assert [s.name for s in STAGES] == ["roi", "edges", "segments", "fitting", "merging",
-                                        "refine", "gate", "complete", "top", "pose"]
+                                        "refine", "gate", "top", "pose"]
     assert set(found.timings_ms) == {s.name for s in STAGES} | {"total"}
     assert found.timings_ms["total"] >= sum(found.timings_ms[s.name] for s in STAGES) - 1e-6
 

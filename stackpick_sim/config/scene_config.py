@@ -400,8 +400,8 @@ class VisionCfg(StageSections):
     reproducible, so it is for real-time use, not for seeded runs."""
     skip_stages: tuple[str, ...] = ()
     """Detector stages skipped, by name: any of ``roi`` (search the whole frame), ``refine``
-    (keep the merged fits unrefined), ``gate`` (no size gate), ``complete`` (propose no
-    face the merge missed); the others are required (docs/detector.md)."""
+    (keep the merged fits unrefined), ``gate`` (no size gate); the others are required
+    (docs/detector.md)."""
 
     def __post_init__(self) -> None:
         _require(set(self.skip_stages) <= set(SKIPPABLE_STAGES), "vision.skip_stages",

@@ -6,15 +6,13 @@ The built-in stages, :data:`STAGES`, in order: ``roi`` (the box around the pile,
 ``segments`` (edge chains, :mod:`~stackpick_sim.vision.segments`), ``fitting`` (an ellipse per
 chain, :mod:`~stackpick_sim.vision.fitting`), ``merging`` (:mod:`~stackpick_sim.vision.
 merging`), ``refine`` (each ellipse refitted on the edge pixels along it, :mod:`~stackpick_sim.
-vision.refine`), ``gate`` (with a depth range, ellipses of no face's size dropped),
-``complete`` (faces the merge never fitted whose outline is faint along part of its length,
-:mod:`~stackpick_sim.vision.faint_faces`), ``top``
+vision.refine`), ``gate`` (with a depth range, ellipses of no face's size dropped), ``top``
 (the top rule, :func:`~stackpick_sim.vision.occlusion.select_top`, its rest check and its
 fallbacks, each named by the failure class it handles: :class:`~stackpick_sim.config.
 vision_params.TopParams`) and ``pose`` (the reported ellipses, each face once, and the top
-face's final fit and pose, :mod:`~stackpick_sim.vision.pose`). ``roi``, ``refine``,
-``gate`` and ``complete`` may be skipped (:meth:`DetectorConfig.without`); any stage may be
-replaced by name (:meth:`DetectorConfig.with_stage`). Each stage's tuned settings are a section of
+face's final fit and pose, :mod:`~stackpick_sim.vision.pose`). ``roi``, ``refine`` and
+``gate`` may be skipped (:meth:`DetectorConfig.without`); any stage may be replaced by name
+(:meth:`DetectorConfig.with_stage`). Each stage's tuned settings are a section of
 :class:`DetectorConfig` (:mod:`~stackpick_sim.config.vision_params`).
 
 Entry point :func:`detect` (or a reusable :class:`TopObjectDetector`). Any image gives a
@@ -36,6 +34,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
+    CompleteParams,
     FitParams,
     MergeParams,
     PoseParams,
@@ -395,30 +394,6 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
     return state.updated(gate=gate, merged=_within_gate(state.merged, gate))
 
 
-def complete_stage(state: State, config: DetectorConfig) -> State:
-    """The faces the merge never fitted whose outline is faint along part of its length,
-    from pairs of every arc (:func:`_every_arc`), added to the merged ellipses when their
-    whole outline shows a consistent edge (:func:`~stackpick_sim.vision.faint_faces.
-    complete_faces`, ``complete``), each with the chains lying on it."""
-    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
-                                        config.fits.min_fit_px, config.top.arc_split_reach_px)
-    grad = state.edges("complete")
-    faces = complete_faces(state.merged, arc_chains, arcs, grad, (state.points, state.grads),
-                           state.crop, state.gate, config, config.complete,
-                           config.limits.max_arcs)
-    if not faces:
-        return state
-    support = support_shares(faces, support_map(grad.edges))
-    table = chain_table(state.chains)
-    merged = list(state.merged)
-    for face, share in zip(faces, support.tolist(), strict=True):
-        on = chains_on(face, *table, config.merging)
-        residual = (rms_residual(face, np.concatenate([state.chains[k] for k in on]))
-                    if on else 0.0)
-        merged.append(MergedEllipse.of(face, on, residual, float(share)))
-    return state.updated(merged=merged)
-
-
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
@@ -428,6 +403,9 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)
+    if config.complete.enabled and not _clear(choice, config.complete):
+        # A top face the merge never fitted, its outline faint along part of its length.
+        merged, choice = _faint_faces(state, merged, choice, cues, config)
     if config.top.marked_arcs and (choice.index is None
                                    or choice.evidence[choice.index].occluded):
         # None passed the rule outright: faces with markings the merge never fitted.
@@ -445,6 +423,41 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
     return state.updated(cues=cues, merged=merged, choice=choice)
+
+
+def _clear(choice: TopChoice, params: CompleteParams) -> bool:
+    """Whether the top rule's ``choice`` is clear: a face that passed it outright and shows
+    a consistent edge along at least ``params.min_contrast_share`` of its outline (a whole
+    face; the rule's support, read from the edge contrast); never with ``params.always``."""
+    i = choice.index
+    return (not params.always and i is not None and not choice.evidence[i].occluded
+            and choice.evidence[i].support >= params.min_contrast_share)
+
+
+def _faint_faces(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The faces the merge never fitted whose outline is faint along part of its length
+    (:func:`~stackpick_sim.vision.faint_faces.complete_faces`, ``complete``, from the arcs
+    of :func:`last_resort_arcs`) added to ``merged``, each with the chains lying on it, and
+    the top rule's choice among them all; both unchanged when none is found."""
+    check_time(state.deadline, "top")
+    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
+                                        config.fits.min_fit_px, config.top.arc_split_reach_px)
+    grad = state.edges("top")
+    faces = complete_faces(merged, [ev.support for ev in choice.evidence], arc_chains, arcs,
+                           grad, (state.points, state.grads), state.crop, state.gate, config,
+                           config.complete, config.limits.max_arcs)
+    if not faces:
+        return merged, choice
+    support = support_shares(faces, support_map(grad.edges))
+    table = chain_table(state.chains)
+    merged = list(merged)
+    for face, share in zip(faces, support.tolist(), strict=True):
+        on = chains_on(face, *table, config.merging)
+        residual = (rms_residual(face, np.concatenate([state.chains[k] for k in on]))
+                    if on else 0.0)
+        merged.append(MergedEllipse.of(face, on, residual, float(share)))
+    return merged, _select([m.ellipse for m in merged], state, cues)
 
 
 def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -564,8 +577,7 @@ def _top_pose(state: State, ellipse: Ellipse, config: DetectorConfig, inner: boo
 STAGES: tuple[Stage, ...] = (
     Stage("roi", roi_stage), Stage("edges", edges_stage), Stage("segments", segments_stage),
     Stage("fitting", fitting_stage), Stage("merging", merging_stage),
-    Stage("refine", refine_stage), Stage("gate", gate_stage),
-    Stage("complete", complete_stage), Stage("top", top_stage),
+    Stage("refine", refine_stage), Stage("gate", gate_stage), Stage("top", top_stage),
     Stage("pose", pose_stage))
 
 

@@ -94,7 +94,8 @@ def unexplained_arcs(arcs: Sequence[int], chains: Sequence[NDArray[np.int32]],
     return [k for i, k in enumerate(arcs) if i not in on]
 
 
-def complete_faces(merged: Sequence[MergedEllipse], arc_chains: tuple[NDArray[np.int32], ...],
+def complete_faces(merged: Sequence[MergedEllipse], shown: Sequence[float],
+                   arc_chains: tuple[NDArray[np.int32], ...],
                    arcs: Sequence[int], image: EdgeImage,
                    edge_pixels: tuple[NDArray[np.float64], NDArray[np.float64]],
                    shape: tuple[int, int], gate: tuple[float, float] | None,
@@ -102,7 +103,9 @@ def complete_faces(merged: Sequence[MergedEllipse], arc_chains: tuple[NDArray[np
                    ) -> list[Ellipse]:
     """The faces to propose (see the module docstring): ellipses of pairs of the ``arcs``
     (indices into ``arc_chains``; the ``max_arcs`` longest of those that lie on no ``merged``
-    ellipse showing its whole outline), refined on the edge pixels along them
+    ellipse showing its whole outline, by the share ``shown`` of each that shows a consistent
+    edge, :func:`contrast_shares`, the top rule's support; at least one of each pair on no
+    merged ellipse at all), refined on the edge pixels along them
     (``edge_pixels``: the edge map's pixels and their unit gradients, :func:`~stackpick_sim.
     vision.refine.refine_all`), within the size ``gate`` in an image of ``shape`` (H, W),
     whose outline shows a consistent edge in ``image``'s gradients along at least
@@ -113,13 +116,16 @@ def complete_faces(merged: Sequence[MergedEllipse], arc_chains: tuple[NDArray[np
     fits', merge's, refit's and top rule's settings."""
     share = params.min_contrast_share
     fitted = [m.ellipse for m in merged]
-    shown = contrast_shares(fitted, image)
-    whole = [e for e, s in zip(fitted, shown.tolist(), strict=True) if s >= share]
+    whole = [e for e, s in zip(fitted, shown, strict=True) if s >= share]
     free = unexplained_arcs(arcs, arc_chains, whole, sections)
-    if len(free) < 2:
-        return []
     free = [free[i] for i in longest([arc_chains[k] for k in free], max_arcs)]
-    found = _whole(arc_pair_ellipses(arc_chains, free, shape, gate, sections), image, share)
+    # A face the merge missed has an arc on no merged ellipse at all (its faint side's
+    # pieces, or its strong arc whose own fit runs off the face): pairs hold one.
+    anchors = unexplained_arcs(free, arc_chains, fitted, sections)
+    if not anchors or len(free) < 2:
+        return []
+    found = _whole(arc_pair_ellipses(arc_chains, free, shape, gate, sections, anchors),
+                   image, share)
     if not found:
         return []
     found = [e for e in refine_all(found, *edge_pixels, shape, sections.refine, sections.fits)
