@@ -398,8 +398,9 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
     (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``). Before
-    those, when no ellipse passed the rule outright, faces with markings fitted on arc pairs
-    join it (``top.marked_arcs``)."""
+    those, when its first choice is not clear, faces the merge never fitted whose outline is
+    faint along part of its length join it (``complete``), and when no ellipse passed the
+    rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)

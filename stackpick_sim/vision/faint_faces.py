@@ -8,18 +8,19 @@ joins the strong arc, whose own fit extrapolates far off the face, with the fain
 candidate of the face then exists, and the top rule takes a lower face or none. The top
 rule's arc-pair fallbacks fit such faces, but only when no face passes it.
 
-The ``complete`` stage (:func:`complete_faces`) proposes them to the top rule as candidates
-of their own: ellipses of pairs of arcs (:func:`~stackpick_sim.vision.regroup.
-arc_pair_ellipses`, grown by the chains lying on them), refitted on the edge pixels along
-them, kept only when their whole outline shows a consistent edge in the gradients
-(:func:`~stackpick_sim.vision.contrast.supported_samples`: the windowed normal gradient,
-a threshold from the image's own noise, far below Canny's), so the faint side is read where
-the ellipse predicts it. A fit of arcs of two outlines, or a lower face partly hidden, shows
-no edge along part of its outline and is not proposed; nor is a face already fitted (an
-ellipse overlapping a merged one by ``complete.same_face_iou``). Arcs lying on a merged
-ellipse whose whole outline shows already are no face's missing arcs and pair with nothing
-(most of a frame's arcs when its top face is fitted whole: that keeps the stage's cost low).
-Whether a proposed face is the top one is left to the top rule.
+The top stage proposes them (:func:`complete_faces`, settings ``vision.complete``) when the
+rule's first choice is not clear, as candidates of their own: ellipses of pairs of arcs
+(:func:`~stackpick_sim.vision.regroup.arc_pair_ellipses`, grown by the chains lying on
+them), refitted on the edge pixels along them, kept only when their whole outline shows a
+consistent edge in the gradients (:func:`~stackpick_sim.vision.contrast.supported_samples`:
+the windowed normal gradient, a threshold from the image's own noise, far below Canny's), so
+the faint side is read where the ellipse predicts it. A fit of arcs of two outlines, or a
+lower face partly hidden, shows no edge along part of its outline and is not proposed; nor
+is a face already fitted (an ellipse overlapping a merged one by ``same_face_iou``). Arcs
+lying on a merged ellipse whose whole outline shows already are no face's missing arcs and
+pair with nothing, and every pair holds an arc on no merged ellipse at all (the faint side's
+pieces, or the strong arc whose own fit runs off the face). Whether a proposed face is the
+top one is left to the top rule.
 """
 
 from __future__ import annotations
