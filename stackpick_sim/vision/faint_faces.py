@@ -127,19 +127,27 @@ def complete_faces(merged: Sequence[MergedEllipse], shown: Sequence[float],
         return []
     found = _whole(arc_pair_ellipses(arc_chains, free, shape, gate, sections, anchors),
                    image, share)
+    if found:
+        found = _whole([e for e in refine_all(found, *edge_pixels, shape, sections.refine,
+                                              sections.fits)
+                        if gate is None or gate[0] <= e.a <= gate[1]], image, share)
     if not found:
         return []
-    found = [e for e in refine_all(found, *edge_pixels, shape, sections.refine, sections.fits)
-             if gate is None or gate[0] <= e.a <= gate[1]]
-    found = _whole(found, image, share)
-    evidence = select_top(found, image, edge_points=edge_pixels[0],
-                          params=sections.top).evidence if found else ()
+    evidence = select_top(found, image, edge_points=edge_pixels[0], params=sections.top)
+    return _new_faces([f for f, ev in zip(found, evidence.evidence, strict=True)
+                       if not ev.occluded], fitted, params)
+
+
+def _new_faces(found: list[Ellipse], fitted: list[Ellipse], params: CompleteParams
+               ) -> list[Ellipse]:
+    """Of ``found`` in their order, at most ``params.max_faces`` that overlap none of the
+    ``fitted`` ellipses, nor one taken before them, by ``params.same_face_iou`` (area
+    IoU)."""
     out: list[Ellipse] = []
-    for face, ev in zip(found, evidence, strict=True):
+    for face in found:
         if len(out) >= params.max_faces:
             break
-        if not ev.occluded and not any(area_iou(face, other) >= params.same_face_iou
-                                       for other in fitted + out):
+        if not any(area_iou(face, other) >= params.same_face_iou for other in fitted + out):
             out.append(face)
     return out
 
