@@ -5,6 +5,7 @@ a consistent edge, on pinned rendered frames and on synthetic images."""
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +24,8 @@ from stackpick_sim.vision.params import CompleteParams
 
 K = CameraIntrinsics.from_fovy(45.0, 320, 240)
 SHAPE = (240, 320)
+#: Pinned paper-scene frames.
+PAPER_DATA = Path(__file__).parent / "data" / "paper_dev_frames"
 #: The detector without the face completion.
 OFF = DetectorConfig(intrinsics=K, complete=CompleteParams(enabled=False))
 
@@ -137,3 +140,14 @@ def test_after_a_clear_choice_faces_are_proposed_only_with_always() -> None:
     frame = dev_frame(70135)
     assert _top_iou(frame, _config(frame, "cluttered")) < MATCH_IOU
     assert _top_iou(frame, _config(frame, "cluttered", always=True)) > 0.95
+
+
+def test_a_face_only_the_arc_pair_fallbacks_found_is_proposed_too() -> None:
+    # Paper frame 3504: no fit passes the rule and the top face is found by the arc-pair
+    # fallbacks alone; the face completion, after that unclear first choice, proposes it.
+    frame = dev_frame(3504, PAPER_DATA, "paper")
+    config = detector_config(frame)
+    no_fallbacks = replace(config.top, fallbacks=())
+    assert _top_iou(frame, replace(config, top=no_fallbacks)) > MATCH_IOU
+    assert _top_iou(frame, replace(config, top=no_fallbacks,
+                                   complete=CompleteParams(enabled=False))) == 0.0
