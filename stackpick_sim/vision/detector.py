@@ -59,6 +59,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
 )
+from stackpick_sim.vision.kind_size import radius_by_size
 from stackpick_sim.vision.limits import (
     Deadline,
     WorkLimits,
@@ -556,11 +557,17 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     colours = config.kind_colours
     radius_of = (None if colours is None else
                  radius_by_colour(work, config.radii_m, colours, colour_of))
+    depth_radius_of = radius_of
+    if (radius_of is None and config.top.kind_by_size and len(config.radii_m) > 1
+            and config.depth_range_m is not None):
+        # Kinds of one colour: for the depth tests, a face's kind from its size.
+        depth_radius_of = radius_by_size(k_crop, config.radii_m, config.depth_range_m)
     markings = marking_test(config, work, state.edges("top"))
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings, top=config.top, pose=config.pose, radii=config.radii_m)
+                markings=markings, top=config.top, pose=config.pose, radii=config.radii_m,
+                depth_radius_of=depth_radius_of)
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
@@ -568,7 +575,8 @@ def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
                       colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
-                      params=cues.top, pose_params=cues.pose, kind_radii=cues.radii)
+                      params=cues.top, pose_params=cues.pose, kind_radii=cues.radii,
+                      depth_radius_of=cues.depth_radius_of)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -676,13 +684,13 @@ def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     along more of its outline than the ``unobstructed`` fallback allows, while no face that
     passes or fails on support alone was found. An arc pairs' face so chosen is added to
     ``merged``; otherwise both come back unchanged (and without face radii)."""
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return merged, choice
     grad, extra, alone = _every_arc_face(found, config)
     faces = [m.ellipse for m in merged] + extra
     evidence = (*choice.evidence, *alone.evidence)
     half = [i for i, ev in enumerate(evidence) if ev.support >= config.top.hidden_min_support]
-    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.radius_of,
+    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.depth_radius_of,
                                config.top) if len(half) > 1 else None)
     if nearest is None:
         return merged, choice
@@ -713,7 +721,7 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     and is chosen (``inner``: the pose's final fit keeps off the silhouette's edge pixels
     beyond it). Both unchanged without face radii."""
     assert choice.index is not None
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return merged, choice
     ellipses = [m.ellipse for m in merged]
     rimmed = rim_only(ellipses, choice.evidence, found.points)
@@ -722,7 +730,8 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     grad = found.edges("top")
     refits = [refit_on_contrast(ellipses[i], grad, True, params) or ellipses[i]
               for i in rimmed]
-    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop, cues.radius_of,
+    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop,
+                              cues.depth_radius_of,
                               params)
     if not nearest:
         return merged, choice
@@ -748,7 +757,7 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     chosen face is then a lower one whose occluder only clips its rim. Unchanged without face
     radii."""
     assert choice.index is not None
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return choice
     chosen = merged[choice.index].ellipse
     # A second fit of the chosen face (one holds the other's centre) is no other face: the
@@ -761,7 +770,7 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     if not cut:
         return choice
     faces = [chosen, *(merged[i].ellipse for i in cut)]
-    nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
+    nearest = clearly_nearest(faces, cues.k_crop, cues.depth_radius_of, params)
     return choice if not nearest else replace(choice, index=cut[nearest - 1])
 
 
@@ -773,7 +782,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     choice; only with the ``nearer_arcs`` fallback) those of :func:`last_resort_arcs`, else
     the fitted pieces that lie on none of the faces the rule weighed (a choice that passed
     the rule; an unfitted face's arcs are on no fitted face: ~20x cheaper)."""
-    if cues.radius_of is None or (every_arc and "nearer_arcs" not in config.top.fallbacks):
+    if cues.depth_radius_of is None or (every_arc and "nearer_arcs" not in config.top.fallbacks):
         return merged, choice
     if every_arc:
         arc_chains, arcs = _every_arc(found, config)
@@ -784,7 +793,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
                              arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
-                            cues.radius_of, config)
+                            cues.depth_radius_of, config)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,

@@ -436,7 +436,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                markings: MarkingTest | None = None,
                params: TopParams = DEFAULT_TOP,
                pose_params: PoseParams = DEFAULT_POSE,
-               kind_radii: Sequence[float] = ()) -> TopChoice:
+               kind_radii: Sequence[float] = (),
+               depth_radius_of: Callable[[Ellipse], float | None] | None = None
+               ) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -464,7 +466,8 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ``pose_params``: the rest test's wall band test's (the pose's). Without ``radius_of``
     (kinds that colour cannot tell apart), ``kind_radii`` (the kinds' radii, m) with
     ``height_of`` and the image let the rest test try every kind for each face
-    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`).
+    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`), and ``depth_radius_of`` (a
+    face's radius from its size, :mod:`~stackpick_sim.vision.kind_size`) the depth test.
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -487,7 +490,12 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of, params)
+    depth_radius = radius_of if radius_of is not None else depth_radius_of
+    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, depth_radius, params)
+    if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
+        # A face that failed on support alone ties with a passing one: of the passing
+        # faces, one clearly nearer than the others is above them.
+        nearest = _clearly_nearest_of(ellipses, candidates, intrinsics, depth_radius, params)
     if nearest is not None:
         return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)

@@ -58,7 +58,9 @@ class Cues:
     an ellipse's object kind read from its colour (None without the kinds' colours);
     ``height_of``, a radius's cylinder height; ``markings``, the test for a marking inside a
     face; ``top``, the top rule's settings; ``pose``, the pose's (the rest test reads its wall
-    band test); ``radii``, the object kinds' radii (m)."""
+    band test); ``radii``, the object kinds' radii (m); ``depth_radius_of``, the radius the
+    depth tests read: ``radius_of``, else the kind's from the face's size
+    (:mod:`~stackpick_sim.vision.kind_size`, kinds that colour cannot tell apart)."""
 
     k_crop: CameraIntrinsics
     rgb: NDArray[np.uint8] | None
@@ -70,6 +72,7 @@ class Cues:
     top: TopParams = field(default_factory=TopParams)
     pose: PoseParams = field(default_factory=PoseParams)
     radii: tuple[float, ...] = ()
+    depth_radius_of: Callable[[Ellipse], float | None] | None = None
 
 
 def _no_points() -> NDArray[np.float64]:

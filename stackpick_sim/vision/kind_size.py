@@ -1,0 +1,60 @@
+"""A face's object kind from its size, when colour cannot tell the kinds apart.
+
+The top rule's depth test, and the cover and rest tests' reconstructions, need each face's
+radius: with kinds of distinct colours it is read from the face's colour
+(:func:`~stackpick_sim.vision.detector.radius_by_colour`). With kinds of one colour (the
+failure class *kinds that colour cannot tell apart*, e.g. both kinds grey like the belt) the
+ellipse still fixes the face's depth per metre of radius, and the detector's depth range (the
+heights between the belt and the highest face a pile may show) admits only some of the kinds'
+radii: a face imaged small enough that the larger kind's radius would put it beyond the belt
+is of the smaller kind, one imaged large enough that the smaller kind's would put it above
+the highest face is of the larger. A face both kinds' radii place within the range has no
+known radius; one that none does (an ellipse off every true face's size, e.g. an arc pair)
+takes the radius whose depth lies nearest the range, as the pose does
+(:func:`~stackpick_sim.vision.pose.choose_radius`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.vision.pose import unit_circle_poses
+
+
+def depth_per_metre(ellipse: Ellipse, intrinsics: CameraIntrinsics) -> float:
+    """The face centre's depth (m) per metre of its radius: the mean of the two circle
+    solutions' (:func:`~stackpick_sim.vision.pose.unit_circle_poses`), as the top rule's depth
+    test reads it."""
+    unit = unit_circle_poses(ellipse, intrinsics)
+    return 0.5 * (abs(float(unit[0].centre_cam[2])) + abs(float(unit[1].centre_cam[2])))
+
+
+def kind_radius(per_metre: float, radii: Sequence[float],
+                depth_range_m: tuple[float, float]) -> float | None:
+    """The one radius of ``radii`` (m) whose depth ``per_metre * r`` lies within
+    ``depth_range_m`` (min, max m); None when several do; when none does, the one whose depth
+    lies nearest the range."""
+    near, far = depth_range_m
+    inside = [float(r) for r in radii if near <= per_metre * r <= far]
+    if len(inside) > 1:
+        return None
+    if inside:
+        return inside[0]
+    return float(min(radii, key=lambda r: max(near - per_metre * r, per_metre * r - far)))
+
+
+def radius_by_size(intrinsics: CameraIntrinsics, radii: Sequence[float],
+                   depth_range_m: tuple[float, float]
+                   ) -> Callable[[Ellipse], float | None]:
+    """Ellipse (in ``intrinsics``' pixel frame) -> its kind's radius (m) by
+    :func:`kind_radius`, or None when its size fits several kinds; each ellipse's once."""
+    known: dict[Ellipse, float | None] = {}
+
+    def radius_of(ellipse: Ellipse) -> float | None:
+        if ellipse not in known:
+            known[ellipse] = kind_radius(depth_per_metre(ellipse, intrinsics), radii,
+                                         depth_range_m)
+        return known[ellipse]
+
+    return radius_of
