@@ -59,7 +59,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
 )
-from stackpick_sim.vision.kind_size import radius_by_size
+from stackpick_sim.vision.kind_size import kinds_by_size, one_kind
 from stackpick_sim.vision.limits import (
     Deadline,
     WorkLimits,
@@ -557,17 +557,18 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     colours = config.kind_colours
     radius_of = (None if colours is None else
                  radius_by_colour(work, config.radii_m, colours, colour_of))
-    depth_radius_of = radius_of
+    kinds_of = None
     if (radius_of is None and config.top.kind_by_size and len(config.radii_m) > 1
             and config.depth_range_m is not None):
-        # Kinds of one colour: for the depth tests, a face's kind from its size.
-        depth_radius_of = radius_by_size(k_crop, config.radii_m, config.depth_range_m)
+        # Kinds of one colour: the kinds a face's size admits.
+        kinds_of = kinds_by_size(k_crop, config.radii_m, config.depth_range_m)
     markings = marking_test(config, work, state.edges("top"))
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
                 markings=markings, top=config.top, pose=config.pose, radii=config.radii_m,
-                depth_radius_of=depth_radius_of)
+                kinds_of=kinds_of,
+                depth_radius_of=radius_of if kinds_of is None else one_kind(kinds_of))
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
@@ -576,7 +577,7 @@ def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
                       colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
                       params=cues.top, pose_params=cues.pose, kind_radii=cues.radii,
-                      depth_radius_of=cues.depth_radius_of)
+                      kinds_of=cues.kinds_of)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,

@@ -30,31 +30,41 @@ def depth_per_metre(ellipse: Ellipse, intrinsics: CameraIntrinsics) -> float:
     return 0.5 * (abs(float(unit[0].centre_cam[2])) + abs(float(unit[1].centre_cam[2])))
 
 
-def kind_radius(per_metre: float, radii: Sequence[float],
-                depth_range_m: tuple[float, float]) -> float | None:
-    """The one radius of ``radii`` (m) whose depth ``per_metre * r`` lies within
-    ``depth_range_m`` (min, max m); None when several do; when none does, the one whose depth
-    lies nearest the range."""
+def size_kinds(per_metre: float, radii: Sequence[float],
+               depth_range_m: tuple[float, float]) -> tuple[float, ...]:
+    """The radii of ``radii`` (m) whose depth ``per_metre * r`` lies within ``depth_range_m``
+    (min, max m), in their order; when none does, the one whose depth lies nearest the
+    range."""
     near, far = depth_range_m
-    inside = [float(r) for r in radii if near <= per_metre * r <= far]
-    if len(inside) > 1:
-        return None
+    inside = tuple(float(r) for r in radii if near <= per_metre * r <= far)
     if inside:
-        return inside[0]
-    return float(min(radii, key=lambda r: max(near - per_metre * r, per_metre * r - far)))
+        return inside
+    return (float(min(radii, key=lambda r: max(near - per_metre * r, per_metre * r - far))),)
 
 
-def radius_by_size(intrinsics: CameraIntrinsics, radii: Sequence[float],
-                   depth_range_m: tuple[float, float]
-                   ) -> Callable[[Ellipse], float | None]:
-    """Ellipse (in ``intrinsics``' pixel frame) -> its kind's radius (m) by
-    :func:`kind_radius`, or None when its size fits several kinds; each ellipse's once."""
-    known: dict[Ellipse, float | None] = {}
+def kinds_by_size(intrinsics: CameraIntrinsics, radii: Sequence[float],
+                  depth_range_m: tuple[float, float]
+                  ) -> Callable[[Ellipse], tuple[float, ...]]:
+    """Ellipse (in ``intrinsics``' pixel frame) -> the radii (m) of the kinds its size admits
+    (:func:`size_kinds`); each ellipse's once."""
+    known: dict[Ellipse, tuple[float, ...]] = {}
+
+    def kinds_of(ellipse: Ellipse) -> tuple[float, ...]:
+        if ellipse not in known:
+            known[ellipse] = size_kinds(depth_per_metre(ellipse, intrinsics), radii,
+                                        depth_range_m)
+        return known[ellipse]
+
+    return kinds_of
+
+
+def one_kind(kinds_of: Callable[[Ellipse], tuple[float, ...]]
+             ) -> Callable[[Ellipse], float | None]:
+    """Ellipse -> the radius (m) of the one kind ``kinds_of`` admits, None when it admits
+    several."""
 
     def radius_of(ellipse: Ellipse) -> float | None:
-        if ellipse not in known:
-            known[ellipse] = kind_radius(depth_per_metre(ellipse, intrinsics), radii,
-                                         depth_range_m)
-        return known[ellipse]
+        kinds = kinds_of(ellipse)
+        return kinds[0] if len(kinds) == 1 else None
 
     return radius_of

@@ -60,6 +60,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.kind_size import one_kind
 from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
 from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
@@ -437,7 +438,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                params: TopParams = DEFAULT_TOP,
                pose_params: PoseParams = DEFAULT_POSE,
                kind_radii: Sequence[float] = (),
-               depth_radius_of: Callable[[Ellipse], float | None] | None = None
+               kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
                ) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
@@ -466,8 +467,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ``pose_params``: the rest test's wall band test's (the pose's). Without ``radius_of``
     (kinds that colour cannot tell apart), ``kind_radii`` (the kinds' radii, m) with
     ``height_of`` and the image let the rest test try every kind for each face
-    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`), and ``depth_radius_of`` (a
-    face's radius from its size, :mod:`~stackpick_sim.vision.kind_size`) the depth test.
+    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`); with ``kinds_of`` (the radii
+    of the kinds a face's size admits, :mod:`~stackpick_sim.vision.kind_size`), only those,
+    and the depth test runs on faces whose size admits one kind.
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -485,12 +487,13 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
                  colour_of=colour_of, belt=belt, params=params, pose_params=pose_params,
-                 kind_radii=tuple(kind_radii))
+                 kind_radii=tuple(kind_radii), kinds_of=kinds_of)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    depth_radius = radius_of if radius_of is not None else depth_radius_of
+    depth_radius = (radius_of if radius_of is not None or kinds_of is None
+                    else one_kind(kinds_of))
     nearest = _clearly_nearest_of(ellipses, pool, intrinsics, depth_radius, params)
     if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
         # A face that failed on support alone ties with a passing one: of the passing
@@ -547,6 +550,7 @@ class _Cues:
     params: TopParams
     pose_params: PoseParams
     kind_radii: tuple[float, ...]
+    kinds_of: Callable[[Ellipse], tuple[float, ...]] | None
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -584,7 +588,7 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         under = rests_on_any_kind(faces, cues.intrinsics, cues.kind_radii, cues.height_of,
                                   cues.image, colour_of=cues.colour_of, cache=bands,
                                   belt=cues.belt, params=cues.params,
-                                  pose_params=cues.pose_params)
+                                  pose_params=cues.pose_params, kinds_of=cues.kinds_of)
     else:
         return pool, candidates
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
