@@ -451,21 +451,21 @@ class TopParams(Section):
     paper-scene frames (``pose.band_chroma_tolerance``), so kinds within 0.1 would be
     confused face by face."""
     depth_among_passing: bool = True
-    """When the depth test over the passing faces and the faces that failed on support
-    alone with nothing crossing them finds none clearly nearest, it runs again over the
-    passing faces alone: the failure class *a lower face's tie voids the depth test* (a
-    nearly whole lower face at the top face's depth, within ``depth_tie_m``, left the
-    best-supported passing face to win though another passing face lay clearly nearer).
-    Of two passing faces, one clearly nearer is above the other whatever the failing face
-    is."""
+    """When the depth test over the passing faces and the faces that failed on support alone
+    with nothing crossing them finds none clearly nearest, it runs again over the passing
+    faces alone: the failure class *a lower face's tie voids the depth test* (a nearly whole
+    lower face within ``depth_tie_m`` of the top face's depth would leave the best-supported
+    passing face to win though another passing face lies clearly nearer). Of two passing
+    faces, one clearly nearer is above the other whatever the failing face is."""
     kind_by_size: bool = True
     """With object kinds that colour cannot tell apart (``kind_min_chroma_distance``), a
-    face's radius is the kind's whose radius alone places the face within the detector's
-    depth range (:mod:`~stackpick_sim.vision.kind_size`): the larger kind's would put a face
-    imaged small beyond the belt, the smaller kind's a face imaged large above the highest
-    face a pile shows. The depth, cover and rest tests then run with those radii; a face both
-    kinds place within the range has none (the tests run as without radii). Needs a depth
-    range and two kinds' radii or more."""
+    face's kind is read from its size (:mod:`~stackpick_sim.vision.kind_size`): the kinds
+    whose radius places the face within the detector's depth range (the larger kind's would
+    put a face imaged small beyond the belt, the smaller kind's a face imaged large above the
+    highest face a pile shows). The depth tests run on the faces whose size admits one kind,
+    and the rest test over every kind (``rest_kind_margin_m``) takes only the kinds each
+    face's size admits; a face both kinds place within the range takes no part in a depth
+    test. Needs a depth range and two kinds' radii or more."""
     rest_kind_margin_m: float = 0.01
     """With object kinds that colour cannot tell apart, the rest test
     (:mod:`~stackpick_sim.vision.resting`) reconstructs each pair of whole faces under every

@@ -492,13 +492,7 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    depth_radius = (radius_of if radius_of is not None or kinds_of is None
-                    else one_kind(kinds_of))
-    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, depth_radius, params)
-    if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
-        # A face that failed on support alone ties with a passing one: of the passing
-        # faces, one clearly nearer than the others is above them.
-        nearest = _clearly_nearest_of(ellipses, candidates, intrinsics, depth_radius, params)
+    nearest = _depth_test(ellipses, pool, candidates, cues)
     if nearest is not None:
         return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)
@@ -611,6 +605,24 @@ def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]
                 if not out[j] and (holds_centre(face, other) or holds_centre(other, face)):
                     out[j] = True
     return out
+
+
+def _depth_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
+                cues: _Cues) -> int | None:
+    """The index of the ``pool`` face clearly nearest the camera (:func:`_clearly_nearest_of`;
+    radii from colour, else of faces whose size admits one kind), else, with
+    ``depth_among_passing``, of the ``candidates`` (the passing faces), or None."""
+    radius_of = cues.radius_of
+    if radius_of is None and cues.kinds_of is not None:
+        radius_of = one_kind(cues.kinds_of)
+    params = cues.params
+    nearest = _clearly_nearest_of(ellipses, pool, cues.intrinsics, radius_of, params)
+    if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
+        # A face that failed on support alone ties with a passing one: of the passing
+        # faces, one clearly nearer than the others is above them.
+        nearest = _clearly_nearest_of(ellipses, candidates, cues.intrinsics, radius_of,
+                                      params)
+    return nearest
 
 
 def _clearly_nearest_of(ellipses: Sequence[Ellipse], pool: list[int],
