@@ -465,7 +465,8 @@ class TopParams(Section):
     highest face a pile shows). The depth tests run on the faces whose size admits one kind,
     and the rest test over every kind (``rest_kind_margin_m``) takes only the kinds each
     face's size admits; a face both kinds place within the range takes no part in a depth
-    test. Needs a depth range and two kinds' radii or more."""
+    test (the ``hidden_check`` keeps to radii from colour). Needs a depth range and two
+    kinds' radii or more."""
     rest_kind_margin_m: float = 0.01
     """With object kinds that colour cannot tell apart, the rest test
     (:mod:`~stackpick_sim.vision.resting`) reconstructs each pair of whole faces under every

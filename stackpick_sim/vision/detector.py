@@ -408,7 +408,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if config.top.rest_check and choice.index is not None:
         choice = _rest_check(state, merged, choice, cues, config.top)
-    if (config.top.hidden_check and choice.index is not None
+    if (config.top.hidden_check and choice.index is not None and cues.radius_of is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
         # and shade the merge never fitted.
