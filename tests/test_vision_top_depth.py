@@ -143,3 +143,14 @@ def test_a_passing_face_clearly_nearer_than_another_wins_beside_a_tied_lower_fac
     frame = dev_frame(75126)
     assert _top_iou(frame) > MATCH_IOU
     assert _top_iou(frame, depth_among_passing=False) < MATCH_IOU
+
+
+def test_a_top_face_fitted_round_its_own_wall_is_refitted_above_the_rimmed_choice() -> None:
+    # Cluttered frame 79143: no face passes. The top face (blue) leans on a whole orange
+    # face; its fit takes in part of its own wall (semi-axes ~5 px too long), so its own rim
+    # lies up to ~10 px inside the fit, beyond the rim band. The rimmed fallback takes the
+    # orange face; the top face refitted on its innermost edge shows whole and reads ~4 cm
+    # nearer.
+    frame = dev_frame(79143)
+    assert _top_iou(frame) > MATCH_IOU
+    assert _top_iou(frame, nearer_refit=False) < MATCH_IOU

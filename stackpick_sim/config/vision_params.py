@@ -522,6 +522,14 @@ class TopParams(Section):
     clearly nearer (``depth_tie_m``) takes the choice as that refit: a top face over lower
     faces of its colour fails the rule on that rim alone, while the face the fallback chose
     is a lower one whose occluder only clips its rim (needs the object kinds' colours)."""
+    nearer_refit: bool = True
+    """After the ``rimmed`` fallback's choice, a face with edges inside and no T-junction
+    (support at least ``hidden_min_support``), refitted on its innermost consistent edge,
+    that shows whole as that refit (it passes the rule, or fails it on its own rim alone)
+    and lies clearly nearer (``depth_tie_m``) takes the choice as that refit: the failure
+    class *a top face fitted round its own wall* (its rim lies deeper inside the fit than
+    ``rim_band_px``, so it is no rimmed face), above a lower whole face it leans on, which
+    the fallback took."""
     inner_refit: bool = False
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller

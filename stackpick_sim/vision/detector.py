@@ -459,9 +459,17 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
                           params=config.top).evidence[0]
     if evidence.occluded:
         return merged, choice
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _inner_choice(merged: list[MergedEllipse], choice: TopChoice, i: int, refit: Ellipse,
+                  evidence: OcclusionEvidence) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ellipse ``i`` replaced by its inner ``refit``, and ``choice`` choosing
+    it with the refit's ``evidence`` (``inner``: the pose's final fit keeps off the
+    silhouette's edge pixels beyond it)."""
     merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
-    return merged, replace(choice, evidence=(*choice.evidence[:i], evidence,
-                                             *choice.evidence[i + 1:]), inner=True)
+    return merged, replace(choice, index=i, inner=True,
+                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
 
 
 def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -667,7 +675,7 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # A face clearly nearer than such a refit is above it (a top face the merge never
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
-    merged, choice = _arc_fallbacks(found, merged, choice, spare, config)
+    merged, choice = _arc_fallbacks(found, merged, choice, spare, cues, config)
     if choice.index is None and "nearest_cut" in use:
         merged, choice = _nearest_cut(found, merged, choice, cues, config)
     return merged, choice
@@ -742,9 +750,53 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     # The refit is the face (the pose's final fit keeps off the lower face's silhouette
     # beyond it, as for the inner refit).
     evidence = select_top([refit], grad, edge_points=found.points, params=params).evidence[0]
-    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
-    return merged, replace(choice, index=i, inner=True,
-                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _nearer_refit(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                  params: TopParams) -> tuple[list[MergedEllipse], TopChoice]:
+    """``choice`` (the ``rimmed`` fallback's), unless a face with edges inside and no
+    T-junction (support at least ``params.hidden_min_support``), refitted on its innermost
+    consistent edge (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`), shows whole
+    as that refit (passes the rule, or fails it on its own rim alone: :func:`~stackpick_sim.
+    vision.occlusion.rim_only`) and lies clearly nearer the camera than the choice
+    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): a top face fitted round part
+    of its own wall, whose rim then lies deeper inside the fit than the rim band, above a
+    lower whole face it leans on. The refit replaces it in ``merged`` and is chosen
+    (``inner``). Both unchanged without face radii."""
+    assert choice.index is not None
+    if cues.depth_radius_of is None:
+        return merged, choice
+    ellipses = [m.ellipse for m in merged]
+    failed = [i for i, ev in enumerate(choice.evidence)
+              if i != choice.index and not ev.occluded_ends
+              and ev.support >= params.hidden_min_support and ev.edges_inside]
+    whole = _whole_refits(found, [(i, ellipses[i]) for i in failed], params)
+    if not whole:
+        return merged, choice
+    nearest = clearly_nearest([ellipses[choice.index], *(r for _, r, _ in whole)],
+                              cues.k_crop, cues.depth_radius_of, params)
+    if not nearest:
+        return merged, choice
+    i, refit, evidence = whole[nearest - 1]
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _whole_refits(found: State, faces: list[tuple[int, Ellipse]], params: TopParams
+                  ) -> list[tuple[int, Ellipse, OcclusionEvidence]]:
+    """(index, refit, its evidence) of those of the indexed ``faces`` whose refit on their
+    innermost consistent edge shows whole: passes the top rule, or fails it on its own rim
+    alone (:func:`~stackpick_sim.vision.occlusion.rim_only`)."""
+    grad = found.edges("top")
+    refits = [(i, refit) for i, face in faces
+              if (refit := refit_on_contrast(face, grad, True, params)) is not None]
+    if not refits:
+        return []
+    ellipses = [r for _, r in refits]
+    judged = select_top(ellipses, grad, edge_points=found.points, params=params).evidence
+    rimmed = set(rim_only(ellipses, judged, found.points))
+    return [(i, r, ev) for k, ((i, r), ev) in enumerate(zip(refits, judged, strict=True))
+            if not ev.occluded or k in rimmed]
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -798,11 +850,12 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
-                   spare: tuple[int, Ellipse, OcclusionEvidence] | None,
+                   spare: tuple[int, Ellipse, OcclusionEvidence] | None, cues: Cues,
                    config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """The fallbacks after the contrast retry, those of ``top.fallbacks`` named, until one
-    gives a face: a face with its own rim inside, arc pairs of the fitted pieces, the retry's
-    ``spare`` refit, arc pairs of every arc."""
+    gives a face: a face with its own rim inside (unless a refitted face is clearly nearer,
+    :func:`_nearer_refit`), arc pairs of the fitted pieces, the retry's ``spare`` refit, arc
+    pairs of every arc."""
     use, limits, grad = config.top.fallbacks, config.limits, found.edges("top")
     edge_pixels = (found.points, found.grads)
     if choice.index is None and "rimmed" in use:
@@ -810,7 +863,10 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         # TopParams.rim_band_px).
         rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
         if rimmed is not None:
-            return merged, replace(choice, index=rimmed, reason="")
+            choice = replace(choice, index=rimmed, reason="")
+            if config.top.nearer_refit:
+                merged, choice = _nearer_refit(found, merged, choice, cues, config.top)
+            return merged, choice
     if choice.index is None and "arc_pairs" in use:
         # A face the merge never fitted, from pairs of its arcs (see regroup).
         check_time(found.deadline, "top")
