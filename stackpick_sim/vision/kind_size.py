@@ -1,17 +1,16 @@
 """A face's object kind from its size, when colour cannot tell the kinds apart.
 
-The top rule's depth test, and the cover and rest tests' reconstructions, need each face's
-radius: with kinds of distinct colours it is read from the face's colour
+The top rule's depth test and its rest test over every kind read each face's radius: with
+kinds of distinct colours it is read from the face's colour
 (:func:`~stackpick_sim.vision.detector.radius_by_colour`). With kinds of one colour (the
 failure class *kinds that colour cannot tell apart*, e.g. both kinds grey like the belt) the
 ellipse still fixes the face's depth per metre of radius, and the detector's depth range (the
-heights between the belt and the highest face a pile may show) admits only some of the kinds'
+depths between the highest face a pile may show and the belt) admits only some of the kinds'
 radii: a face imaged small enough that the larger kind's radius would put it beyond the belt
 is of the smaller kind, one imaged large enough that the smaller kind's would put it above
 the highest face is of the larger. A face both kinds' radii place within the range has no
-known radius; one that none does (an ellipse off every true face's size, e.g. an arc pair)
-takes the radius whose depth lies nearest the range, as the pose does
-(:func:`~stackpick_sim.vision.pose.choose_radius`).
+known radius, nor has one that none does (an ellipse off every true face's size, e.g. an arc
+pair, or a lower face beyond the narrower range a tracked view expects).
 """
 
 from __future__ import annotations
@@ -33,13 +32,11 @@ def depth_per_metre(ellipse: Ellipse, intrinsics: CameraIntrinsics) -> float:
 def size_kinds(per_metre: float, radii: Sequence[float],
                depth_range_m: tuple[float, float]) -> tuple[float, ...]:
     """The radii of ``radii`` (m) whose depth ``per_metre * r`` lies within ``depth_range_m``
-    (min, max m), in their order; when none does, the one whose depth lies nearest the
-    range."""
+    (min, max m), in their order; all of them when none does (a fit off every face's size,
+    or a face outside the range a tracked view expects: its kind is unknown)."""
     near, far = depth_range_m
     inside = tuple(float(r) for r in radii if near <= per_metre * r <= far)
-    if inside:
-        return inside
-    return (float(min(radii, key=lambda r: max(near - per_metre * r, per_metre * r - far))),)
+    return inside or tuple(float(r) for r in radii)
 
 
 def kinds_by_size(intrinsics: CameraIntrinsics, radii: Sequence[float],
@@ -61,7 +58,7 @@ def kinds_by_size(intrinsics: CameraIntrinsics, radii: Sequence[float],
 def one_kind(kinds_of: Callable[[Ellipse], tuple[float, ...]]
              ) -> Callable[[Ellipse], float | None]:
     """Ellipse -> the radius (m) of the one kind ``kinds_of`` admits, None when it admits
-    several."""
+    several (with a single kind, that kind's)."""
 
     def radius_of(ellipse: Ellipse) -> float | None:
         kinds = kinds_of(ellipse)
