@@ -60,7 +60,12 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
+from stackpick_sim.vision.markings import (
+    MarkingTest,
+    find_markings,
+    holds_centre,
+    whole_with_edges_inside,
+)
 from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import cover_check, rests_on, rests_on_any_kind
@@ -328,8 +333,7 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
 def _inside_only(evidence: Sequence[OcclusionEvidence]) -> list[int]:
     """Indices of the ellipses that failed the top rule on interior edges alone (no
     T-junction end, support >= ``min_support``)."""
-    return [i for i, ev in enumerate(evidence)
-            if not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside]
+    return [i for i, ev in enumerate(evidence) if whole_with_edges_inside(ev)]
 
 
 def _rim_kept(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
