@@ -20,8 +20,8 @@ allows), is judged as a face with markings: the hole, when it is fitted, is its 
 the face is a candidate for the top unless a face lies on it. The pick aims at the ring
 (:mod:`~stackpick_sim.control.pick_point`), so the reported face is the outer ellipse.
 
-The test reads the edge pixels inside the face (one vectorised pass over the edge map's
-pixels near it): no image pass.
+The test reads the edge pixels inside the face (one compiled pass over the edge map's
+pixels): no image pass.
 """
 
 from __future__ import annotations
