@@ -23,6 +23,7 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -1047,17 +1048,27 @@ def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
     return colour_of
 
 
-def _chromaticities(colours: tuple[tuple[float, float, float], ...]
-                    ) -> list[tuple[float, float, float]]:
-    """(r, g, b) / (r + g + b) of each RGB colour (0-1)."""
+def _chromaticities(colours: Sequence[Sequence[float]]) -> tuple[tuple[float, float, float], ...]:
+    """(r, g, b) / (r + g + b) of each RGB colour (0-1); the kinds' colours (read three times
+    a frame) once."""
+    try:
+        return _cached_chromaticities(colours)
+    except TypeError:  # colours given as lists: unhashable
+        return _cached_chromaticities.__wrapped__(colours)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_chromaticities(colours: Sequence[Sequence[float]]
+                           ) -> tuple[tuple[float, float, float], ...]:
+    """:func:`_chromaticities` (cached by the colours)."""
     out = []
     for r, g, b in colours:
         total = max(float(r) + float(g) + float(b), 1e-9)
         out.append((float(r) / total, float(g) / total, float(b) / total))
-    return out
+    return tuple(out)
 
 
-def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, float]],
+def _nearest_kind(face: NDArray[np.float64], chroma: Sequence[tuple[float, float, float]],
                   radii: tuple[float, ...]) -> float | None:
     """The radius of the kind whose chromaticity is nearest (L1) to the (3,) RGB ``face``
     colour (the first of equals); None for a black face."""

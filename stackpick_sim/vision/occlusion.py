@@ -61,7 +61,12 @@ from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.kind_size import one_kind
-from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
+from stackpick_sim.vision.markings import (
+    MarkingTest,
+    find_markings,
+    holds_centre,
+    whole_with_edges_inside,
+)
 from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import cover_check, rests_on, rests_on_any_kind
@@ -319,13 +324,28 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
     ``max_interior_share`` of the perimeter lie within ``rim_band_px`` of the outline (the
     settings the evidence is judged by; see TopParams.rim_band_px): a whole face with its own
     rim inside its fit."""
-    failed = [i for i, ev in enumerate(evidence)
-              if not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside]
+    failed = _inside_only(evidence)
     if not failed:
         return []
-    params = evidence[failed[0]].params
+    return [failed[k] for k in _rim_kept(ellipses, evidence, failed, edge_points,
+                                         evidence[failed[0]].params)]
+
+
+def _inside_only(evidence: Sequence[OcclusionEvidence]) -> list[int]:
+    """Indices of the ellipses that failed the top rule on interior edges alone (no
+    T-junction end, support >= ``min_support``)."""
+    return [i for i, ev in enumerate(evidence) if whole_with_edges_inside(ev)]
+
+
+def _rim_kept(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+              failed: list[int], edge_points: NDArray[np.float64], params: TopParams
+              ) -> list[int]:
+    """Positions in ``failed`` (indices of :func:`_inside_only` ellipses) of those whose
+    interior edge pixels all but ``max_interior_share`` of the perimeter lie within
+    ``rim_band_px`` of the outline (``params``; see :func:`rim_only`); each ellipse's verdict
+    its own."""
     deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, params.rim_band_px)
-    return [i for i, d in zip(failed, deep, strict=True)
+    return [k for k, (i, d) in enumerate(zip(failed, deep, strict=True))
             if d <= params.max_interior_share * evidence[i].perimeter_px]
 
 
@@ -367,8 +387,10 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
-    rimmed = rim_only(ellipses, evidence, edge_points)
-    if not rimmed:
+    # rim_only's failures on interior edges alone first; its count of the edge pixels deep
+    # inside each (the cost) only for those that read nearer (per ellipse: the same set).
+    failed = _inside_only(evidence)
+    if not failed:
         return None
     chosen = ellipses[choice.index]
     radius = radius_of(chosen)
@@ -377,8 +399,12 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     # Depth ~ radius / semi-major axis (f r / a; perspective enlarges a by up to
     # params.perspective_enlargement, either face): a gate, not a measurement.
     depth = radius / chosen.a * params.perspective_enlargement
-    nearer = [i for i in rimmed if (own := radius_of(ellipses[i])) is not None
+    nearer = [i for i in failed if (own := radius_of(ellipses[i])) is not None
               and own / ellipses[i].a < depth]
+    if not nearer:
+        return None
+    nearer = [nearer[k] for k in _rim_kept(ellipses, evidence, nearer, edge_points,
+                                           evidence[failed[0]].params)]
     above = []
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
