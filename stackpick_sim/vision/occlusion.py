@@ -60,6 +60,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.kind_size import one_kind
 from stackpick_sim.vision.markings import (
     MarkingTest,
     find_markings,
@@ -462,7 +463,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                markings: MarkingTest | None = None,
                params: TopParams = DEFAULT_TOP,
                pose_params: PoseParams = DEFAULT_POSE,
-               kind_radii: Sequence[float] = ()) -> TopChoice:
+               kind_radii: Sequence[float] = (),
+               kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
+               ) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -490,7 +493,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ``pose_params``: the rest test's wall band test's (the pose's). Without ``radius_of``
     (kinds that colour cannot tell apart), ``kind_radii`` (the kinds' radii, m) with
     ``height_of`` and the image let the rest test try every kind for each face
-    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`).
+    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`); with ``kinds_of`` (the radii
+    of the kinds a face's size admits, :mod:`~stackpick_sim.vision.kind_size`), only those,
+    and the depth test runs on faces whose size admits one kind.
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -508,12 +513,12 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
                  colour_of=colour_of, belt=belt, params=params, pose_params=pose_params,
-                 kind_radii=tuple(kind_radii))
+                 kind_radii=tuple(kind_radii), kinds_of=kinds_of)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of, params)
+    nearest = _depth_test(ellipses, pool, candidates, cues)
     if nearest is not None:
         return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)
@@ -565,6 +570,7 @@ class _Cues:
     params: TopParams
     pose_params: PoseParams
     kind_radii: tuple[float, ...]
+    kinds_of: Callable[[Ellipse], tuple[float, ...]] | None
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -602,7 +608,7 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         under = rests_on_any_kind(faces, cues.intrinsics, cues.kind_radii, cues.height_of,
                                   cues.image, colour_of=cues.colour_of, cache=bands,
                                   belt=cues.belt, params=cues.params,
-                                  pose_params=cues.pose_params)
+                                  pose_params=cues.pose_params, kinds_of=cues.kinds_of)
     else:
         return pool, candidates
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
@@ -625,6 +631,24 @@ def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]
                 if not out[j] and (holds_centre(face, other) or holds_centre(other, face)):
                     out[j] = True
     return out
+
+
+def _depth_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
+                cues: _Cues) -> int | None:
+    """The index of the ``pool`` face clearly nearest the camera (:func:`_clearly_nearest_of`;
+    radii from colour, else of faces whose size admits one kind), else, with
+    ``depth_among_passing``, of the ``candidates`` (the passing faces), or None."""
+    radius_of = cues.radius_of
+    if radius_of is None and cues.kinds_of is not None:
+        radius_of = one_kind(cues.kinds_of)
+    params = cues.params
+    nearest = _clearly_nearest_of(ellipses, pool, cues.intrinsics, radius_of, params)
+    if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
+        # A face that failed on support alone ties with a passing one: of the passing
+        # faces, one clearly nearer than the others is above them.
+        nearest = _clearly_nearest_of(ellipses, candidates, cues.intrinsics, radius_of,
+                                      params)
+    return nearest
 
 
 def _clearly_nearest_of(ellipses: Sequence[Ellipse], pool: list[int],
