@@ -336,11 +336,15 @@ def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int
 def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
     """Whether every chain of ``extra`` equals one of ``segs`` pixel for pixel (a fitted
     piece repeats the chain it was cut from when it is that whole chain, most often as the
-    same array: that is told first, without reading the pixels)."""
-    return all(any(chains[s] is chains[k] for k in segs)
-               or any(chains[s].shape == chains[k].shape
-                      and chains[s].tobytes() == chains[k].tobytes() for k in segs)
-               for s in extra)
+    same array: that is told first, by identity, without reading the pixels)."""
+    own = [id(chains[k]) for k in segs]
+    for s in extra:
+        chain = chains[s]
+        if id(chain) not in own and not any(
+                chain.shape == chains[k].shape and chain.tobytes() == chains[k].tobytes()
+                for k in segs):
+            return False
+    return True
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int],
