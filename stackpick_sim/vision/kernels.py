@@ -423,6 +423,10 @@ def _near_set(image: NDArray[np.uint8], r: int, c: int, radius: int
               ) -> bool:  # pragma: no cover - compiled
     """Whether a pixel within ``radius`` (Chebyshev) of (r, c), on the image, is set."""
     h, w = image.shape
+    if radius == 1 and 0 < r < h - 1 and 0 < c < w - 1:  # the 3x3 block, on the image
+        above, row, below = image[r - 1], image[r], image[r + 1]
+        return (above[c - 1] | above[c] | above[c + 1] | row[c - 1] | row[c] | row[c + 1]
+                | below[c - 1] | below[c] | below[c + 1]) != 0
     for i in range(max(0, r - radius), min(h, r + radius + 1)):
         for j in range(max(0, c - radius), min(w, c + radius + 1)):
             if image[i, j] > 0:
@@ -447,13 +451,17 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
     for e in range(counts.shape[0]):
         cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
         hits = 0
+        # Samples about a pixel apart often round to the pixel before: its answer stands.
+        last_u, last_v, hit = -1.0, -1.0, False
         for _ in range(counts[e]):
             x, y = a * ct[k], b * st[k]
             u = np.rint(c * x + cx - s * y)
             v = np.rint(s * x + cy + c * y)
-            if (0.0 <= u < w and 0.0 <= v < h
-                    and _near_set(support, int(v), int(u), radius)):
-                hits += 1
+            if u != last_u or v != last_v:
+                last_u, last_v = u, v
+                hit = (0.0 <= u < w and 0.0 <= v < h
+                       and _near_set(support, int(v), int(u), radius))
+            hits += hit
             k += 1
         out[e] = hits / counts[e]
     return out
