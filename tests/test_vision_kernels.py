@@ -1134,6 +1134,22 @@ def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
         assert 0 < want[0].size
 
 
+def test_pair_products_match_the_share_matrix(rng: np.random.Generator) -> None:
+    # Pixels of random groups (the last one empty, of two or more), random pairs.
+    for groups in (1, 2, 5, 9):
+        owner = rng.integers(0, max(1, groups - 1), 300).astype(np.int64)  # the last empty
+        pair_g = rng.integers(0, groups, 500).astype(np.int64)
+        pair_p = rng.integers(0, 300, 500).astype(np.int64)
+        hits = np.bincount(pair_g * groups + owner[pair_p],
+                           minlength=groups * groups).reshape(groups, groups)
+        share = hits / np.maximum(np.bincount(owner, minlength=groups).astype(np.float64), 1.0)
+        want = share * share.T
+        want.flat[:: groups + 1] = 0.0
+        got = kernels.pair_products(pair_g, pair_p, owner, groups)
+        assert np.array_equal(got, want)
+        assert groups == 1 or want.max() > 0.0
+
+
 def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:
     sizes = rng.integers(1, 30, 12)
     starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
