@@ -1147,7 +1147,7 @@ def test_pair_products_match_the_share_matrix(rng: np.random.Generator) -> None:
         want.flat[:: groups + 1] = 0.0
         got = kernels.pair_products(pair_g, pair_p, owner, groups)
         assert np.array_equal(got, want)
-        assert groups == 1 or want.max() > 0.0
+        assert groups < 3 or want.max() > 0.0
 
 
 def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:
