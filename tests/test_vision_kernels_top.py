@@ -10,7 +10,7 @@ import pytest
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels_top, regroup
+from stackpick_sim.vision import kernels_top, regroup, rings
 from stackpick_sim.vision.fitting import fit_ellipse
 from stackpick_sim.vision.markings import rim_band
 from stackpick_sim.vision.regroup import DEFAULT_SECTIONS, arc_pair_ellipses
@@ -147,3 +147,37 @@ def test_two_part_medians_match_the_array_form(rng: np.random.Generator) -> None
             assert np.array_equal(own, column_median(colours[within]))
             assert np.array_equal(other, column_median(colours[beyond]))
     assert both_seen > 20
+
+
+def _hole_only_array_form(face: Ellipse, edge_points: NDArray[np.float64], margin_px: float,
+                          hole_scale: float, hole_share: float) -> bool:
+    """The ring test's array form (the reference of the compiled pass)."""
+    u0, v0, u1, v1 = face.bounds()
+    near = edge_points[(edge_points[:, 0] >= u0) & (edge_points[:, 0] <= u1)
+                       & (edge_points[:, 1] >= v0) & (edge_points[:, 1] <= v1)]
+    inside = near[face.inside(near, margin_px)]
+    if not len(inside):
+        return False
+    t = math.radians(face.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    du, dv = inside[:, 0] - face.cx, inside[:, 1] - face.cy
+    x = (c * du + s * dv) / face.a
+    y = (-s * du + c * dv) / face.b
+    return float(np.mean(x * x + y * y < hole_scale * hole_scale)) >= hole_share
+
+
+def test_hole_only_matches_the_array_form(rng: np.random.Generator) -> None:
+    # Edge pixels on a grid (integer, as the edge map's) and on hole-like rings.
+    points = np.argwhere(rng.random((120, 160)) < 0.08)[:, ::-1].astype(np.float64)
+    outcomes = set()
+    for _ in range(300):
+        face = Ellipse(cx=rng.uniform(0, 160), cy=rng.uniform(0, 120), a=rng.uniform(3, 60),
+                       b=rng.uniform(2, 40), angle_deg=rng.uniform(0, 180))
+        ring = Ellipse(cx=face.cx, cy=face.cy, a=face.a * 0.2, b=face.b * 0.2,
+                       angle_deg=face.angle_deg).points(40)
+        pts = np.rint(np.concatenate([points, ring]))
+        for margin, scale, share in ((1.5, 0.3, 0.8), (0.0, 0.5, 0.1), (3.0, 0.25, 0.5)):
+            got = rings.hole_only(face, np.asfortranarray(pts), margin, scale, share)
+            assert got == _hole_only_array_form(face, pts, margin, scale, share)
+            outcomes.add(got)
+    assert outcomes == {True, False}

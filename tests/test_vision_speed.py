@@ -9,9 +9,11 @@ import pytest
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outlines
 from stackpick_sim.vision.detection import DetectedEllipse
+from stackpick_sim.vision.detector import _chromaticities
 from stackpick_sim.vision.edges import RING, STAIR_LUTS, colour_gradients, remove_stairs
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
 from stackpick_sim.vision.merging import _repeats
+from stackpick_sim.vision.pose import CirclePose, _eigh
 from stackpick_sim.vision.wall import _floats
 
 RNG = np.random.default_rng(7)
@@ -104,3 +106,39 @@ def test_repeats_tells_copies_from_chains_with_new_pixels() -> None:
     assert not _repeats(chains, [2], [1])  # a half piece: the other half is new
     assert not _repeats(chains, [3], [0])  # one more pixel
     assert not _repeats(chains, [4], [0])  # the same pixels in another order
+
+
+def test_circle_pose_of_is_the_constructor() -> None:
+    normal, centre = np.array([0.0, 0.6, 0.8]), np.array([0.1, -0.2, 9.0])
+    fast = CirclePose.of(normal, centre)
+    plain = CirclePose(normal_cam=normal, centre_cam=centre)
+    assert type(fast) is CirclePose and repr(fast) == repr(plain)
+    assert fast.normal_cam is normal and fast.centre_cam is centre
+    with pytest.raises(AttributeError):
+        fast.normal_cam = centre  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e40, 1e99, 1e101])
+def test_eigh_is_numpys(scale: float) -> None:
+    m = RNG.normal(0.0, 1.0, (3, 3))
+    rows = ((m + m.T) * scale).tolist()
+    w, v = _eigh(rows)
+    want_w, want_v = np.linalg.eigh(np.array(rows))
+    np.testing.assert_array_equal(w, want_w)
+    np.testing.assert_array_equal(v, want_v)
+
+
+def test_eigh_of_non_finite_entries_is_numpys() -> None:
+    rows = [[1.0, 0.0, 0.0], [0.0, float("nan"), 0.0], [0.0, 0.0, 2.0]]
+    w, v = _eigh(rows)
+    want_w, want_v = np.linalg.eigh(np.array(rows))
+    np.testing.assert_array_equal(w, want_w)
+    np.testing.assert_array_equal(v, want_v)
+
+
+def test_chromaticities_of_tuples_and_lists_are_alike() -> None:
+    colours = ((0.9, 0.3, 0.1), (0.2, 0.2, 0.8))
+    got = _chromaticities(colours)
+    assert got == _chromaticities([list(c) for c in colours])
+    for (r, g, b), chroma in zip(colours, got, strict=True):
+        assert chroma == (r / (r + g + b), g / (r + g + b), b / (r + g + b))

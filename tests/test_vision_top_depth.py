@@ -113,3 +113,44 @@ def test_the_face_clearly_nearest_cut_short_by_nothing_is_the_last_fallback() ->
     assert _top_iou(frame) > MATCH_IOU
     without = tuple(f for f in TopParams().fallbacks if f != "nearest_cut")
     assert _top_iou(frame, fallbacks=without) == 0.0
+
+
+def test_a_failing_face_tied_in_depth_leaves_the_passing_faces_depth_test() -> None:
+    # Two faces of one kind pass, the farther better supported; a face that failed on
+    # support alone with nothing crossing it lies at the nearer one's depth. The depth test
+    # over all three finds none clearly nearest; over the passing two, the nearer.
+    far = Ellipse(cx=70.0, cy=70.0, a=30.0, b=25.0, angle_deg=0.0)
+    near = Ellipse(cx=230.0, cy=70.0, a=33.0, b=30.0, angle_deg=0.0)
+    tied = Ellipse(cx=160.0, cy=180.0, a=33.0, b=28.0, angle_deg=0.0)
+    edges = np.zeros((240, 320), np.uint8)
+    for face, end in ((far, 360), (near, 346), (tied, 290)):
+        cv2.ellipse(edges, (round(face.cx), round(face.cy)), (round(face.a), round(face.b)),
+                    face.angle_deg, 0, end, 255, 1)
+    choice = select_top([far, near, tied], edges, K, lambda face: 0.025)
+    assert [ev.occluded for ev in choice.evidence] == [False, False, True]
+    assert choice.evidence[0].support > choice.evidence[1].support + TopParams().support_tie
+    assert choice.index == 1
+    alone = select_top([far, near, tied], edges, K, lambda face: 0.025,
+                       params=TopParams(depth_among_passing=False))
+    assert alone.index == 0
+
+
+def test_a_passing_face_clearly_nearer_than_another_wins_beside_a_tied_lower_face() -> None:
+    # Cluttered frame 75126: two small faces pass (the lower one's outline 1.00 shown, the
+    # top one's 0.96); a nearly whole lower face (0.76, nothing crossing it) lies within
+    # 1 mm of the top face's depth, so the depth test over the three finds none nearest,
+    # while the top face lies 1.4 cm nearer than the other passing face.
+    frame = dev_frame(75126)
+    assert _top_iou(frame) > MATCH_IOU
+    assert _top_iou(frame, depth_among_passing=False) < MATCH_IOU
+
+
+def test_a_top_face_fitted_round_its_own_wall_is_refitted_above_the_rimmed_choice() -> None:
+    # Cluttered frame 79143: no face passes. The top face (blue) leans on a whole orange
+    # face; its fit takes in part of its own wall (semi-axes ~5 px too long), so its own rim
+    # lies up to ~10 px inside the fit, beyond the rim band. The rimmed fallback takes the
+    # orange face; the top face refitted on its innermost edge shows whole and reads ~4 cm
+    # nearer.
+    frame = dev_frame(79143)
+    assert _top_iou(frame) > MATCH_IOU
+    assert _top_iou(frame, nearer_refit=False) < MATCH_IOU

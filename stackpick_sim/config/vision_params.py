@@ -450,6 +450,23 @@ class TopParams(Section):
     (grey and tan) 0.18; one object's face and wall differ by ~0.02-0.07 on rendered
     paper-scene frames (``pose.band_chroma_tolerance``), so kinds within 0.1 would be
     confused face by face."""
+    depth_among_passing: bool = True
+    """When the depth test over the passing faces and the faces that failed on support alone
+    with nothing crossing them finds none clearly nearest, it runs again over the passing
+    faces alone: the failure class *a lower face's tie voids the depth test* (a nearly whole
+    lower face within ``depth_tie_m`` of the top face's depth would leave the best-supported
+    passing face to win though another passing face lies clearly nearer). Of two passing
+    faces, one clearly nearer is above the other whatever the failing face is."""
+    kind_by_size: bool = True
+    """With object kinds that colour cannot tell apart (``kind_min_chroma_distance``), a
+    face's kind is read from its size (:mod:`~stackpick_sim.vision.kind_size`): the kinds
+    whose radius places the face within the detector's depth range (the larger kind's would
+    put a face imaged small beyond the belt, the smaller kind's a face imaged large above the
+    highest face a pile shows). The depth tests run on the faces whose size admits one kind,
+    and the rest test over every kind (``rest_kind_margin_m``) takes only the kinds each
+    face's size admits; a face both kinds place within the range takes no part in a depth
+    test (the ``hidden_check`` keeps to radii from colour). Needs a depth range and two
+    kinds' radii or more."""
     rest_kind_margin_m: float = 0.01
     """With object kinds that colour cannot tell apart, the rest test
     (:mod:`~stackpick_sim.vision.resting`) reconstructs each pair of whole faces under every
@@ -505,6 +522,14 @@ class TopParams(Section):
     clearly nearer (``depth_tie_m``) takes the choice as that refit: a top face over lower
     faces of its colour fails the rule on that rim alone, while the face the fallback chose
     is a lower one whose occluder only clips its rim (needs the object kinds' colours)."""
+    nearer_refit: bool = True
+    """After the ``rimmed`` fallback's choice, a face with edges inside and no T-junction
+    (support at least ``hidden_min_support``), refitted on its innermost consistent edge,
+    that shows whole as that refit (it passes the rule, or fails it on its own rim alone)
+    and lies clearly nearer (``depth_tie_m``) takes the choice as that refit: the failure
+    class *a top face fitted round its own wall* (its rim lies deeper inside the fit than
+    ``rim_band_px``, so it is no rimmed face), above a lower whole face it leans on, which
+    the fallback took."""
     inner_refit: bool = False
     """When an ellipse passes the rule outright, it is refitted on its innermost consistent
     edge (the ``contrast_*`` fields' refit), and a refit clearly smaller

@@ -23,6 +23,7 @@ input that is not an image at all (wrong dtype, shape, NaN), one
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -59,6 +60,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
 )
+from stackpick_sim.vision.kind_size import kinds_by_size, one_kind
 from stackpick_sim.vision.limits import (
     Deadline,
     WorkLimits,
@@ -408,7 +410,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if config.top.rest_check and choice.index is not None:
         choice = _rest_check(state, merged, choice, cues, config.top)
-    if (config.top.hidden_check and choice.index is not None
+    if (config.top.hidden_check and choice.index is not None and cues.radius_of is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
         # and shade the merge never fitted.
@@ -459,9 +461,17 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
                           params=config.top).evidence[0]
     if evidence.occluded:
         return merged, choice
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _inner_choice(merged: list[MergedEllipse], choice: TopChoice, i: int, refit: Ellipse,
+                  evidence: OcclusionEvidence) -> tuple[list[MergedEllipse], TopChoice]:
+    """``merged`` with ellipse ``i`` replaced by its inner ``refit``, and ``choice`` choosing
+    it with the refit's ``evidence`` (``inner``: the pose's final fit keeps off the
+    silhouette's edge pixels beyond it)."""
     merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
-    return merged, replace(choice, evidence=(*choice.evidence[:i], evidence,
-                                             *choice.evidence[i + 1:]), inner=True)
+    return merged, replace(choice, index=i, inner=True,
+                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
 
 
 def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -557,11 +567,18 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
     colours = config.kind_colours
     radius_of = (None if colours is None else
                  radius_by_colour(work, config.radii_m, colours, colour_of))
+    kinds_of = None
+    if (radius_of is None and config.top.kind_by_size and len(config.radii_m) > 1
+            and config.depth_range_m is not None):
+        # Kinds of one colour: the kinds a face's size admits.
+        kinds_of = kinds_by_size(k_crop, config.radii_m, config.depth_range_m)
     markings = marking_test(config, work, state.edges("top"))
     return Cues(k_crop=k_crop, rgb=rgb,
                 belt=None if state.roi.belt is None else np.array(state.roi.belt),
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
-                markings=markings, top=config.top, pose=config.pose, radii=config.radii_m)
+                markings=markings, top=config.top, pose=config.pose, radii=config.radii_m,
+                kinds_of=kinds_of,
+                depth_radius_of=radius_of if kinds_of is None else one_kind(kinds_of))
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
@@ -569,7 +586,8 @@ def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:
     return select_top(ellipses, found.edges("top"), cues.k_crop, cues.radius_of,
                       edge_points=found.points, image=cues.rgb, height_of=cues.height_of,
                       colour_of=cues.colour_of, belt=cues.belt, markings=cues.markings,
-                      params=cues.top, pose_params=cues.pose, kind_radii=cues.radii)
+                      params=cues.top, pose_params=cues.pose, kind_radii=cues.radii,
+                      kinds_of=cues.kinds_of)
 
 
 def _marked_arc_faces(state: State, merged: list[MergedEllipse], choice: TopChoice,
@@ -659,7 +677,7 @@ def _fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice, cue
         # A face clearly nearer than such a refit is above it (a top face the merge never
         # fitted beside a lower, nearly whole face of its colour).
         return _nearer_arcs(found, merged, choice, cues, config)
-    merged, choice = _arc_fallbacks(found, merged, choice, spare, config)
+    merged, choice = _arc_fallbacks(found, merged, choice, spare, cues, config)
     if choice.index is None and "nearest_cut" in use:
         merged, choice = _nearest_cut(found, merged, choice, cues, config)
     return merged, choice
@@ -677,13 +695,13 @@ def _nearest_cut(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     along more of its outline than the ``unobstructed`` fallback allows, while no face that
     passes or fails on support alone was found. An arc pairs' face so chosen is added to
     ``merged``; otherwise both come back unchanged (and without face radii)."""
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return merged, choice
     grad, extra, alone = _every_arc_face(found, config)
     faces = [m.ellipse for m in merged] + extra
     evidence = (*choice.evidence, *alone.evidence)
     half = [i for i, ev in enumerate(evidence) if ev.support >= config.top.hidden_min_support]
-    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.radius_of,
+    nearest = (clearly_nearest([faces[i] for i in half], cues.k_crop, cues.depth_radius_of,
                                config.top) if len(half) > 1 else None)
     if nearest is None:
         return merged, choice
@@ -714,7 +732,7 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     and is chosen (``inner``: the pose's final fit keeps off the silhouette's edge pixels
     beyond it). Both unchanged without face radii."""
     assert choice.index is not None
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return merged, choice
     ellipses = [m.ellipse for m in merged]
     rimmed = rim_only(ellipses, choice.evidence, found.points)
@@ -723,7 +741,8 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     grad = found.edges("top")
     refits = [refit_on_contrast(ellipses[i], grad, True, params) or ellipses[i]
               for i in rimmed]
-    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop, cues.radius_of,
+    nearest = clearly_nearest([ellipses[choice.index], *refits], cues.k_crop,
+                              cues.depth_radius_of,
                               params)
     if not nearest:
         return merged, choice
@@ -733,9 +752,53 @@ def _nearer_rimmed(found: State, merged: list[MergedEllipse], choice: TopChoice,
     # The refit is the face (the pose's final fit keeps off the lower face's silhouette
     # beyond it, as for the inner refit).
     evidence = select_top([refit], grad, edge_points=found.points, params=params).evidence[0]
-    merged = [replace(m, ellipse=refit) if k == i else m for k, m in enumerate(merged)]
-    return merged, replace(choice, index=i, inner=True,
-                           evidence=(*choice.evidence[:i], evidence, *choice.evidence[i + 1:]))
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _nearer_refit(found: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                  params: TopParams) -> tuple[list[MergedEllipse], TopChoice]:
+    """``choice`` (the ``rimmed`` fallback's), unless a face with edges inside and no
+    T-junction (support at least ``params.hidden_min_support``), refitted on its innermost
+    consistent edge (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`), shows whole
+    as that refit (passes the rule, or fails it on its own rim alone: :func:`~stackpick_sim.
+    vision.occlusion.rim_only`) and lies clearly nearer the camera than the choice
+    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`): a top face fitted round part
+    of its own wall, whose rim then lies deeper inside the fit than the rim band, above a
+    lower whole face it leans on. The refit replaces it in ``merged`` and is chosen
+    (``inner``). Both unchanged without face radii."""
+    assert choice.index is not None
+    if cues.depth_radius_of is None:
+        return merged, choice
+    ellipses = [m.ellipse for m in merged]
+    failed = [i for i, ev in enumerate(choice.evidence)
+              if i != choice.index and not ev.occluded_ends
+              and ev.support >= params.hidden_min_support and ev.edges_inside]
+    whole = _whole_refits(found, [(i, ellipses[i]) for i in failed], params)
+    if not whole:
+        return merged, choice
+    nearest = clearly_nearest([ellipses[choice.index], *(r for _, r, _ in whole)],
+                              cues.k_crop, cues.depth_radius_of, params)
+    if not nearest:
+        return merged, choice
+    i, refit, evidence = whole[nearest - 1]
+    return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _whole_refits(found: State, faces: list[tuple[int, Ellipse]], params: TopParams
+                  ) -> list[tuple[int, Ellipse, OcclusionEvidence]]:
+    """(index, refit, its evidence) of those of the indexed ``faces`` whose refit on their
+    innermost consistent edge shows whole: passes the top rule, or fails it on its own rim
+    alone (:func:`~stackpick_sim.vision.occlusion.rim_only`)."""
+    grad = found.edges("top")
+    refits = [(i, refit) for i, face in faces
+              if (refit := refit_on_contrast(face, grad, True, params)) is not None]
+    if not refits:
+        return []
+    ellipses = [r for _, r in refits]
+    judged = select_top(ellipses, grad, edge_points=found.points, params=params).evidence
+    rimmed = set(rim_only(ellipses, judged, found.points))
+    return [(i, r, ev) for k, ((i, r), ev) in enumerate(zip(refits, judged, strict=True))
+            if not ev.occluded or k in rimmed]
 
 
 def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
@@ -749,7 +812,7 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     chosen face is then a lower one whose occluder only clips its rim. Unchanged without face
     radii."""
     assert choice.index is not None
-    if cues.radius_of is None:
+    if cues.depth_radius_of is None:
         return choice
     chosen = merged[choice.index].ellipse
     # A second fit of the chosen face (one holds the other's centre) is no other face: the
@@ -762,7 +825,7 @@ def _nearer_hidden(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
     if not cut:
         return choice
     faces = [chosen, *(merged[i].ellipse for i in cut)]
-    nearest = clearly_nearest(faces, cues.k_crop, cues.radius_of, params)
+    nearest = clearly_nearest(faces, cues.k_crop, cues.depth_radius_of, params)
     return choice if not nearest else replace(choice, index=cut[nearest - 1])
 
 
@@ -774,7 +837,7 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
     choice; only with the ``nearer_arcs`` fallback) those of :func:`last_resort_arcs`, else
     the fitted pieces that lie on none of the faces the rule weighed (a choice that passed
     the rule; an unfitted face's arcs are on no fitted face: ~20x cheaper)."""
-    if cues.radius_of is None or (every_arc and "nearer_arcs" not in config.top.fallbacks):
+    if cues.depth_radius_of is None or (every_arc and "nearer_arcs" not in config.top.fallbacks):
         return merged, choice
     if every_arc:
         arc_chains, arcs = _every_arc(found, config)
@@ -785,15 +848,16 @@ def _nearer_arcs(found: State, merged: list[MergedEllipse], choice: TopChoice, c
                              arc_chains, config.limits.max_arcs)
     return _nearer_arc_face(merged, choice, arcs, found.chains, arc_chains, found.edges("top"),
                             (found.points, found.grads), found.crop, found.gate, cues.k_crop,
-                            cues.radius_of, config)
+                            cues.depth_radius_of, config)
 
 
 def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
-                   spare: tuple[int, Ellipse, OcclusionEvidence] | None,
+                   spare: tuple[int, Ellipse, OcclusionEvidence] | None, cues: Cues,
                    config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
     """The fallbacks after the contrast retry, those of ``top.fallbacks`` named, until one
-    gives a face: a face with its own rim inside, arc pairs of the fitted pieces, the retry's
-    ``spare`` refit, arc pairs of every arc."""
+    gives a face: a face with its own rim inside (unless a refitted face is clearly nearer,
+    :func:`_nearer_refit`), arc pairs of the fitted pieces, the retry's ``spare`` refit, arc
+    pairs of every arc."""
     use, limits, grad = config.top.fallbacks, config.limits, found.edges("top")
     edge_pixels = (found.points, found.grads)
     if choice.index is None and "rimmed" in use:
@@ -801,7 +865,10 @@ def _arc_fallbacks(found: State, merged: list[MergedEllipse], choice: TopChoice,
         # TopParams.rim_band_px).
         rimmed = select_rimmed([m.ellipse for m in merged], choice.evidence, found.points)
         if rimmed is not None:
-            return merged, replace(choice, index=rimmed, reason="")
+            choice = replace(choice, index=rimmed, reason="")
+            if config.top.nearer_refit:
+                merged, choice = _nearer_refit(found, merged, choice, cues, config.top)
+            return merged, choice
     if choice.index is None and "arc_pairs" in use:
         # A face the merge never fitted, from pairs of its arcs (see regroup).
         check_time(found.deadline, "top")
@@ -982,17 +1049,27 @@ def face_colours(image: NDArray[np.uint8], scale: float = FACE_SAMPLE_SCALE
     return colour_of
 
 
-def _chromaticities(colours: tuple[tuple[float, float, float], ...]
-                    ) -> list[tuple[float, float, float]]:
-    """(r, g, b) / (r + g + b) of each RGB colour (0-1)."""
+def _chromaticities(colours: Sequence[Sequence[float]]) -> tuple[tuple[float, float, float], ...]:
+    """(r, g, b) / (r + g + b) of each RGB colour (0-1); the kinds' colours (read three times
+    a frame) once."""
+    try:
+        return _cached_chromaticities(colours)
+    except TypeError:  # colours given as lists: unhashable
+        return _cached_chromaticities.__wrapped__(colours)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_chromaticities(colours: Sequence[Sequence[float]]
+                           ) -> tuple[tuple[float, float, float], ...]:
+    """:func:`_chromaticities` (cached by the colours)."""
     out = []
     for r, g, b in colours:
         total = max(float(r) + float(g) + float(b), 1e-9)
         out.append((float(r) / total, float(g) / total, float(b) / total))
-    return out
+    return tuple(out)
 
 
-def _nearest_kind(face: NDArray[np.float64], chroma: list[tuple[float, float, float]],
+def _nearest_kind(face: NDArray[np.float64], chroma: Sequence[tuple[float, float, float]],
                   radii: tuple[float, ...]) -> float | None:
     """The radius of the kind whose chromaticity is nearest (L1) to the (3,) RGB ``face``
     colour (the first of equals); None for a black face."""

@@ -327,6 +327,36 @@ def inside_mask(points: NDArray[np.float64], cx: float, cy: float, c: float, s: 
 
 
 @_compiled
+def hole_counts(pu: NDArray[np.float64], pv: NDArray[np.float64],
+                box: tuple[float, float, float, float], cx: float, cy: float, c: float,
+                s: float, shrunk: tuple[float, float], axes: tuple[float, float],
+                hole_sq: float) -> tuple[int, int]:  # pragma: no cover - compiled
+    """Of the points (``pu``, ``pv``) within the ``box`` (u0, v0, u1, v1; bounds included):
+    how many lie inside the ellipse centred at (cx, cy) of angle cosine and sine (c, s) with
+    the ``shrunk`` axes (:meth:`~stackpick_sim.geometry.Ellipse.inside`'s arithmetic, the
+    margin already taken off and floored), and how many of those lie inside its concentric
+    ellipse of squared scale ``hole_sq`` (x^2 + y^2 < hole_sq in its unshrunk ``axes``); see
+    :func:`~stackpick_sim.vision.rings.hole_only` (the same tests, point by point)."""
+    u0, v0, u1, v1 = box
+    inside = in_hole = 0
+    for k in range(pu.shape[0]):
+        u, v = pu[k], pv[k]
+        if not (u >= u0 and u <= u1 and v >= v0 and v <= v1):
+            continue
+        du, dv = u - cx, v - cy
+        x = (c * du + s * dv) / shrunk[0]
+        y = (-s * du + c * dv) / shrunk[1]
+        if not x * x + y * y < 1.0:
+            continue
+        inside += 1
+        x = (c * du + s * dv) / axes[0]
+        y = (-s * du + c * dv) / axes[1]
+        if x * x + y * y < hole_sq:
+            in_hole += 1
+    return inside, in_hole
+
+
+@_compiled
 def bands_inside(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArray[np.bool_],
                  faces: NDArray[np.float64]) -> NDArray[np.bool_]:  # pragma: no cover
     """(S, n, P): whether band point p of row s (pixels ``pu``, ``pv`` (S, P), kept where
@@ -423,5 +453,7 @@ def warm_up() -> None:
         inside_mask(points, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0)
     bands_inside(np.zeros((1, 1)), np.zeros((1, 1)), np.ones((1, 1), np.bool_),
                  np.ones((1, 6)))
+    hole_counts(np.zeros(1), np.zeros(1), (0.0, 0.0, 1.0, 1.0), 0.0, 0.0, 1.0, 0.0,
+                (1.0, 1.0), (1.0, 1.0), 1.0)
     two_part_medians(shared, np.zeros((2, 2, 3), np.uint8), 0.0, 0.0, 1.0, 0.0, np.ones(2),
                      np.ones(2), 1)

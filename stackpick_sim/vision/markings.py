@@ -181,11 +181,23 @@ def ring_round_hole(face: Ellipse, test: MarkingTest,
     vision.rings.hole_only`)."""
     if edge_points is None:
         return False
+    return _kept(test, ("ring", face), lambda: _hole_only_at_size(face, test, edge_points))
+
+
+def _hole_only_at_size(face: Ellipse, test: MarkingTest, edge_points: NDArray[np.float64]
+                       ) -> bool:
+    """:func:`ring_round_hole`'s verdict. The share inside the hole only shrinks with the
+    hole, so the hole at ``ring_hole_scale`` is tried first and the face's rim band colour is
+    read (for a smaller hole) only when that passes."""
+    params = test.params
+    if not hole_only(face, edge_points, test.margin_px, params.ring_hole_scale,
+                     params.ring_hole_share):
+        return False
     rim = None if test.rim_radius_of is None else test.rim_radius_of(face)
-    scale = min(test.params.ring_hole_scale,
+    scale = min(params.ring_hole_scale,
                 min(test.radii) / (max(test.radii) if rim is None else rim))
-    return _kept(test, ("ring", face), lambda: hole_only(
-        face, edge_points, test.margin_px, scale, test.params.ring_hole_share))
+    return scale == params.ring_hole_scale or hole_only(face, edge_points, test.margin_px,
+                                                        scale, params.ring_hole_share)
 
 
 def _judge(f: int, ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],

@@ -60,7 +60,13 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.markings import MarkingTest, find_markings, holds_centre
+from stackpick_sim.vision.kind_size import one_kind
+from stackpick_sim.vision.markings import (
+    MarkingTest,
+    find_markings,
+    holds_centre,
+    whole_with_edges_inside,
+)
 from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.resting import cover_check, rests_on, rests_on_any_kind
@@ -318,13 +324,28 @@ def rim_only(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
     ``max_interior_share`` of the perimeter lie within ``rim_band_px`` of the outline (the
     settings the evidence is judged by; see TopParams.rim_band_px): a whole face with its own
     rim inside its fit."""
-    failed = [i for i, ev in enumerate(evidence)
-              if not ev.occluded_ends and not ev.weakly_supported and ev.edges_inside]
+    failed = _inside_only(evidence)
     if not failed:
         return []
-    params = evidence[failed[0]].params
+    return [failed[k] for k in _rim_kept(ellipses, evidence, failed, edge_points,
+                                         evidence[failed[0]].params)]
+
+
+def _inside_only(evidence: Sequence[OcclusionEvidence]) -> list[int]:
+    """Indices of the ellipses that failed the top rule on interior edges alone (no
+    T-junction end, support >= ``min_support``)."""
+    return [i for i, ev in enumerate(evidence) if whole_with_edges_inside(ev)]
+
+
+def _rim_kept(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
+              failed: list[int], edge_points: NDArray[np.float64], params: TopParams
+              ) -> list[int]:
+    """Positions in ``failed`` (indices of :func:`_inside_only` ellipses) of those whose
+    interior edge pixels all but ``max_interior_share`` of the perimeter lie within
+    ``rim_band_px`` of the outline (``params``; see :func:`rim_only`); each ellipse's verdict
+    its own."""
     deep = deep_edge_counts([ellipses[i] for i in failed], edge_points, params.rim_band_px)
-    return [i for i, d in zip(failed, deep, strict=True)
+    return [k for k, (i, d) in enumerate(zip(failed, deep, strict=True))
             if d <= params.max_interior_share * evidence[i].perimeter_px]
 
 
@@ -366,8 +387,10 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     if choice.index is None or image.ndim != 3:
         return None
     evidence = choice.evidence
-    rimmed = rim_only(ellipses, evidence, edge_points)
-    if not rimmed:
+    # rim_only's failures on interior edges alone first; its count of the edge pixels deep
+    # inside each (the cost) only for those that read nearer (per ellipse: the same set).
+    failed = _inside_only(evidence)
+    if not failed:
         return None
     chosen = ellipses[choice.index]
     radius = radius_of(chosen)
@@ -376,8 +399,12 @@ def select_resting_rimmed(ellipses: Sequence[Ellipse], choice: TopChoice, edges:
     # Depth ~ radius / semi-major axis (f r / a; perspective enlarges a by up to
     # params.perspective_enlargement, either face): a gate, not a measurement.
     depth = radius / chosen.a * params.perspective_enlargement
-    nearer = [i for i in rimmed if (own := radius_of(ellipses[i])) is not None
+    nearer = [i for i in failed if (own := radius_of(ellipses[i])) is not None
               and own / ellipses[i].a < depth]
+    if not nearer:
+        return None
+    nearer = [nearer[k] for k in _rim_kept(ellipses, evidence, nearer, edge_points,
+                                           evidence[failed[0]].params)]
     above = []
     for i in nearer:
         face = refit_on_contrast(ellipses[i], edges, True, params) or ellipses[i]
@@ -436,7 +463,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                markings: MarkingTest | None = None,
                params: TopParams = DEFAULT_TOP,
                pose_params: PoseParams = DEFAULT_POSE,
-               kind_radii: Sequence[float] = ()) -> TopChoice:
+               kind_radii: Sequence[float] = (),
+               kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
+               ) -> TopChoice:
     """Apply the top-object rule to any ellipses over a one-pixel-wide (H, W) edge map.
 
     ``edges`` is nonzero on edge pixels (e.g. :func:`stackpick_sim.vision.edges.detect_edges`)
@@ -464,7 +493,9 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
     ``pose_params``: the rest test's wall band test's (the pose's). Without ``radius_of``
     (kinds that colour cannot tell apart), ``kind_radii`` (the kinds' radii, m) with
     ``height_of`` and the image let the rest test try every kind for each face
-    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`).
+    (:func:`~stackpick_sim.vision.resting.rests_on_any_kind`); with ``kinds_of`` (the radii
+    of the kinds a face's size admits, :mod:`~stackpick_sim.vision.kind_size`), only those,
+    and the depth test runs on faces whose size admits one kind.
     """
     if not ellipses:
         return TopChoice(index=None, evidence=(), reason="no ellipses")
@@ -482,12 +513,12 @@ def select_top(ellipses: Sequence[Ellipse], edges: NDArray | EdgeImage,
                          if ev.occluded and unobstructed(ev) and i not in marked | inner]
     cues = _Cues(intrinsics=intrinsics, radius_of=radius_of, height_of=height_of, image=image,
                  colour_of=colour_of, belt=belt, params=params, pose_params=pose_params,
-                 kind_radii=tuple(kind_radii))
+                 kind_radii=tuple(kind_radii), kinds_of=kinds_of)
     # The candidates' wall bands, computed once for the cover and the rest tests.
     bands: BandCache = {}
     pool, candidates = _cover_test(ellipses, pool, candidates, cues, bands)
     pool, candidates = _rest_test(ellipses, pool, candidates, cues, bands)
-    nearest = _clearly_nearest_of(ellipses, pool, intrinsics, radius_of, params)
+    nearest = _depth_test(ellipses, pool, candidates, cues)
     if nearest is not None:
         return TopChoice(index=nearest, evidence=evidence)
     return TopChoice(index=_best_supported(candidates, ellipses, evidence), evidence=evidence)
@@ -539,6 +570,7 @@ class _Cues:
     params: TopParams
     pose_params: PoseParams
     kind_radii: tuple[float, ...]
+    kinds_of: Callable[[Ellipse], tuple[float, ...]] | None
 
 
 def _cover_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
@@ -576,7 +608,7 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
         under = rests_on_any_kind(faces, cues.intrinsics, cues.kind_radii, cues.height_of,
                                   cues.image, colour_of=cues.colour_of, cache=bands,
                                   belt=cues.belt, params=cues.params,
-                                  pose_params=cues.pose_params)
+                                  pose_params=cues.pose_params, kinds_of=cues.kinds_of)
     else:
         return pool, candidates
     return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
@@ -599,6 +631,24 @@ def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]
                 if not out[j] and (holds_centre(face, other) or holds_centre(other, face)):
                     out[j] = True
     return out
+
+
+def _depth_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[int],
+                cues: _Cues) -> int | None:
+    """The index of the ``pool`` face clearly nearest the camera (:func:`_clearly_nearest_of`;
+    radii from colour, else of faces whose size admits one kind), else, with
+    ``depth_among_passing``, of the ``candidates`` (the passing faces), or None."""
+    radius_of = cues.radius_of
+    if radius_of is None and cues.kinds_of is not None:
+        radius_of = one_kind(cues.kinds_of)
+    params = cues.params
+    nearest = _clearly_nearest_of(ellipses, pool, cues.intrinsics, radius_of, params)
+    if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
+        # A face that failed on support alone ties with a passing one: of the passing
+        # faces, one clearly nearer than the others is above them.
+        nearest = _clearly_nearest_of(ellipses, candidates, cues.intrinsics, radius_of,
+                                      params)
+    return nearest
 
 
 def _clearly_nearest_of(ellipses: Sequence[Ellipse], pool: list[int],

@@ -182,7 +182,8 @@ def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                       colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
                       cache: BandCache | None = None,
                       belt: NDArray[np.float64] | None = None,
-                      params: TopParams = DEFAULT_TOP, pose_params: PoseParams = DEFAULT_POSE
+                      params: TopParams = DEFAULT_TOP, pose_params: PoseParams = DEFAULT_POSE,
+                      kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
                       ) -> list[bool]:
     """:func:`rests_on` of faces whose kind is unknown (kinds of one colour: the failure
     class *lean on a whole face, kinds that colour cannot tell apart*). Each pair of faces is
@@ -192,15 +193,19 @@ def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     through each other (an impossible assignment). A wrong radius moves a face's cylinder
     along its rays by the radii's ratio, centimetres at the camera's distance, so a wrong
     assignment's bodies are far apart; but scaling both faces alike moves the pair nearly as
-    a whole, and such an assignment near contact leaves the pair undecided."""
+    a whole, and such an assignment near contact leaves the pair undecided. With
+    ``kinds_of`` (a face's admitted radii, :mod:`~stackpick_sim.vision.kind_size`), each face
+    takes only those of ``radii``."""
     under = [False] * len(faces)
     kinds = [r for r in radii if height_of(r) is not None]
+    admitted = [kinds if kinds_of is None else [r for r in kinds if r in kinds_of(face)]
+                for face in faces]
     settings = (params, pose_params)
     for p, q in itertools.combinations(range(len(faces)), 2):
         pair = (faces[p], faces[q])
         verdicts = [_pair_verdict(pair, intrinsics, dict(zip(pair, assigned, strict=True)).get,
                                   height_of, image, (colour_of, cache, belt), settings)
-                    for assigned in itertools.product(kinds, repeat=2)]
+                    for assigned in itertools.product(admitted[p], admitted[q])]
         rests = {v for v in verdicts if v is not None and v >= 0}
         if len(rests) == 1 and None not in verdicts:
             under[(p, q)[rests.pop()]] = True

@@ -20,8 +20,8 @@ allows), is judged as a face with markings: the hole, when it is fitted, is its 
 the face is a candidate for the top unless a face lies on it. The pick aims at the ring
 (:mod:`~stackpick_sim.control.pick_point`), so the reported face is the outer ellipse.
 
-The test reads the edge pixels inside the face (one vectorised pass over the edge map's
-pixels near it): no image pass.
+The test reads the edge pixels inside the face (one compiled pass over the edge map's
+pixels): no image pass.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels_top
 
 
 def hole_only(face: Ellipse, edge_points: NDArray[np.float64], margin_px: float,
@@ -39,16 +40,13 @@ def hole_only(face: Ellipse, edge_points: NDArray[np.float64], margin_px: float,
     """Whether at least ``hole_share`` of the edge pixels ``edge_points`` ((M, 2) u, v) lying
     more than ``margin_px`` inside ``face`` lie inside its concentric ellipse at
     ``hole_scale`` of its semi-axes (False when none lies inside the face)."""
-    u0, v0, u1, v1 = face.bounds()
-    near = edge_points[(edge_points[:, 0] >= u0) & (edge_points[:, 0] <= u1)
-                       & (edge_points[:, 1] >= v0) & (edge_points[:, 1] <= v1)]
-    inside = near[face.inside(near, margin_px)]
-    if not len(inside):
-        return False
+    # The box, the inside test and the hole test in one compiled pass over the pixels
+    # (kernels_top.hole_counts: the same tests as Ellipse.bounds and Ellipse.inside).
     t = math.radians(face.angle_deg)
-    c, s = math.cos(t), math.sin(t)
-    du, dv = inside[:, 0] - face.cx, inside[:, 1] - face.cy
-    x = (c * du + s * dv) / face.a
-    y = (-s * du + c * dv) / face.b
-    in_hole = x * x + y * y < hole_scale * hole_scale
-    return float(np.mean(in_hole)) >= hole_share
+    inside, in_hole = kernels_top.hole_counts(
+        np.ascontiguousarray(edge_points[:, 0], np.float64),
+        np.ascontiguousarray(edge_points[:, 1], np.float64), face.bounds(), face.cx, face.cy,
+        math.cos(t), math.sin(t),
+        (max(face.a - margin_px, 1e-6), max(face.b - margin_px, 1e-6)), (face.a, face.b),
+        hole_scale * hole_scale)
+    return inside > 0 and in_hole / inside >= hole_share

@@ -58,7 +58,10 @@ class Cues:
     an ellipse's object kind read from its colour (None without the kinds' colours);
     ``height_of``, a radius's cylinder height; ``markings``, the test for a marking inside a
     face; ``top``, the top rule's settings; ``pose``, the pose's (the rest test reads its wall
-    band test); ``radii``, the object kinds' radii (m)."""
+    band test); ``radii``, the object kinds' radii (m); ``kinds_of``, without ``radius_of``
+    (kinds that colour cannot tell apart), the radii of the kinds a face's size admits
+    (:mod:`~stackpick_sim.vision.kind_size`); ``depth_radius_of``, the radius the depth tests
+    read: ``radius_of``, else the one kind ``kinds_of`` admits."""
 
     k_crop: CameraIntrinsics
     rgb: NDArray[np.uint8] | None
@@ -70,6 +73,8 @@ class Cues:
     top: TopParams = field(default_factory=TopParams)
     pose: PoseParams = field(default_factory=PoseParams)
     radii: tuple[float, ...] = ()
+    kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
+    depth_radius_of: Callable[[Ellipse], float | None] | None = None
 
 
 def _no_points() -> NDArray[np.float64]:

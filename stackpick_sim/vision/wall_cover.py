@@ -131,6 +131,21 @@ def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     :func:`~stackpick_sim.vision.pose.unit_circle_poses` order), its predicted wall band
     lying inside face j (the diagonal pairs are not meaningful); see
     :func:`covered_shares`, the larger of each face's two."""
+    return _shares(_band_cover(faces, intrinsics, cache, params, pose), faces, intrinsics,
+                   radii, params, pose)
+
+
+#: What :func:`_band_cover` finds: (S, n, P) whether band point p of solution s lies inside
+#: face j, the band pixels u, v (S, P) and each solution's band sample count (S,).
+BandCover = tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64],
+                  NDArray[np.int64]]
+
+
+def _band_cover(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+                cache: BandCache | None, params: TopParams, pose: PoseParams) -> BandCover:
+    """The faces' bands (:func:`face_bands`) and which of their points lie inside each face
+    (``params.cover_margin_px`` inside its outline), before any depth test: what
+    :func:`solution_shares` computes with and without the radii alike."""
     pu, pv, keep = face_bands(faces, intrinsics, cache, params=params, pose=pose)
     samples = keep.sum(axis=1)
     # Ellipse.inside of every solution's band points (S, 1, P) in every face (1, n, 1).
@@ -144,11 +159,20 @@ def solution_shares(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
                                        np.require(pv, np.float64, ("C", "W")),
                                        np.require(keep, np.bool_, ("C", "W")),
                                        np.array(rows, np.float64).reshape(-1, 6))
+    return covered, pu, pv, samples
+
+
+def _shares(cover: BandCover, faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
+            radii: Sequence[float | None] | None, params: TopParams, pose: PoseParams
+            ) -> NDArray[np.float64]:
+    """:func:`solution_shares` of the faces' :func:`_band_cover` ``cover`` (with ``radii``,
+    only the points in front of which the face lies count)."""
+    covered, pu, pv, samples = cover
     if radii is not None:
         sols = [(s.normal_cam, s.centre_cam) for f in faces
                 for s in unit_circle_poses(f, intrinsics)]
-        covered &= _in_front(sols, pu, pv, radii, intrinsics, params.cover_depth_tolerance_m,
-                             cover_depths(params, pose))
+        covered = covered & _in_front(sols, pu, pv, radii, intrinsics,
+                                      params.cover_depth_tolerance_m, cover_depths(params, pose))
     inside = np.count_nonzero(covered, axis=2)
     # Each solution's shares (0 for too few band points).
     return np.asarray(np.where((samples >= params.cover_min_samples)[:, None],
@@ -212,17 +236,17 @@ def under_another(faces: list[Ellipse], intrinsics: CameraIntrinsics,
     would put its cylinder through the nearer one's (:func:`~stackpick_sim.vision.resting.
     cover_check`); checked only for the solutions found under another. A cover ruled out
     puts neither face under: the other face's share is still weighed against it.
-    ``cache``: the bands' (:func:`face_bands`), else both passes share a cache of their own.
+    ``cache``: the bands' (:func:`face_bands`); both passes read the same bands.
     ``params``: the ``cover_*`` settings (a face is under another from a covered share of
     ``cover_min_share``); ``pose``: the band's depths and margin.
     """
-    cache = {} if cache is None else cache
     least = params.cover_min_share
-    share = covered_shares(faces, intrinsics, cache=cache, params=params, pose=pose)
+    # The bands and their points inside each face once, for both passes.
+    cover = _band_cover(faces, intrinsics, cache, params, pose)
+    share = _largest_of_two(_shares(cover, faces, intrinsics, None, params, pose))
     allowed = share
     if radius_of is not None and np.any(share >= least):
-        each = solution_shares(faces, intrinsics, [radius_of(f) for f in faces], cache=cache,
-                               params=params, pose=pose)
+        each = _shares(cover, faces, intrinsics, [radius_of(f) for f in faces], params, pose)
         share = allowed = _largest_of_two(each)
         if possible is not None and np.any(share >= least):
             allowed = _largest_of_two(_possible_only(each, possible, least))
