@@ -266,6 +266,24 @@ def test_outline_support_is_the_lookup_of_the_rounded_samples(
                           kernels.outline_support(dilated, rows, counts, ct, st, 0))
 
 
+def test_outline_support_of_dense_samples_matches_the_dilated_lookup(
+        rng: np.random.Generator) -> None:
+    # Several samples a pixel (each rounds to the pixel of the one before it) on a 0/255 map,
+    # outlines crossing its border: radius 1 is the lookup in the 3x3 dilation, radius 2 in
+    # the 5x5 one.
+    edges = np.where(rng.uniform(0, 1, (60, 80)) < 0.04, 255, 0).astype(np.uint8)
+    rows = _ellipse_rows(rng, 6).T.copy()
+    counts = rng.integers(400, 900, 6).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    for radius in (1, 2):
+        dilated = cv2.dilate(edges, np.ones((2 * radius + 1,) * 2, np.uint8))
+        want = kernels.outline_support(dilated, rows, counts, ct, st, 0)
+        assert np.array_equal(kernels.outline_support(edges, rows, counts, ct, st, radius),
+                              want)
+        assert ((0.0 < want) & (want < 1.0)).any()
+
+
 def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
         rng: np.random.Generator) -> None:
     gx, gy = _gradients(rng)
@@ -1114,6 +1132,22 @@ def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
         got = kernels.lying_pairs(pair_g, pair_p, starts, 4, fraction)
         assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
         assert 0 < want[0].size
+
+
+def test_pair_products_match_the_share_matrix(rng: np.random.Generator) -> None:
+    # Pixels of random groups (the last one empty, of two or more), random pairs.
+    for groups in (1, 2, 5, 9):
+        owner = rng.integers(0, max(1, groups - 1), 300).astype(np.int64)  # the last empty
+        pair_g = rng.integers(0, groups, 500).astype(np.int64)
+        pair_p = rng.integers(0, 300, 500).astype(np.int64)
+        hits = np.bincount(pair_g * groups + owner[pair_p],
+                           minlength=groups * groups).reshape(groups, groups)
+        share = hits / np.maximum(np.bincount(owner, minlength=groups).astype(np.float64), 1.0)
+        want = share * share.T
+        want.flat[:: groups + 1] = 0.0
+        got = kernels.pair_products(pair_g, pair_p, owner, groups)
+        assert np.array_equal(got, want)
+        assert groups < 3 or want.max() > 0.0
 
 
 def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:

@@ -423,6 +423,10 @@ def _near_set(image: NDArray[np.uint8], r: int, c: int, radius: int
               ) -> bool:  # pragma: no cover - compiled
     """Whether a pixel within ``radius`` (Chebyshev) of (r, c), on the image, is set."""
     h, w = image.shape
+    if radius == 1 and 0 < r < h - 1 and 0 < c < w - 1:  # the 3x3 block, on the image
+        above, row, below = image[r - 1], image[r], image[r + 1]
+        return (above[c - 1] | above[c] | above[c + 1] | row[c - 1] | row[c] | row[c + 1]
+                | below[c - 1] | below[c] | below[c + 1]) != 0
     for i in range(max(0, r - radius), min(h, r + radius + 1)):
         for j in range(max(0, c - radius), min(w, c + radius + 1)):
             if image[i, j] > 0:
@@ -447,13 +451,17 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
     for e in range(counts.shape[0]):
         cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
         hits = 0
+        # Samples about a pixel apart often round to the pixel before: its answer stands.
+        last_u, last_v, hit = -1.0, -1.0, False
         for _ in range(counts[e]):
             x, y = a * ct[k], b * st[k]
             u = np.rint(c * x + cx - s * y)
             v = np.rint(s * x + cy + c * y)
-            if (0.0 <= u < w and 0.0 <= v < h
-                    and _near_set(support, int(v), int(u), radius)):
-                hits += 1
+            if u != last_u or v != last_v:
+                last_u, last_v = u, v
+                hit = (0.0 <= u < w and 0.0 <= v < h
+                       and _near_set(support, int(v), int(u), radius))
+            hits += hit
             k += 1
         out[e] = hits / counts[e]
     return out
@@ -1929,6 +1937,33 @@ def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDA
 
 
 @_compiled
+def pair_products(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
+                  owner: NDArray[np.int64], n_groups: int
+                  ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The (G, G) Eq. 3 products C[i, j] = N[i, j] N[j, i] (0 on the diagonal) of the shares
+    N[b, a] of group a's pixels within tolerance of ellipse b, from the (ellipse, pixel)
+    pairs within tolerance (``pair_g``, ``pair_p``) and ``owner`` (N,), the group of every
+    pixel (all 0..G-1): each hit count over max(the group's pixel count, 1), in float64; see
+    :func:`~stackpick_sim.vision.merging._pair_scores` (the same values as the
+    ``np.bincount`` form)."""
+    hits = np.zeros((n_groups, n_groups), np.int64)
+    for k in range(pair_g.shape[0]):
+        hits[pair_g[k], owner[pair_p[k]]] += 1
+    counts = np.zeros(n_groups, np.int64)
+    for p in range(owner.shape[0]):
+        counts[owner[p]] += 1
+    share = np.empty((n_groups, n_groups))
+    for b in range(n_groups):
+        for a in range(n_groups):
+            share[b, a] = np.float64(hits[b, a]) / max(np.float64(counts[a]), 1.0)
+    c = np.empty((n_groups, n_groups))
+    for i in range(n_groups):
+        for j in range(n_groups):
+            c[i, j] = 0.0 if i == j else share[i, j] * share[j, i]
+    return c
+
+
+@_compiled
 def lying_pairs(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
                 starts: NDArray[np.int64], n_groups: int, fraction: float
                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
@@ -2023,6 +2058,7 @@ def warm_up() -> None:
                  counts)
     lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
                 0.5)
+    pair_products(np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64), 1)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)
