@@ -119,24 +119,18 @@ def test_grouped_distances_match_the_broadcast_form(rng: np.random.Generator) ->
     assert np.array_equal(kernels.grouped_distances(rows, counts.astype(np.int64), pu, pv), want)
 
 
-def test_along_grouped_matches_the_array_test(rng: np.random.Generator) -> None:
-    forms = np.column_stack([rng.uniform(20, 80, 4), rng.uniform(20, 80, 4),
-                             rng.uniform(1e-3, 1e-2, 4), rng.uniform(-1e-3, 1e-3, 4),
-                             rng.uniform(1e-3, 1e-2, 4)])
-    counts = rng.integers(50, 300, 4).astype(np.int64)
-    n = int(counts.sum())
-    u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
-    t = rng.uniform(0, 2 * np.pi, n)
-    gu, gv = np.cos(t), np.sin(t)
+def _along_want(forms: NDArray[np.float64], counts: NDArray[np.int64], u: NDArray[np.float64],
+                v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                dist_sq: float, cos_sq: float) -> NDArray[np.bool_]:
+    """The along-the-outline test in array form: pixels (u, v) with unit gradients (gu, gv)
+    running ellipse by ellipse, ``counts[e]`` against row e of ``forms`` (cx, cy, A, H, B)."""
     cx, cy, fa, fh, fb = forms.T.repeat(counts, axis=1)
     du, dv = u - cx, v - cy
     nu, nv = fa * du + fh * dv, fb * dv + fh * du
     f = du * nu + dv * nv - 1.0
     n2 = nu * nu + nv * nv
     dot = nu * gu + nv * gv
-    want = (f * f < 4.0 * 2.0 * 2.0 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
-    got = kernels.along_grouped(forms, counts, u, v, gu, gv, 4.0 * 2.0 * 2.0, 0.87 * 0.87)
-    assert np.array_equal(got, want)
+    return np.asarray((f * f < dist_sq * n2) & (dot * dot >= cos_sq * n2))
 
 
 def _ellipse_rows(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
@@ -558,7 +552,7 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
     active = np.array([True, False, True, True])
-    passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
+    passed = _along_want(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
     # The pairs given through a pair -> pixel index (here a permutation of the pixels).
     at = rng.permutation(n).astype(np.int64)

@@ -511,32 +511,6 @@ def grouped_distances(rows: NDArray[np.float64], counts: NDArray[np.int64],
 
 
 @_compiled
-def along_grouped(forms: NDArray[np.float64], counts: NDArray[np.int64],
-                  u: NDArray[np.float64], v: NDArray[np.float64], gu: NDArray[np.float64],
-                  gv: NDArray[np.float64], dist_sq: float, cos_sq: float
-                  ) -> NDArray[np.bool_]:  # pragma: no cover - compiled
-    """The along-the-outline test of pixels (u, v) with unit gradients (gu, gv) that run
-    ellipse by ellipse (``counts[e]`` against row e of (E, 5) ``forms`` (cx, cy, A, H, B));
-    ``dist_sq`` = 4 tol^2, ``cos_sq`` = the normal cone's cosine squared; see
-    :func:`~stackpick_sim.vision.refine._along_test`."""
-    out = np.empty(u.shape[0], np.bool_)
-    k = 0
-    for e in range(forms.shape[0]):
-        cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
-        for _ in range(counts[e]):
-            du = u[k] - cx
-            dv = v[k] - cy
-            nu = fa * du + fh * dv
-            nv = fb * dv + fh * du
-            f = du * nu + dv * nv - 1.0
-            n2 = nu * nu + nv * nv
-            dot = nu * gu[k] + nv * gv[k]
-            out[k] = f * f < dist_sq * n2 and dot * dot >= cos_sq * n2
-            k += 1
-    return out
-
-
-@_compiled
 def _bilinear(img: NDArray[np.int16], u0: np.int64, v0: np.int64, w00: float, w10: float,
               w01: float, w11: float) -> float:  # pragma: no cover - compiled
     """The four corners from (u0, v0) weighted, summed in the array version's order."""
@@ -597,7 +571,9 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
 def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, v: float,
                gu: float, gv: float, dist_sq: float, cos_sq: float
                ) -> bool:  # pragma: no cover - compiled
-    """:func:`along_grouped`'s test of one pixel (u, v) with unit gradient (gu, gv)."""
+    """The along-the-outline test of one pixel (u, v) with unit gradient (gu, gv) against
+    one ellipse's form (cx, cy, A, H, B); ``dist_sq`` = 4 tol^2, ``cos_sq`` = the normal
+    cone's cosine squared; see :func:`~stackpick_sim.vision.refine._along_test`."""
     du = u - cx
     dv = v - cy
     nu = fa * du + fh * dv
@@ -616,7 +592,7 @@ def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
-    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
+    (row e of (E, 5) ``forms``) that pass :func:`_along_one`'s test, pair k being pixel
     ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
     where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels
     (u, v) as (K, 2) float32 rows (the fits' input); see
@@ -650,7 +626,7 @@ def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray
                    ) -> NDArray[np.float32]:  # pragma: no cover - compiled
     """The edge pixels (pu, pv) with unit gradients (gu, gv) that lie along one ellipse
     (``form``: its (cx, cy, A, H, B); within ``reach`` of its centre on both axes, then
-    :func:`along_grouped`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
+    :func:`_along_one`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
     as (K, 2) float32 in pixel order; see :func:`~stackpick_sim.vision.refine.
     refine_subpixel`."""
     cx, cy, fa, fh, fb = form[0], form[1], form[2], form[3], form[4]
@@ -2029,7 +2005,6 @@ def warm_up() -> None:
     counts = np.ones(1, np.int64)
     box_pairs(col, col, col, col, col)
     grouped_distances(np.ones((6, 1)), counts, col, col)
-    along_grouped(np.ones((1, 5)), counts, col, col, col, col, 1.0, 1.0)
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
