@@ -119,24 +119,18 @@ def test_grouped_distances_match_the_broadcast_form(rng: np.random.Generator) ->
     assert np.array_equal(kernels.grouped_distances(rows, counts.astype(np.int64), pu, pv), want)
 
 
-def test_along_grouped_matches_the_array_test(rng: np.random.Generator) -> None:
-    forms = np.column_stack([rng.uniform(20, 80, 4), rng.uniform(20, 80, 4),
-                             rng.uniform(1e-3, 1e-2, 4), rng.uniform(-1e-3, 1e-3, 4),
-                             rng.uniform(1e-3, 1e-2, 4)])
-    counts = rng.integers(50, 300, 4).astype(np.int64)
-    n = int(counts.sum())
-    u, v = rng.uniform(0, 100, n), rng.uniform(0, 100, n)
-    t = rng.uniform(0, 2 * np.pi, n)
-    gu, gv = np.cos(t), np.sin(t)
+def _along_want(forms: NDArray[np.float64], counts: NDArray[np.int64], u: NDArray[np.float64],
+                v: NDArray[np.float64], gu: NDArray[np.float64], gv: NDArray[np.float64],
+                dist_sq: float, cos_sq: float) -> NDArray[np.bool_]:
+    """The along-the-outline test in array form: pixels (u, v) with unit gradients (gu, gv)
+    running ellipse by ellipse, ``counts[e]`` against row e of ``forms`` (cx, cy, A, H, B)."""
     cx, cy, fa, fh, fb = forms.T.repeat(counts, axis=1)
     du, dv = u - cx, v - cy
     nu, nv = fa * du + fh * dv, fb * dv + fh * du
     f = du * nu + dv * nv - 1.0
     n2 = nu * nu + nv * nv
     dot = nu * gu + nv * gv
-    want = (f * f < 4.0 * 2.0 * 2.0 * n2) & (dot * dot >= 0.87 * 0.87 * n2)
-    got = kernels.along_grouped(forms, counts, u, v, gu, gv, 4.0 * 2.0 * 2.0, 0.87 * 0.87)
-    assert np.array_equal(got, want)
+    return np.asarray((f * f < dist_sq * n2) & (dot * dot >= cos_sq * n2))
 
 
 def _ellipse_rows(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
@@ -264,6 +258,24 @@ def test_outline_support_is_the_lookup_of_the_rounded_samples(
     dilated = cv2.dilate(sparse, np.ones((3, 3), np.uint8))
     assert np.array_equal(kernels.outline_support(sparse, rows, counts, ct, st, 1),
                           kernels.outline_support(dilated, rows, counts, ct, st, 0))
+
+
+def test_outline_support_of_dense_samples_matches_the_dilated_lookup(
+        rng: np.random.Generator) -> None:
+    # Several samples a pixel (each rounds to the pixel of the one before it) on a 0/255 map,
+    # outlines crossing its border: radius 1 is the lookup in the 3x3 dilation, radius 2 in
+    # the 5x5 one.
+    edges = np.where(rng.uniform(0, 1, (60, 80)) < 0.04, 255, 0).astype(np.uint8)
+    rows = _ellipse_rows(rng, 6).T.copy()
+    counts = rng.integers(400, 900, 6).astype(np.int64)
+    t = np.concatenate([np.linspace(0, 2 * np.pi, n, endpoint=False) for n in counts])
+    ct, st = np.cos(t), np.sin(t)
+    for radius in (1, 2):
+        dilated = cv2.dilate(edges, np.ones((2 * radius + 1,) * 2, np.uint8))
+        want = kernels.outline_support(dilated, rows, counts, ct, st, 0)
+        assert np.array_equal(kernels.outline_support(edges, rows, counts, ct, st, radius),
+                              want)
+        assert ((0.0 < want) & (want < 1.0)).any()
 
 
 def test_subpixel_along_is_the_along_test_then_the_subpixel_move(
@@ -540,7 +552,7 @@ def test_along_select_is_the_along_test_of_the_active_ellipses(
     t = rng.uniform(0, 2 * np.pi, n)
     gu, gv = np.cos(t), np.sin(t)
     active = np.array([True, False, True, True])
-    passed = kernels.along_grouped(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
+    passed = _along_want(forms, counts, u, v, gu, gv, 16.0, 0.87 * 0.87)
     passed &= active.repeat(counts)
     # The pairs given through a pair -> pixel index (here a permutation of the pixels).
     at = rng.permutation(n).astype(np.int64)
@@ -1114,6 +1126,22 @@ def test_lying_pairs_match_the_share_matrix(rng: np.random.Generator) -> None:
         got = kernels.lying_pairs(pair_g, pair_p, starts, 4, fraction)
         assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
         assert 0 < want[0].size
+
+
+def test_pair_products_match_the_share_matrix(rng: np.random.Generator) -> None:
+    # Pixels of random groups (the last one empty, of two or more), random pairs.
+    for groups in (1, 2, 5, 9):
+        owner = rng.integers(0, max(1, groups - 1), 300).astype(np.int64)  # the last empty
+        pair_g = rng.integers(0, groups, 500).astype(np.int64)
+        pair_p = rng.integers(0, 300, 500).astype(np.int64)
+        hits = np.bincount(pair_g * groups + owner[pair_p],
+                           minlength=groups * groups).reshape(groups, groups)
+        share = hits / np.maximum(np.bincount(owner, minlength=groups).astype(np.float64), 1.0)
+        want = share * share.T
+        want.flat[:: groups + 1] = 0.0
+        got = kernels.pair_products(pair_g, pair_p, owner, groups)
+        assert np.array_equal(got, want)
+        assert groups < 3 or want.max() > 0.0
 
 
 def test_segments_rms_match_the_gathered_distances(rng: np.random.Generator) -> None:

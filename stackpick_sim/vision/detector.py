@@ -363,7 +363,8 @@ def fitting_stage(state: State, config: DetectorConfig) -> State:
     """An ellipse per chain (:func:`~stackpick_sim.vision.fitting.fit_all`), the
     ``limits.max_fits`` on the longest arcs."""
     found = fit_all(state.segments, state.crop, params=config.fits)
-    found = [found[i] for i in longest([f[1] for f in found], config.limits.max_fits)]
+    if len(found) > config.limits.max_fits:
+        found = [found[i] for i in longest([f[1] for f in found], config.limits.max_fits)]
     return state.updated(fits=tuple(found))
 
 

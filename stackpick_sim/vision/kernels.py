@@ -423,6 +423,10 @@ def _near_set(image: NDArray[np.uint8], r: int, c: int, radius: int
               ) -> bool:  # pragma: no cover - compiled
     """Whether a pixel within ``radius`` (Chebyshev) of (r, c), on the image, is set."""
     h, w = image.shape
+    if radius == 1 and 0 < r < h - 1 and 0 < c < w - 1:  # the 3x3 block, on the image
+        above, row, below = image[r - 1], image[r], image[r + 1]
+        return (above[c - 1] | above[c] | above[c + 1] | row[c - 1] | row[c] | row[c + 1]
+                | below[c - 1] | below[c] | below[c + 1]) != 0
     for i in range(max(0, r - radius), min(h, r + radius + 1)):
         for j in range(max(0, c - radius), min(w, c + radius + 1)):
             if image[i, j] > 0:
@@ -447,13 +451,17 @@ def outline_support(support: NDArray[np.uint8], rows: NDArray[np.float64],
     for e in range(counts.shape[0]):
         cx, cy, a, b, c, s = rows[e, 0], rows[e, 1], rows[e, 2], rows[e, 3], rows[e, 4], rows[e, 5]
         hits = 0
+        # Samples about a pixel apart often round to the pixel before: its answer stands.
+        last_u, last_v, hit = -1.0, -1.0, False
         for _ in range(counts[e]):
             x, y = a * ct[k], b * st[k]
             u = np.rint(c * x + cx - s * y)
             v = np.rint(s * x + cy + c * y)
-            if (0.0 <= u < w and 0.0 <= v < h
-                    and _near_set(support, int(v), int(u), radius)):
-                hits += 1
+            if u != last_u or v != last_v:
+                last_u, last_v = u, v
+                hit = (0.0 <= u < w and 0.0 <= v < h
+                       and _near_set(support, int(v), int(u), radius))
+            hits += hit
             k += 1
         out[e] = hits / counts[e]
     return out
@@ -498,32 +506,6 @@ def grouped_distances(rows: NDArray[np.float64], counts: NDArray[np.int64],
             xa, yb = x / a, y / b
             grad = 2.0 * math.sqrt(xa * xa + yb * yb) + 1e-12
             out[k] = abs(x * x + y * y - 1.0) / grad
-            k += 1
-    return out
-
-
-@_compiled
-def along_grouped(forms: NDArray[np.float64], counts: NDArray[np.int64],
-                  u: NDArray[np.float64], v: NDArray[np.float64], gu: NDArray[np.float64],
-                  gv: NDArray[np.float64], dist_sq: float, cos_sq: float
-                  ) -> NDArray[np.bool_]:  # pragma: no cover - compiled
-    """The along-the-outline test of pixels (u, v) with unit gradients (gu, gv) that run
-    ellipse by ellipse (``counts[e]`` against row e of (E, 5) ``forms`` (cx, cy, A, H, B));
-    ``dist_sq`` = 4 tol^2, ``cos_sq`` = the normal cone's cosine squared; see
-    :func:`~stackpick_sim.vision.refine._along_test`."""
-    out = np.empty(u.shape[0], np.bool_)
-    k = 0
-    for e in range(forms.shape[0]):
-        cx, cy, fa, fh, fb = forms[e, 0], forms[e, 1], forms[e, 2], forms[e, 3], forms[e, 4]
-        for _ in range(counts[e]):
-            du = u[k] - cx
-            dv = v[k] - cy
-            nu = fa * du + fh * dv
-            nv = fb * dv + fh * du
-            f = du * nu + dv * nv - 1.0
-            n2 = nu * nu + nv * nv
-            dot = nu * gu[k] + nv * gv[k]
-            out[k] = f * f < dist_sq * n2 and dot * dot >= cos_sq * n2
             k += 1
     return out
 
@@ -589,7 +571,9 @@ def subpixel_columns(gx: NDArray[np.int16], gy: NDArray[np.int16], u: NDArray[np
 def _along_one(cx: float, cy: float, fa: float, fh: float, fb: float, u: float, v: float,
                gu: float, gv: float, dist_sq: float, cos_sq: float
                ) -> bool:  # pragma: no cover - compiled
-    """:func:`along_grouped`'s test of one pixel (u, v) with unit gradient (gu, gv)."""
+    """The along-the-outline test of one pixel (u, v) with unit gradient (gu, gv) against
+    one ellipse's form (cx, cy, A, H, B); ``dist_sq`` = 4 tol^2, ``cos_sq`` = the normal
+    cone's cosine squared; see :func:`~stackpick_sim.vision.refine._along_test`."""
     du = u - cx
     dv = v - cy
     nu = fa * du + fh * dv
@@ -608,7 +592,7 @@ def along_select(forms: NDArray[np.float64], starts: NDArray[np.int64],
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64],
                             NDArray[np.float32]]:  # pragma: no cover - compiled
     """The (ellipse, pixel) pairs ``starts[e]:starts[e + 1]`` of each ``active`` ellipse e
-    (row e of (E, 5) ``forms``) that pass :func:`along_grouped`'s test, pair k being pixel
+    (row e of (E, 5) ``forms``) that pass :func:`_along_one`'s test, pair k being pixel
     ``at[k]`` (u, v) with unit gradient (gu, gv) (columns (N,)): their indices (ascending),
     where each ellipse's run of them starts and ends ((E + 1,) bounds), and their pixels
     (u, v) as (K, 2) float32 rows (the fits' input); see
@@ -642,7 +626,7 @@ def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray
                    ) -> NDArray[np.float32]:  # pragma: no cover - compiled
     """The edge pixels (pu, pv) with unit gradients (gu, gv) that lie along one ellipse
     (``form``: its (cx, cy, A, H, B); within ``reach`` of its centre on both axes, then
-    :func:`along_grouped`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
+    :func:`_along_one`'s test) moved to their gradient peaks (:func:`subpixel_columns`),
     as (K, 2) float32 in pixel order; see :func:`~stackpick_sim.vision.refine.
     refine_subpixel`."""
     cx, cy, fa, fh, fb = form[0], form[1], form[2], form[3], form[4]
@@ -1929,6 +1913,33 @@ def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDA
 
 
 @_compiled
+def pair_products(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
+                  owner: NDArray[np.int64], n_groups: int
+                  ) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The (G, G) Eq. 3 products C[i, j] = N[i, j] N[j, i] (0 on the diagonal) of the shares
+    N[b, a] of group a's pixels within tolerance of ellipse b, from the (ellipse, pixel)
+    pairs within tolerance (``pair_g``, ``pair_p``) and ``owner`` (N,), the group of every
+    pixel (all 0..G-1): each hit count over max(the group's pixel count, 1), in float64; see
+    :func:`~stackpick_sim.vision.merging._pair_scores` (the same values as the
+    ``np.bincount`` form)."""
+    hits = np.zeros((n_groups, n_groups), np.int64)
+    for k in range(pair_g.shape[0]):
+        hits[pair_g[k], owner[pair_p[k]]] += 1
+    counts = np.zeros(n_groups, np.int64)
+    for p in range(owner.shape[0]):
+        counts[owner[p]] += 1
+    share = np.empty((n_groups, n_groups))
+    for b in range(n_groups):
+        for a in range(n_groups):
+            share[b, a] = np.float64(hits[b, a]) / max(np.float64(counts[a]), 1.0)
+    c = np.empty((n_groups, n_groups))
+    for i in range(n_groups):
+        for j in range(n_groups):
+            c[i, j] = 0.0 if i == j else share[i, j] * share[j, i]
+    return c
+
+
+@_compiled
 def lying_pairs(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
                 starts: NDArray[np.int64], n_groups: int, fraction: float
                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
@@ -1994,7 +2005,6 @@ def warm_up() -> None:
     counts = np.ones(1, np.int64)
     box_pairs(col, col, col, col, col)
     grouped_distances(np.ones((6, 1)), counts, col, col)
-    along_grouped(np.ones((1, 5)), counts, col, col, col, col, 1.0, 1.0)
     bilinear_uv(img, img, col, col)
     subpixel_columns(img, img, col, col, col, col, 0.5)
     junction_cuts(np.zeros((1, 2), np.int32), np.array([0, 1], np.int64), 1.0)
@@ -2023,6 +2033,7 @@ def warm_up() -> None:
                  counts)
     lying_pairs(np.zeros(1, np.int64), np.zeros(1, np.int64), np.array([0, 1], np.int64), 1,
                 0.5)
+    pair_products(np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64), 1)
     fit_checks(np.ones((1, 5)), 1.0, 1.0, 1.0)
     for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         level_fits(np.ones((1, 5)), pixels, counts - 1, counts, 1.0, 1.0, 1.0, 1.0)

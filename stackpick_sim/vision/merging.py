@@ -141,18 +141,6 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8], radius: 
                                    np.concatenate([q[1] for q in circles]), radius)
 
 
-def _pertain_matrix(ellipse_of: NDArray[np.int64], pixel_group: NDArray[np.int64],
-                    owner: NDArray[np.int64], n_groups: int) -> NDArray[np.float64]:
-    """(G, G) matrix N[b, a]: share of group a's pixels within tolerance of ellipse b, from
-    the (ellipse, pixel) pairs within tolerance given as the ellipse ``ellipse_of`` (K,) and
-    the pixel's group ``pixel_group`` (K,) of each, and ``owner`` (N,) the group of every
-    pixel (all 0..G-1)."""
-    hits = np.bincount(ellipse_of * n_groups + pixel_group,
-                       minlength=n_groups * n_groups).reshape(n_groups, n_groups)
-    counts = np.bincount(owner, minlength=n_groups).astype(np.float64)
-    return cast("NDArray[np.float64]", hits / np.maximum(counts, 1.0))
-
-
 @dataclass(kw_only=True)
 class _Groups:
     """The merge's working state: per group (one per fit at first) its ``members`` (the
@@ -273,18 +261,19 @@ def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]
 def _pair_scores(state: _Groups, alive: list[int]) -> NDArray[np.float64]:
     """(G, G) Eq. 3 products C = N_{A/B} N_{B/A} of the ``alive`` groups (in that order),
     0 on the diagonal and for refused pairs."""
-    owner = state.owner
+    # N[b, a], the share of group a's pixels within tolerance of ellipse b, and the
+    # products, in one compiled pass over the pairs (kernels.pair_products).
     if len(alive) == len(state.ellipses):  # no merge yet: the identity map, nothing refused
-        n = _pertain_matrix(state.pair_g, owner[state.pair_p], owner, len(alive))
+        c = kernels.pair_products(state.pair_g, state.pair_p, state.owner, len(alive))
+        if not state.refused:
+            return c
         remap = list(range(len(state.ellipses)))
     else:
         index = np.full(len(state.ellipses), -1, np.int64)
         index[alive] = np.arange(len(alive))
-        group = index[owner]
-        n = _pertain_matrix(index[state.pair_g], group[state.pair_p], group, len(alive))
+        c = kernels.pair_products(index[state.pair_g], state.pair_p, index[state.owner],
+                                  len(alive))
         remap = index.tolist()
-    c = n * n.T
-    c.flat[:: len(alive) + 1] = 0.0  # the diagonal (np.fill_diagonal's own step)
     for i, j in state.refused:
         if remap[i] >= 0 and remap[j] >= 0:
             c[remap[i], remap[j]] = c[remap[j], remap[i]] = 0.0
@@ -336,11 +325,15 @@ def _union_fit(pieces: _Pieces, owner: NDArray[np.int64], groups: tuple[int, int
 def _repeats(chains: tuple[NDArray[np.int32], ...], extra: list[int], segs: list[int]) -> bool:
     """Whether every chain of ``extra`` equals one of ``segs`` pixel for pixel (a fitted
     piece repeats the chain it was cut from when it is that whole chain, most often as the
-    same array: that is told first, without reading the pixels)."""
-    return all(any(chains[s] is chains[k] for k in segs)
-               or any(chains[s].shape == chains[k].shape
-                      and chains[s].tobytes() == chains[k].tobytes() for k in segs)
-               for s in extra)
+    same array: that is told first, by identity, without reading the pixels)."""
+    own = [id(chains[k]) for k in segs]
+    for s in extra:
+        chain = chains[s]
+        if id(chain) not in own and not any(
+                chain.shape == chains[k].shape and chain.tobytes() == chains[k].tobytes()
+                for k in segs):
+            return False
+    return True
 
 
 def _keeps_members(on: NDArray[np.bool_], owner: NDArray[np.int64], groups: tuple[int, int],
@@ -399,14 +392,16 @@ def _lying_segments(table: _Chains, groups: list[tuple[list[int], Ellipse]],
     """Per group, the segments (ascending) with ``params.absorb_fraction`` of their pixels
     within ``params.tolerance_px`` of its ellipse (``known``, ``rest``: see
     :func:`_absorb_and_validate`; ``known`` and ``rest`` hold to that tolerance)."""
-    rows = ellipse_params([e for _, e in groups])
     # (group, pixel) pairs within tolerance; only their count per (group, segment) matters.
+    # The ellipses' parameters only for the pairs not already at hand.
     if known is None:
-        g_on, p_on = within_pairs(rows, table.points, params.tolerance_px)
+        g_on, p_on = within_pairs(ellipse_params([e for _, e in groups]), table.points,
+                                  params.tolerance_px)
     else:
         g_known, p_known, done = known
         if rest is None:
-            g_rest, p_rest = within_pairs(rows, table.points[done:], params.tolerance_px)
+            g_rest, p_rest = within_pairs(ellipse_params([e for _, e in groups]),
+                                          table.points[done:], params.tolerance_px)
             p_rest = p_rest + done
         else:
             g_rest, p_rest = rest

@@ -137,10 +137,10 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
         return EdgeSegments(chains=(), edges=edges)
     turned, arcs = kernels.chain_arcs(
         ordered, bounds, closed, np.concatenate(polys).reshape(-1, 2),
-        np.cumsum([0] + [q.shape[0] for q in polys], dtype=np.int64), shortest,
+        np.array([0, *itertools.accumulate([len(q) for q in polys])], np.int64), shortest,
         params.corner_angle_deg, params.spike_min_deg, params.spike_ratio,
         params.min_signed_turn_deg)
-    return EdgeSegments(chains=tuple(turned[i:j] for i, j in arcs.tolist()), edges=edges)
+    return EdgeSegments(chains=tuple([turned[i:j] for i, j in arcs.tolist()]), edges=edges)
 
 
 def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None

@@ -118,7 +118,7 @@ class State:
     @property
     def pieces(self) -> tuple[NDArray[np.int32], ...]:
         """The pixels of each fit, in the fits' order."""
-        return tuple(points for _, points, _, _ in self.fits)
+        return tuple([points for _, points, _, _ in self.fits])
 
     @property
     def chains(self) -> tuple[NDArray[np.int32], ...]:
