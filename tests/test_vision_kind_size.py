@@ -11,6 +11,7 @@ from dev_frames import GREY, GREY_DATA, K, dev_frame
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.geometry import Ellipse, mask_iou
+from stackpick_sim.vision import detector as detector_module
 from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
@@ -78,9 +79,13 @@ def _top_iou(frame: BenchFrame, **top: object) -> float:
     # reads 1.5 cm nearer, both of the small kind by their size.
     71315,
 ])
-def test_a_grey_top_face_wins_the_depth_test_by_its_kind_from_its_size(seed: int) -> None:
+def test_a_grey_top_face_wins_the_depth_test_by_its_kind_from_its_size(
+        seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     frame = dev_frame(seed, GREY_DATA, "paper", GREY)
     assert _top_iou(frame) > MATCH_IOU
+    # On frame 71315 the face completion, after the unclear first choice, proposes the top
+    # face from arc pairs too: off.
+    monkeypatch.setattr(detector_module, "complete_faces", lambda *a, **k: [])
     assert _top_iou(frame, kind_by_size=False) < MATCH_IOU
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, mask_iou, project_circle
 from stackpick_sim.vision import detector as detector_module
+from stackpick_sim.vision import faint_faces as faint_faces_module
 from stackpick_sim.vision.detector import DetectorConfig, detect
 from stackpick_sim.vision.merging import boundary_samples
 from stackpick_sim.vision.regroup import DEFAULT_SECTIONS, arc_pair_ellipses, split_at_junctions
@@ -95,8 +96,10 @@ def test_top_face_never_merged_is_found_from_pairs_of_its_arcs(
     found = detect(image, CONFIG)
     assert found.top_ellipse is not None, found.reason
     assert mask_iou(found.top_ellipse, top, SHAPE) > 0.95
-    # Without the pairs no face passes: the merge alone never fits the top face.
+    # Without the pairs (the fallbacks' and the face completion's) no face passes: the merge
+    # alone never fits the top face.
     monkeypatch.setattr(detector_module, "arc_pair_ellipses", lambda *a, **k: [])
+    monkeypatch.setattr(faint_faces_module, "arc_pair_ellipses", lambda *a, **k: [])
     missed = detect(image, CONFIG)
     assert missed.top_ellipse is None, missed.reason
 

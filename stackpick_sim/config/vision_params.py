@@ -295,6 +295,47 @@ class GateParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class CompleteParams(Section):
+    """The top stage's face completion: faces the merge never fitted, whose outline is faint
+    along part of its length (a steep top face's boundary with its own wall or a neighbour
+    of its colour and shade), proposed to the top rule from pairs of arcs when their whole
+    outline shows a consistent edge in the gradients, whenever the rule's first choice is
+    not clear (:mod:`~stackpick_sim.vision.faint_faces`)."""
+
+    SECTION: ClassVar[str] = "complete"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_contrast_share": (0.0, 1.0, ""), "same_face_iou": (0.0, 1.0, ""),
+        "max_faces": (0, 100, "faces")}
+
+    enabled: bool = True
+    """Whether the top stage proposes such faces: when the rule's first choice is no face
+    that passed it outright showing a consistent edge along ``min_contrast_share`` of its
+    outline (a clear choice: then nothing is proposed, at no cost), the faces are proposed
+    and the rule run again over them all."""
+    always: bool = False
+    """Propose them after a clear choice too: a top face the merge never fitted can lie on
+    a whole lower face whose boundary with it is faint, which then passes the rule
+    outright. Off by default for its cost (pairs of every arc on every frame: about half of
+    a paper-scene frame's detection); and a whole lower face the merge never fitted, which
+    an object leans on, is proposed too, for the rule's rest test to reject."""
+    min_contrast_share: float = 0.9
+    """Share [0, 1] of a proposed face's outline that must show a consistent edge in the
+    gradients (windowed normal gradient above the ``edges.support_*`` threshold): a top face
+    shows its whole outline, its faint side too, while an ellipse through arcs of two
+    outlines, or a lower face, shows none along a part of it (rendering dither and a
+    pixel's rounding leave a few per cent of a whole face's samples below the threshold).
+    Merged ellipses that show this share are whole faces already: their arcs are not
+    paired; a chosen face that passed the rule outright and shows it is a clear choice."""
+    same_face_iou: float = 0.85
+    """An ellipse overlapping a merged one by at least this area intersection over union
+    (ratio) is that ellipse's face fitted again, not a face the merge missed: not proposed
+    (fits of one face on different arcs overlap by 0.9 and more; a face and the fit that
+    took in part of its wall, or a neighbour's arc, by 0.8 and less)."""
+    max_faces: int = 4
+    """At most this many faces proposed per frame (the most contrast first): a cap on the
+    top rule's extra work."""
+
+@dataclass(frozen=True, kw_only=True)
 class TopParams(Section):
     """``top`` stage: the top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) and
     what follows it.
@@ -918,6 +959,7 @@ class StageSections:
     merging: MergeParams = field(default_factory=MergeParams)
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
+    complete: CompleteParams = field(default_factory=CompleteParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)

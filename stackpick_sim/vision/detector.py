@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.scene_config import VisionCfg
 from stackpick_sim.config.vision_params import (
+    CompleteParams,
     FitParams,
     MergeParams,
     PoseParams,
@@ -55,6 +56,7 @@ from stackpick_sim.vision.edges import (
     edge_image_points,
     unblurred_gradients,
 )
+from stackpick_sim.vision.faint_faces import complete_faces
 from stackpick_sim.vision.fitting import (
     fit_all,
     plausible,
@@ -399,11 +401,15 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
     (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``). Before
-    those, when no ellipse passed the rule outright, faces with markings fitted on arc pairs
-    join it (``top.marked_arcs``)."""
+    those, when its first choice is not clear, faces the merge never fitted whose outline is
+    faint along part of its length join it (``complete``), and when no ellipse passed the
+    rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
     cues = _cues(state, config)
     merged = list(state.merged)
     choice = _select([m.ellipse for m in merged], state, cues)
+    if config.complete.enabled and not _clear(choice, config.complete):
+        # A top face the merge never fitted, its outline faint along part of its length.
+        merged, choice = _faint_faces(state, merged, choice, cues, config)
     if config.top.marked_arcs and (choice.index is None
                                    or choice.evidence[choice.index].occluded):
         # None passed the rule outright: faces with markings the merge never fitted.
@@ -421,6 +427,41 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
     return state.updated(cues=cues, merged=merged, choice=choice)
+
+
+def _clear(choice: TopChoice, params: CompleteParams) -> bool:
+    """Whether the top rule's ``choice`` is clear: a face that passed it outright and shows
+    a consistent edge along at least ``params.min_contrast_share`` of its outline (a whole
+    face; the rule's support, read from the edge contrast); never with ``params.always``."""
+    i = choice.index
+    return (not params.always and i is not None and not choice.evidence[i].occluded
+            and choice.evidence[i].support >= params.min_contrast_share)
+
+
+def _faint_faces(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """The faces the merge never fitted whose outline is faint along part of its length
+    (:func:`~stackpick_sim.vision.faint_faces.complete_faces`, ``complete``, from the arcs
+    of :func:`last_resort_arcs`) added to ``merged``, each with the chains lying on it, and
+    the top rule's choice among them all; both unchanged when none is found."""
+    check_time(state.deadline, "top")
+    arc_chains, arcs = last_resort_arcs(list(state.pieces), state.segments, state.fitted,
+                                        config.fits.min_fit_px, config.top.arc_split_reach_px)
+    grad = state.edges("top")
+    faces = complete_faces(merged, [ev.support for ev in choice.evidence], arc_chains, arcs,
+                           grad, (state.points, state.grads), state.crop, state.gate, config,
+                           config.complete, config.limits.max_arcs)
+    if not faces:
+        return merged, choice
+    support = support_shares(faces, support_map(grad.edges))
+    table = chain_table(state.chains)
+    merged = list(merged)
+    for face, share in zip(faces, support.tolist(), strict=True):
+        on = chains_on(face, *table, config.merging)
+        residual = (rms_residual(face, np.concatenate([state.chains[k] for k in on]))
+                    if on else 0.0)
+        merged.append(MergedEllipse.of(face, on, residual, float(share)))
+    return merged, _select([m.ellipse for m in merged], state, cues)
 
 
 def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,

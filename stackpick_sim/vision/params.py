@@ -7,6 +7,7 @@ not load the pipeline) and offered here beside the stages they set.
 
 from stackpick_sim.config.vision_params import (
     FALLBACKS,
+    CompleteParams,
     EdgeParams,
     EllipsesParams,
     FitParams,
@@ -26,6 +27,7 @@ from stackpick_sim.config.vision_params import (
 
 __all__ = [
     "FALLBACKS",
+    "CompleteParams",
     "EdgeParams",
     "EllipsesParams",
     "FitParams",

@@ -89,12 +89,14 @@ def chains_on(ellipse: Ellipse, pixels: NDArray[np.int32], owner: NDArray[np.int
 def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
                       shape: tuple[int, int],
                       axis_range: tuple[float, float] | None = None,
-                      sections: StageSections = DEFAULT_SECTIONS) -> list[Ellipse]:
+                      sections: StageSections = DEFAULT_SECTIONS,
+                      anchors: Sequence[int] | None = None) -> list[Ellipse]:
     """Ellipses fitted to pairs of the chains ``arcs`` (indices into ``chains``, all edge
     segments, (N_j, 2) int32 (u, v)) and grown by the chains lying on them; see the module
     docstring. ``shape``: the (H, W) image; ``axis_range``: (min, max) semi-major axis (px) of
     a face, or None; ``sections``: the settings read (the fits', the merge's, the top rule's
-    ``arc_grow_rounds``; a DetectorConfig is one). Each ellipse once:
+    ``arc_grow_rounds``; a DetectorConfig is one); ``anchors``: when given, only the pairs
+    with at least one of these arcs (indices into ``chains``). Each ellipse once:
     a pair of arcs that both lie on an ellipse already grown is not fitted again."""
     hi = math.hypot(*shape) if axis_range is None else axis_range[1]
     boxes = np.array([_bounds(chains[k]) for k in arcs], np.float64).reshape(-1, 4)
@@ -104,7 +106,11 @@ def arc_pair_ellipses(chains: Sequence[NDArray[np.int32]], arcs: Sequence[int],
               - np.minimum.outer(boxes[:, 0], boxes[:, 0]))
     span_v = (np.maximum.outer(boxes[:, 3], boxes[:, 3])
               - np.minimum.outer(boxes[:, 1], boxes[:, 1]))
-    pairs = np.argwhere(np.triu((span_u <= 2.0 * hi) & (span_v <= 2.0 * hi), 1)).tolist()
+    near = (span_u <= 2.0 * hi) & (span_v <= 2.0 * hi)
+    if anchors is not None:
+        anchored = np.isin(np.asarray(arcs, np.int64), np.asarray(anchors, np.int64))
+        near &= anchored[:, None] | anchored[None, :]
+    pairs = np.argwhere(np.triu(near, 1)).tolist()
     # A chain given twice (one array, as a piece fitted whole and as its chain) counts once.
     first: dict[int, int] = {}
     distinct = [k for k, c in enumerate(chains) if first.setdefault(id(c), k) == k]
