@@ -16,7 +16,9 @@ The outputs (ellipses, top, pose) of the two are compared as well: a speed-up sh
 change them.
 
 DATA is a ``stackpick dataset --scene SCENE --seeds 0:400`` directory (``--scene``: the
-same scene, whose object kinds the detector is given). Time on seeds outside
+same scene, whose object kinds the detector is given; both detectors run with their default
+settings, not the scene's ``[vision]`` table, which a baseline's code may not read: time a
+scene's own settings with ``stackpick bench-detect --scene``). Time on seeds outside
 the held-out ranges of the reported figures (docs/figures.md).
 """
 
