@@ -1,11 +1,12 @@
 """Per-stage time of the detector against a baseline commit, as ratios, on the same frames.
 
     python benchmarks/bench_vision_stages.py --data DATA --seeds 0:400 \\
-        [--scene paper] [--baseline main] [--rounds 3] [--repeats 3] [--slowest N]
+        [--scene paper] [--scene-settings] [--baseline main] [--rounds 3] [--repeats 3] \\
+        [--slowest N]
 
-The baseline commit's ``stackpick_sim`` is exported to a temporary directory; the baseline and
-the working tree then run in alternation (``--rounds`` times each), each in its own process
-timing every frame ``--repeats`` times. Stage times are the detector's own
+The baseline commit's ``stackpick_sim`` and ``scenes`` are exported to a temporary directory;
+the baseline and the working tree then run in alternation (``--rounds`` times each), each in
+its own process timing every frame ``--repeats`` times. Stage times are the detector's own
 (``Detection.timings_ms``) read on the thread's CPU clock rather than the wall clock: on a
 machine shared with other jobs, preemption then adds nothing, while the ratios stay those of
 the work done. Per frame the fastest repeat counts; the table gives medians over the frames
@@ -16,10 +17,11 @@ The outputs (ellipses, top, pose) of the two are compared as well: a speed-up sh
 change them.
 
 DATA is a ``stackpick dataset --scene SCENE --seeds 0:400`` directory (``--scene``: the
-same scene, whose object kinds the detector is given; both detectors run with their default
-settings, not the scene's ``[vision]`` table, which a baseline's code may not read: time a
-scene's own settings with ``stackpick bench-detect --scene``). Time on seeds outside
-the held-out ranges of the reported figures (docs/figures.md).
+same scene, whose object kinds the detector is given). Both detectors run with their default
+settings unless ``--scene-settings`` is given: then each runs with the ``[vision]`` table of
+its own commit's scene file (the scene as each commit ships it; where the two tables differ,
+the outputs may differ too). Time on seeds outside the held-out ranges of the reported
+figures (docs/figures.md).
 """
 
 from __future__ import annotations
@@ -54,6 +56,10 @@ try:  # the compiled kernels loaded (or compiled) before any timing
 except ImportError:  # a baseline without them
     pass
 frames_path, repeats, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+vision = None
+if len(sys.argv) > 4:  # the scene's own [vision] table, as this commit ships it
+    from stackpick_sim.config.loader import load_scene
+    vision = load_scene(sys.argv[4]).vision
 with open(frames_path, "rb") as f:
     frames = pickle.load(f)
 times, outputs = [], []
@@ -65,9 +71,9 @@ for frame in frames:
         got = object_kinds([k[:2] for k in kinds])
     radii, colours, heights = (tuple(got) + (None,))[:3]
     extra = {} if heights is None else {"heights_m": heights}
-    det = TopObjectDetector(DetectorConfig(intrinsics=CameraIntrinsics(**frame["intrinsics"]),
-                                           radii_m=radii, depth_range_m=frame["depth_range_m"],
-                                           kind_colours=colours, **extra))
+    config = DetectorConfig(intrinsics=CameraIntrinsics(**frame["intrinsics"]), radii_m=radii,
+                            depth_range_m=frame["depth_range_m"], kind_colours=colours, **extra)
+    det = TopObjectDetector(config if vision is None else config.with_vision(vision))
     runs = [det.detect(frame["image"]) for _ in range(repeats)]
     times.append([r.timings_ms for r in runs])
     r = runs[-1]
@@ -97,23 +103,25 @@ def save_frames(data: Path, seeds: list[int], out: Path, scene: str = "paper") -
 
 
 def export(ref: str, into: Path) -> Path:
-    """``stackpick_sim`` of commit ``ref`` written under ``into``; returns the directory to put
-    on sys.path."""
+    """``stackpick_sim`` and ``scenes`` of commit ``ref`` written under ``into``; returns the
+    directory to put on sys.path."""
     archive = into / "baseline.tar"
     subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", "-o", str(archive), ref,
-                    "stackpick_sim"], check=True)
+                    "stackpick_sim", "scenes"], check=True)
     with tarfile.open(archive) as tar:
         tar.extractall(into, filter="data")
     return into
 
 
-def run_worker(code_root: Path, frames: Path, repeats: int, out: Path) -> dict:
-    """Time the detector of ``code_root`` on the pickled ``frames`` in a child process; its
-    results."""
+def run_worker(code_root: Path, frames: Path, repeats: int, out: Path, scene: str | None = None
+               ) -> dict:
+    """Time the detector of ``code_root`` on the pickled ``frames`` in a child process (with
+    the ``[vision]`` table of that code's ``scene``, when given); its results."""
     env = dict(os.environ, PYTHONPATH=str(code_root))
     # -P: no current directory ahead of PYTHONPATH (it may hold another stackpick_sim).
-    subprocess.run([sys.executable, "-P", "-c", WORKER, str(frames), str(repeats), str(out)],
-                   check=True, env=env)
+    extra = [] if scene is None else [scene]
+    subprocess.run([sys.executable, "-P", "-c", WORKER, str(frames), str(repeats), str(out),
+                    *extra], check=True, env=env)
     with open(out, "rb") as f:
         return pickle.load(f)
 
@@ -173,6 +181,9 @@ def main() -> int:
     p.add_argument("--data", type=Path, required=True, help="a `stackpick dataset` directory")
     p.add_argument("--seeds", default="0:400", help="seeds of the data set to time (default 0:400)")
     p.add_argument("--scene", default="paper", help="the data set's scene (default paper)")
+    p.add_argument("--scene-settings", action="store_true",
+                   help="run each detector with its own commit's scene [vision] table "
+                        "(default: the detectors' default settings)")
     p.add_argument("--baseline", default="main", help="git ref of the baseline (default main)")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--repeats", type=int, default=3)
@@ -180,6 +191,7 @@ def main() -> int:
                    help="also list the N slowest frames of the working tree, stage by stage")
     args = p.parse_args()
     seeds = parse_seeds(args.seeds)
+    scene = args.scene if args.scene_settings else None
     with tempfile.TemporaryDirectory() as tmp:
         frames = Path(tmp) / "frames.pkl"
         timed = save_frames(args.data, seeds, frames, args.scene)
@@ -189,12 +201,15 @@ def main() -> int:
         base_root = export(args.baseline, Path(tmp))
         base, work = [], []
         for k in range(args.rounds):
-            base.append(run_worker(base_root, frames, args.repeats, Path(tmp) / f"base{k}.pkl"))
-            work.append(run_worker(REPO, frames, args.repeats, Path(tmp) / f"work{k}.pkl"))
+            base.append(run_worker(base_root, frames, args.repeats, Path(tmp) / f"base{k}.pkl",
+                                   scene))
+            work.append(run_worker(REPO, frames, args.repeats, Path(tmp) / f"work{k}.pkl",
+                                   scene))
     old, new = stage_medians(base), stage_medians(work)
     print(f"Detector stage times, CPU ms (median over {len(base[0]['times'])} frames x "
           f"{args.rounds} rounds of the fastest of {args.repeats}), baseline {args.baseline} "
-          "vs working tree:\n")
+          f"vs working tree, {'each with its own' if scene else 'default settings, not the'} "
+          f"{args.scene} scene's [vision] table:\n")
     print("| stage | baseline | working tree | baseline / working tree |")
     print("|---|---|---|---|")
     for s in STAGES:
