@@ -453,14 +453,7 @@ def _faint_faces(state: State, merged: list[MergedEllipse], choice: TopChoice, c
                            config.complete, config.limits.max_arcs)
     if not faces:
         return merged, choice
-    support = support_shares(faces, support_map(grad.edges))
-    table = chain_table(state.chains)
-    merged = list(merged)
-    for face, share in zip(faces, support.tolist(), strict=True):
-        on = chains_on(face, *table, config.merging)
-        residual = (rms_residual(face, np.concatenate([state.chains[k] for k in on]))
-                    if on else 0.0)
-        merged.append(MergedEllipse.of(face, on, residual, float(share)))
+    merged = [*merged, *_as_merged(faces, state.chains, grad, config.merging)]
     return merged, _select([m.ellipse for m in merged], state, cues)
 
 
@@ -1235,15 +1228,24 @@ def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ..
 def _with_face(merged: list[MergedEllipse], choice: TopChoice, ellipse: Ellipse,
                evidence: OcclusionEvidence, chains: tuple[NDArray[np.int32], ...],
                grad: EdgeImage, params: MergeParams) -> tuple[list[MergedEllipse], TopChoice]:
-    """``merged`` with ``ellipse`` added (its support, the ``chains`` on it by the merge's
-    ``params`` and their residual), and the choice of it, ``evidence`` added to
-    ``choice``'s."""
-    support = float(support_shares([ellipse], support_map(grad.edges))[0])
-    on = chains_on(ellipse, *chain_table(chains), params)
-    residual = rms_residual(ellipse, np.concatenate([chains[k] for k in on])) if on else 0.0
-    merged = [*merged, MergedEllipse(ellipse=ellipse, segments=on, residual_px=residual,
-                                     support=support)]
+    """``merged`` with ``ellipse`` added (:func:`_as_merged`), and the choice of it,
+    ``evidence`` added to ``choice``'s."""
+    merged = [*merged, *_as_merged([ellipse], chains, grad, params)]
     return merged, TopChoice(index=len(merged) - 1, evidence=(*choice.evidence, evidence))
+
+
+def _as_merged(faces: list[Ellipse], chains: tuple[NDArray[np.int32], ...], grad: EdgeImage,
+               params: MergeParams) -> list[MergedEllipse]:
+    """Each of ``faces`` (ellipses fitted outside the merge) as a merged ellipse: its
+    support, the ``chains`` on it by the merge's ``params`` and their residual."""
+    support = support_shares(faces, support_map(grad.edges)).tolist()
+    table = chain_table(chains)
+    out = []
+    for face, share in zip(faces, support, strict=True):
+        on = chains_on(face, *table, params)
+        residual = rms_residual(face, np.concatenate([chains[k] for k in on])) if on else 0.0
+        out.append(MergedEllipse.of(face, on, residual, float(share)))
+    return out
 
 
 def _nearer_arc_face(merged: list[MergedEllipse], choice: TopChoice, arcs: Sequence[int],
