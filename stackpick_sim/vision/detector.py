@@ -62,7 +62,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
 )
-from stackpick_sim.vision.kind_size import kinds_by_size, one_kind
+from stackpick_sim.vision.kind_size import depth_radius, kinds_by_size
 from stackpick_sim.vision.limits import (
     Deadline,
     WorkLimits,
@@ -612,7 +612,7 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
                 colour_of=colour_of, radius_of=radius_of, height_of=config.height_of(),
                 markings=markings, top=config.top, pose=config.pose, radii=config.radii_m,
                 kinds_of=kinds_of,
-                depth_radius_of=radius_of if kinds_of is None else one_kind(kinds_of))
+                depth_radius_of=depth_radius(radius_of, kinds_of))
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:

@@ -65,3 +65,13 @@ def one_kind(kinds_of: Callable[[Ellipse], tuple[float, ...]]
         return kinds[0] if len(kinds) == 1 else None
 
     return radius_of
+
+
+def depth_radius(radius_of: Callable[[Ellipse], float | None] | None,
+                 kinds_of: Callable[[Ellipse], tuple[float, ...]] | None
+                 ) -> Callable[[Ellipse], float | None] | None:
+    """Ellipse -> the radius (m) the depth tests read: ``radius_of``'s (from colour), else
+    the one kind ``kinds_of`` admits (:func:`one_kind`); None without either."""
+    if radius_of is not None or kinds_of is None:
+        return radius_of
+    return one_kind(kinds_of)

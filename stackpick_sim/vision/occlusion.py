@@ -60,7 +60,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels, kernels_pose
 from stackpick_sim.vision.contrast import outline_rows, refit_on_contrast, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.kind_size import one_kind
+from stackpick_sim.vision.kind_size import depth_radius
 from stackpick_sim.vision.markings import (
     MarkingTest,
     find_markings,
@@ -638,9 +638,7 @@ def _depth_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[i
     """The index of the ``pool`` face clearly nearest the camera (:func:`_clearly_nearest_of`;
     radii from colour, else of faces whose size admits one kind), else, with
     ``depth_among_passing``, of the ``candidates`` (the passing faces), or None."""
-    radius_of = cues.radius_of
-    if radius_of is None and cues.kinds_of is not None:
-        radius_of = one_kind(cues.kinds_of)
+    radius_of = depth_radius(cues.radius_of, cues.kinds_of)
     params = cues.params
     nearest = _clearly_nearest_of(ellipses, pool, cues.intrinsics, radius_of, params)
     if nearest is None and params.depth_among_passing and len(candidates) < len(pool):
