@@ -336,6 +336,26 @@ class CompleteParams(Section):
     top rule's extra work."""
 
 @dataclass(frozen=True, kw_only=True)
+class InnerFaceParams(Section):
+    """The top stage's last step, when every face reads as occluded: a top face inside a
+    lower face's fit (:mod:`~stackpick_sim.vision.inner_face`). Its refit is the top stage's
+    inner refit, held to the ``top.inner_refit_*`` settings; the fits refitted show at least
+    ``top.hidden_min_support`` of their outline."""
+
+    SECTION: ClassVar[str] = "inner_face"
+
+    enabled: bool = True
+    """When the top rule and its fallbacks chose no face, each fit with no T-junction that
+    fails on edges inside is refitted on its innermost consistent edge (``top.inner_refit_*``)
+    and the rule run again with the refits in their fits' place; a refit it chooses is the
+    top face. The failure class *a top face inside a lower face's fit*: a small top object
+    standing on a larger one of its colour and shade, nearly concentric, is fitted round the
+    lower face's strong silhouette, with its own wall's boundary inside the fit as edges, and
+    no face passes the rule. Costs nothing on frames where a face is chosen (a contrast
+    refit of the few such fits on the others)."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class TopParams(Section):
     """``top`` stage: the top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) and
     what follows it.
@@ -960,6 +980,7 @@ class StageSections:
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     complete: CompleteParams = field(default_factory=CompleteParams)
+    inner_face: InnerFaceParams = field(default_factory=InnerFaceParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)
