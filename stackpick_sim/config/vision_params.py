@@ -345,8 +345,8 @@ class InnerFaceParams(Section):
     SECTION: ClassVar[str] = "inner_face"
 
     enabled: bool = True
-    """When the top rule and its fallbacks chose no face, each fit with no T-junction that
-    fails on edges inside is refitted on its innermost consistent edge (``top.inner_refit_*``)
+    """When the top rule and its fallbacks chose no face, each fit that fails on edges inside
+    (a T-junction allowed) is refitted on its innermost consistent edge (``top.inner_refit_*``)
     and the rule run again with the refits in their fits' place; a refit it chooses is the
     top face. The failure class *a top face inside a lower face's fit*: a small top object
     standing on a larger one of its colour and shade, nearly concentric, is fitted round the

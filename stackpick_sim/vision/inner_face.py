@@ -7,14 +7,16 @@ strong edge all round, and the top face's own, strong only where it meets its ow
 grey levels elsewhere, where it lies on the lower face. The merge fits the strong silhouette
 whole, round the top face and a sliver of the lower face; the top face's own boundary with
 its wall then lies inside that fit as edges, so the fit fails the top rule on edges inside,
-and the top face's own arc, fitted alone, fails on support (its faint side). The lower
-face's other fits fail on the top object's outline crossing them. No face passes the rule,
+and the top face's own arc, fitted alone, fails on support (its faint side). Where the
+top face reaches the lower face's rim, the top object's wall meets the fit's outline in a
+T-junction too. No face passes the rule,
 and the fallbacks find none: the one face that shows whole is the top face itself, inside
 the fit.
 
 So, when the top rule and its fallbacks chose no face, each fit that shows at least
-``top.hidden_min_support`` of its outline with no T-junction and fails on edges inside is
-refitted on its innermost consistent edge within ``top.inner_refit_reach_px``
+``top.hidden_min_support`` of its outline and fails on edges inside (with or without a
+T-junction: the top object's wall meets the lower face's outline where the top face reaches
+its rim) is refitted on its innermost consistent edge within ``top.inner_refit_reach_px``
 (:func:`~stackpick_sim.vision.contrast.refit_on_contrast`: the top face's own wall boundary
 on one side, its faint step on the other), as the top stage's inner refit of a chosen face
 (``top.inner_refit_*``): a refit clearly smaller than the fit (``top.inner_refit_max_area``)
@@ -64,11 +66,12 @@ def inner_refit(fit: Ellipse, grad: EdgeImage, shape: tuple[int, int],
 
 
 def enclosing(evidence: Sequence[OcclusionEvidence], min_support: float) -> list[int]:
-    """Indices of the fits that can enclose a face: no T-junction end, edges inside
-    (``params.max_interior_share`` of the evidence's settings), support at least
-    ``min_support`` (share [0, 1] of the outline: at least half of it shows)."""
-    return [i for i, ev in enumerate(evidence)
-            if not ev.occluded_ends and ev.edges_inside and ev.support >= min_support]
+    """Indices of the fits that can enclose a face: edges inside (more than
+    ``max_interior_share`` of the perimeter, the evidence's settings) and support at least
+    ``min_support`` (share [0, 1] of the outline: at least half of it shows). A T-junction
+    does not rule a fit out: the top object's wall meets the lower face's outline where the
+    top face reaches its rim."""
+    return [i for i, ev in enumerate(evidence) if ev.edges_inside and ev.support >= min_support]
 
 
 def refitted(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
