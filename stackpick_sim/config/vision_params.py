@@ -356,6 +356,34 @@ class InnerFaceParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class UnderWallParams(Section):
+    """The top stage's check of its choice against the other faces' cylinders: a face lying
+    under a nearer cylinder's body (the cover test in reverse,
+    :mod:`~stackpick_sim.vision.under_wall`). The covering faces show at least
+    ``top.min_support`` of their outline (a whole face's, apart from a T-junction: its colour,
+    hence its radius, is its own); the depth margin is ``top.cover_depth_tolerance_m``."""
+
+    SECTION: ClassVar[str] = "under_wall"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_share": (0.01, 1.0, "")}
+
+    enabled: bool = True
+    """Whether a chosen face lying under another face's cylinder gives up the choice: it is
+    left out and the top stage runs again over the other faces. The failure class *the far
+    rim of a steep cylinder*: its wall's silhouette beyond its face, closed by the face's near
+    rim or a neighbour's arc, is fitted as an ellipse of about the face's size that passes
+    the top rule, while the true face fails on a neighbour's outline touching it. Placed
+    where its size and kind put it, that ellipse's face lies behind the cylinder's own wall
+    (needs the object kinds' radii and heights)."""
+    min_share: float = 0.9
+    """Share [0, 1] of the chosen face's disc (samples on rings at 0, 0.35, 0.65 and 0.9 of
+    its radius) that must lie behind another face's cylinder, under each of its own two
+    pose solutions and one of the other's, for the face to lie under it: a far rim lies
+    wholly behind its cylinder's wall (1.0 on rendered cluttered frames), while a top face
+    whose rim only passes behind the edge of a misread cylinder loses a ring's sample or
+    two."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class TopParams(Section):
     """``top`` stage: the top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) and
     what follows it.
@@ -981,6 +1009,7 @@ class StageSections:
     gate: GateParams = field(default_factory=GateParams)
     complete: CompleteParams = field(default_factory=CompleteParams)
     inner_face: InnerFaceParams = field(default_factory=InnerFaceParams)
+    under_wall: UnderWallParams = field(default_factory=UnderWallParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)

@@ -121,6 +121,7 @@ from stackpick_sim.vision.stages import (
     check_time,
     run_stages,
 )
+from stackpick_sim.vision.under_wall import under_a_wall
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
@@ -431,6 +432,12 @@ def top_stage(state: State, config: DetectorConfig) -> State:
             merged, choice = _inner_face(state, merged, choice, cues, config)
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
+    if config.under_wall.enabled and choice.index is not None and _under_wall(
+            merged, choice, cues, config):
+        # The choice lies behind another face's cylinder (a far rim): the stage again
+        # without it.
+        return top_stage(state.updated(merged=[m for k, m in enumerate(merged)
+                                               if k != choice.index]), config)
     return state.updated(cues=cues, merged=merged, choice=choice)
 
 
@@ -509,6 +516,23 @@ def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
         return merged, choice
     merged, choice = _inner_choice(merged, choice, i, refits[i], again.evidence[i])
     return merged, replace(choice, reason="")
+
+
+def _under_wall(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                config: DetectorConfig) -> bool:
+    """Whether the chosen face lies under the cylinder of another face that shows at least
+    ``top.min_support`` of its outline (:func:`~stackpick_sim.vision.under_wall.
+    under_a_wall`, ``under_wall.min_share``, ``top.cover_depth_tolerance_m``); never without
+    the kinds' radii and heights."""
+    assert choice.index is not None
+    if cues.depth_radius_of is None or cues.height_of is None:
+        return False
+    covering = [k for k, ev in enumerate(choice.evidence)
+                if k != choice.index and ev.support >= config.top.min_support]
+    return bool(covering) and under_a_wall(
+        [m.ellipse for m in merged], choice.index, covering, cues.k_crop,
+        cues.depth_radius_of, cues.height_of, config.under_wall.min_share,
+        config.top.cover_depth_tolerance_m)
 
 
 def _inner_choice(merged: list[MergedEllipse], choice: TopChoice, i: int, refit: Ellipse,

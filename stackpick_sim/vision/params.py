@@ -23,6 +23,7 @@ from stackpick_sim.config.vision_params import (
     SegmentParams,
     StageSections,
     TopParams,
+    UnderWallParams,
     sections_of,
 )
 
@@ -44,5 +45,6 @@ __all__ = [
     "SegmentParams",
     "StageSections",
     "TopParams",
+    "UnderWallParams",
     "sections_of",
 ]
