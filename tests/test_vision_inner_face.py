@@ -17,7 +17,6 @@ from stackpick_sim.config.loader import load_scene
 from stackpick_sim.geometry import Ellipse, mask_iou
 from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
-from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector, detect
 from stackpick_sim.vision.edges import edge_image
 from stackpick_sim.vision.inner_face import enclosing, inner_refit

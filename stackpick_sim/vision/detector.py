@@ -57,12 +57,12 @@ from stackpick_sim.vision.edges import (
     unblurred_gradients,
 )
 from stackpick_sim.vision.faint_faces import complete_faces
-from stackpick_sim.vision.inner_face import inner_refit, refitted
 from stackpick_sim.vision.fitting import (
     fit_all,
     plausible,
     rms_residual,
 )
+from stackpick_sim.vision.inner_face import inner_refit, refitted
 from stackpick_sim.vision.kind_size import depth_radius, kinds_by_size
 from stackpick_sim.vision.limits import (
     Deadline,

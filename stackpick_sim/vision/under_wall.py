@@ -24,26 +24,22 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from stackpick_sim.geometry import CameraIntrinsics, Ellipse
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse, plane_basis
 from stackpick_sim.vision.markings import holds_centre
 from stackpick_sim.vision.pose import unit_circle_poses
 
-#: Sample radii (shares of the face's radius) and angles of the disc samples.
-_RINGS = np.array([0.0, 0.35, 0.65, 0.9])
-_ANGLES = np.linspace(0.0, 2.0 * math.pi, 12, endpoint=False)
+#: The disc samples: radii (shares of the face's radius) and angles, one per (ring, angle).
+_RING_SHARES, _RING_ANGLES = (grid.ravel() for grid in np.meshgrid(
+    np.array([0.0, 0.35, 0.65, 0.9]), np.linspace(0.0, 2.0 * math.pi, 12, endpoint=False)))
 
 
 def _disc(centre: NDArray[np.float64], normal: NDArray[np.float64], radius: float
           ) -> NDArray[np.float64]:
     """(N, 3) samples of the disc of ``radius`` (m) about ``centre`` in the plane of unit
     ``normal`` (camera frame, m)."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(normal, helper)
-    u /= np.linalg.norm(u)
-    v = np.cross(normal, u)
-    rr, aa = np.meshgrid(_RINGS * radius, _ANGLES)
-    rr, aa = rr.ravel(), aa.ravel()
-    return centre + np.outer(rr * np.cos(aa), u) + np.outer(rr * np.sin(aa), v)
+    u, v = plane_basis(normal)
+    rr = _RING_SHARES * radius
+    return centre + np.outer(rr * np.cos(_RING_ANGLES), u) + np.outer(rr * np.sin(_RING_ANGLES), v)
 
 
 def _hidden(points: NDArray[np.float64], centre: NDArray[np.float64],
