@@ -364,7 +364,7 @@ class UnderWallParams(Section):
     hence its radius, is its own); the depth margin is ``top.cover_depth_tolerance_m``."""
 
     SECTION: ClassVar[str] = "under_wall"
-    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_share": (0.01, 1.0, "")}
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_share": (0.0, 1.0, "")}
 
     enabled: bool = True
     """Whether a chosen face lying under another face's cylinder gives up the choice: it is
