@@ -375,12 +375,13 @@ class UnderWallParams(Section):
     where its size and kind put it, that ellipse's face lies behind the cylinder's own wall
     (needs the object kinds' radii and heights)."""
     min_share: float = 0.9
-    """Share [0, 1] of the chosen face's disc (samples on rings at 0, 0.35, 0.65 and 0.9 of
-    its radius) that must lie behind another face's cylinder, under each of its own two
-    pose solutions and one of the other's, for the face to lie under it: a far rim lies
-    wholly behind its cylinder's wall (1.0 on rendered cluttered frames), while a top face
-    whose rim only passes behind the edge of a misread cylinder loses a ring's sample or
-    two."""
+    """Share [0, 1] of the chosen face's disc (its centre and 12 samples on each ring at
+    0.35, 0.65 and 0.9 of its radius) that must lie behind another face's cylinder, under
+    each of its own two pose solutions and one of the other's, for the face to lie under
+    it: a far rim lies wholly behind its cylinder's wall (1.0 on rendered cluttered
+    frames), while the true top faces chosen on rendered paper, grey and cluttered frames lie
+    behind no well-supported face's cylinder at all (0.0); 0.9 leaves a few samples of the
+    outer ring to a pose's fit and tilt errors."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -29,9 +29,11 @@ from stackpick_sim.vision.kernels import _compiled
 from stackpick_sim.vision.markings import holds_centre
 from stackpick_sim.vision.pose import unit_circle_poses
 
-#: The disc samples: radii (shares of the face's radius) and angles, one per (ring, angle).
-_RING_SHARES, _RING_ANGLES = (np.ascontiguousarray(grid.ravel()) for grid in np.meshgrid(
-    np.array([0.0, 0.35, 0.65, 0.9]), np.linspace(0.0, 2.0 * math.pi, 12, endpoint=False)))
+#: The disc samples: radii (shares of the face's radius) and angles, the centre and 12 on
+#: each ring.
+_RING_SHARES = np.concatenate(([0.0], np.repeat([0.35, 0.65, 0.9], 12)))
+_RING_ANGLES = np.concatenate(([0.0], np.tile(np.linspace(0.0, 2.0 * math.pi, 12,
+                                                          endpoint=False), 3)))
 
 
 @_compiled
@@ -110,41 +112,49 @@ def _hidden_share(faces: NDArray[np.float64], face_radius: float, others: NDArra
 
 def _solutions(face: Ellipse, intrinsics: CameraIntrinsics) -> NDArray[np.float64]:
     """(2, 6) the unit-radius pose solutions of ``face``: centre (m), inward normal."""
-    return np.array([[*s.centre_cam, *s.normal_cam] for s in unit_circle_poses(face, intrinsics)])
+    out = np.empty((2, 6))
+    for k, s in enumerate(unit_circle_poses(face, intrinsics)):
+        out[k, :3], out[k, 3:] = s.centre_cam, s.normal_cam
+    return out
 
 
 def hidden_share(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics,
                  face_radius: float, other_radius: float, other_height: float,
                  tolerance: float) -> float:
-    """Share [0, 1] of ``face``'s disc (samples on rings at 0, 0.35, 0.65 and 0.9 of its
-    radius, 12 a ring) whose ray from the camera passes through ``other``'s solid cylinder
-    before reaching it, by more than ``tolerance`` (m): the least over ``face``'s two pose
-    solutions and the largest over ``other``'s (the face lies under the cylinder whichever
-    way it is tilted, under one of the cylinder's two reconstructions). Radii and height in
-    m."""
-    return float(_hidden_share(_solutions(face, intrinsics), face_radius,
-                               _solutions(other, intrinsics), other_radius, other_height,
+    """Share [0, 1] of ``face``'s disc (its centre and 12 samples on each ring at 0.35, 0.65
+    and 0.9 of its radius) whose ray from the camera passes through ``other``'s solid
+    cylinder before reaching it, by more than ``tolerance`` (m): the least over ``face``'s
+    two pose solutions and the largest over ``other``'s (the face lies under the cylinder
+    whichever way it is tilted, under one of the cylinder's two reconstructions). Radii and
+    height in m."""
+    return _share(_solutions(face, intrinsics), face_radius, _solutions(other, intrinsics),
+                  other_radius, other_height, tolerance)
+
+
+def _share(face: NDArray[np.float64], face_radius: float, other: NDArray[np.float64],
+           other_radius: float, other_height: float, tolerance: float) -> float:
+    """:func:`hidden_share` of the pose solutions (:func:`_solutions`) ``face`` and
+    ``other``."""
+    return float(_hidden_share(face, face_radius, other, other_radius, other_height,
                                tolerance, _RING_SHARES, _RING_ANGLES))
 
 
-def _may_hide(face: Ellipse, other: Ellipse, intrinsics: CameraIntrinsics,
+def _may_hide(face: Ellipse, other: Ellipse, solutions: tuple[NDArray[np.float64],
+                                                              NDArray[np.float64]],
               face_radius: float, other_radius: float, other_height: float) -> bool:
-    """A cheap bound before :func:`hidden_share`: whether ``other``'s cylinder can reach in
-    front of ``face`` at all. Its image lies within its semi-major axis times (1 + height /
-    radius) of its centre (the wall's image is at most the face's size times height over
-    radius long), and its nearest point lies at least its radius in front of its face's
-    centre; ``face``'s disc lies within its semi-major axis of its centre, at most its radius
-    behind it."""
+    """A cheap bound before the hidden share: whether ``other``'s cylinder can reach in front
+    of ``face`` at all (``solutions``: the two faces' pose solutions, :func:`_solutions`).
+    Its image lies within its semi-major axis times (1 + height / radius) of its centre (the
+    wall's image is at most the face's size times height over radius long), and its nearest
+    point lies at most its radius in front of its face's centre (the nearer solution's);
+    ``face``'s disc lies within its semi-major axis of its centre, at most its radius behind
+    it."""
     reach = other.a * (1.0 + other_height / other_radius) + face.a
     if math.hypot(face.cx - other.cx, face.cy - other.cy) > reach:
         return False
-    return (_depth(other, intrinsics, other_radius) - other_radius
-            < _depth(face, intrinsics, face_radius) + face_radius)
-
-
-def _depth(face: Ellipse, intrinsics: CameraIntrinsics, radius: float) -> float:
-    """The face's centre depth (m), the nearer of its two pose solutions'."""
-    return radius * min(float(s.centre_cam[2]) for s in unit_circle_poses(face, intrinsics))
+    near = other_radius * (min(solutions[1][0, 2], solutions[1][1, 2]) - 1.0)
+    far = face_radius * (min(solutions[0][0, 2], solutions[0][1, 2]) + 1.0)
+    return bool(near < far)
 
 
 def under_a_wall(faces: Sequence[Ellipse], i: int, covering: Sequence[int],
@@ -160,15 +170,17 @@ def under_a_wall(faces: Sequence[Ellipse], i: int, covering: Sequence[int],
     face_radius = radius_of(face)
     if face_radius is None:
         return False
+    mine = _solutions(face, intrinsics)
     for j in covering:
         other = faces[j]
         if j == i or holds_centre(face, other) or holds_centre(other, face):
             continue
         radius = radius_of(other)
         height = None if radius is None else height_of(radius)
-        if (radius is not None and height is not None
-                and _may_hide(face, other, intrinsics, face_radius, radius, height)
-                and hidden_share(face, other, intrinsics, face_radius, radius, height,
-                                 tolerance) >= min_share):
+        if radius is None or height is None:
+            continue
+        theirs = _solutions(other, intrinsics)
+        if (_may_hide(face, other, (mine, theirs), face_radius, radius, height)
+                and _share(mine, face_radius, theirs, radius, height, tolerance) >= min_share):
             return True
     return False
