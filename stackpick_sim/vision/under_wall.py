@@ -139,22 +139,25 @@ def _share(face: NDArray[np.float64], face_radius: float, other: NDArray[np.floa
                                tolerance, _RING_SHARES, _RING_ANGLES))
 
 
-def _may_hide(face: Ellipse, other: Ellipse, solutions: tuple[NDArray[np.float64],
-                                                              NDArray[np.float64]],
-              face_radius: float, other_radius: float, other_height: float) -> bool:
-    """A cheap bound before the hidden share: whether ``other``'s cylinder can reach in front
-    of ``face`` at all (``solutions``: the two faces' pose solutions, :func:`_solutions`).
-    Its image lies within its semi-major axis times (1 + height / radius) of its centre (the
-    wall's image is at most the face's size times height over radius long), and its nearest
-    point lies at most its radius in front of its face's centre (the nearer solution's);
-    ``face``'s disc lies within its semi-major axis of its centre, at most its radius behind
-    it."""
+def _within_reach(face: Ellipse, other: Ellipse, other_radius: float, other_height: float
+                  ) -> bool:
+    """Whether ``other``'s cylinder can reach ``face`` in the image: its image lies within its
+    semi-major axis times (1 + height / radius) of its centre (the wall's image is at most the
+    face's size times height over radius long), ``face``'s disc within its semi-major axis of
+    its centre."""
     reach = other.a * (1.0 + other_height / other_radius) + face.a
-    if math.hypot(face.cx - other.cx, face.cy - other.cy) > reach:
-        return False
-    near = other_radius * (min(solutions[1][0, 2], solutions[1][1, 2]) - 1.0)
-    far = face_radius * (min(solutions[0][0, 2], solutions[0][1, 2]) + 1.0)
-    return bool(near < far)
+    return math.hypot(face.cx - other.cx, face.cy - other.cy) <= reach
+
+
+def _may_lie_in_front(solutions: tuple[NDArray[np.float64], NDArray[np.float64]],
+                      face_radius: float, other_radius: float) -> bool:
+    """Whether the other's cylinder can lie in front of the face at all (``solutions``: the
+    face's and the other's pose solutions, :func:`_solutions`): its nearest point lies at
+    most its radius in front of its face's centre (the nearer solution's), the face's disc
+    at most its radius behind its centre."""
+    mine, theirs = solutions
+    near = other_radius * (min(theirs[0, 2], theirs[1, 2]) - 1.0)
+    return bool(near < face_radius * (min(mine[0, 2], mine[1, 2]) + 1.0))
 
 
 def under_a_wall(faces: Sequence[Ellipse], i: int, covering: Sequence[int],
@@ -170,17 +173,18 @@ def under_a_wall(faces: Sequence[Ellipse], i: int, covering: Sequence[int],
     face_radius = radius_of(face)
     if face_radius is None:
         return False
-    mine = _solutions(face, intrinsics)
+    mine = None
     for j in covering:
         other = faces[j]
         if j == i or holds_centre(face, other) or holds_centre(other, face):
             continue
         radius = radius_of(other)
         height = None if radius is None else height_of(radius)
-        if radius is None or height is None:
+        if radius is None or height is None or not _within_reach(face, other, radius, height):
             continue
+        mine = _solutions(face, intrinsics) if mine is None else mine
         theirs = _solutions(other, intrinsics)
-        if (_may_hide(face, other, (mine, theirs), face_radius, radius, height)
+        if (_may_lie_in_front((mine, theirs), face_radius, radius)
                 and _share(mine, face_radius, theirs, radius, height, tolerance) >= min_share):
             return True
     return False
