@@ -1,26 +1,37 @@
 """Compiled direct least-squares ellipse fit (numba; see :mod:`~stackpick_sim.vision.kernels`
 for how kernels are compiled and cached).
 
-Fitzgibbon, Pilu and Fisher's direct fit minimises the algebraic error of the conic
-``A x^2 + B x y + C y^2 + D x + E y + F = 0`` over the points under the constraint
-``4 A C - B^2 = 1``, so what it returns is always an ellipse: the paper's Eq. 2 in the form
-the pose stage reads. It is computed here in Halir and Flusser's numerically stable form
-("Numerically stable direct least squares fitting of ellipses", 1998): the points are centred
-on their mean and scaled into [-1, 1], the scatter matrix is split into its quadratic and
-linear blocks, the linear part is eliminated (a 3x3 solve), and the quadratic part is the
-eigenvector of the reduced 3x3 problem whose ``4 A C - B^2`` is positive. The conic's centre,
-full axes and angle follow in closed form.
+Fitzgibbon, Pilu and Fisher's direct fit ("Direct least square fitting of ellipses", 1999)
+minimises the algebraic error of the conic ``A x^2 + B x y + C y^2 + D x + E y + F = 0`` over
+the points under the constraint ``4 A C - B^2 = 1``, so what it returns is always an ellipse:
+the condition ``A B - H^2 > 0`` of Eq. 2 of "Pose Estimation of Top Object on Stack of
+Elliptical Objects Based on Ellipse Fitting and Kalman Estimator" (with B = 2H). It is
+computed here in Halir and Flusser's numerically stable form ("Numerically stable direct least
+squares fitting of ellipses", 1998): the points are centred on their mean and scaled into
+[-1, 1], the scatter matrix is split into its quadratic and linear blocks, the linear part is
+eliminated (a 3x3 solve), and the quadratic part is the eigenvector of the reduced 3x3 problem
+whose ``4 A C - B^2`` is positive (its characteristic cubic solved in closed form, each root
+polished, the eigenvector a cross product of two rows). The conic's centre, full axes and
+angle follow in closed form.
 
 The result is given as ``cv2.fitEllipseDirect`` gives it (a ``cv2.RotatedRect``): centre
 (u, v), full axes (w, h) with w the minor one (w <= h), and the angle in degrees of the w axis
 from the u axis in [0, 180] (180 where a float64 angle just below it rounds up), each computed
-in float64 and rounded to float32 as OpenCV's fields are. The points are read as float32
-(the values OpenCV fits: int32 pixels exactly, float64 points rounded). A fit that is not an
-ellipse gives a row that :func:`~stackpick_sim.vision.kernels.fit_checks` rejects: zero axes
-when fewer than five points are given or they all coincide (OpenCV's own answer to
-coincident points: their centre, zero axes, angle 0), NaN where the reduced problem has no
-ellipse-specific eigenvector (all points on one line or on two parallel lines, up to
-rounding) or the conic is an imaginary ellipse.
+in float64 and rounded to float32 as OpenCV's fields are: the same rows as OpenCV's, bar a
+float32 step where a value lies on a rounding boundary. The points are read as float32 (the
+values OpenCV fits: int32 pixels exactly, float64 points rounded); many point sets are fitted
+in one call (:func:`direct_rows`), which is where the time goes: a call of OpenCV's costs
+several microseconds before the first point.
+
+A fit that is not an ellipse gives a row that :func:`~stackpick_sim.vision.kernels.fit_checks`
+rejects: zero axes when fewer than five points are given or they all coincide (OpenCV's own
+answer to coincident points: their centre, zero axes, angle 0), NaN where the reduced problem
+has no ellipse-specific eigenvector (points on a line, or pixels in two rows or columns: a
+pair of lines fits them exactly) or the conic is an imaginary ellipse, extreme axis ratios
+where rounding leaves a sliver. OpenCV gives other values on those inputs (a sliver about a
+pixel wide for pixels in two rows), rejected as well by the fits' checks and axis bounds.
+Fewer than five distinct points determine no conic: what either fit gives them is arbitrary
+(the detector's point sets are chains of distinct pixels, ten or more).
 """
 
 from __future__ import annotations
@@ -42,8 +53,7 @@ _POLISH_STEPS = 2
 def _moments(points: NDArray, lo: int, hi: int, out: NDArray[np.float64]
              ) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """The mean (mu, mv) and scale (largest absolute offset from it) of ``points[lo:hi]``
-    (at least one point)
-    read as float32; ``out`` (15,) receives the sums over the centred, scaled points (x, y)
+    (at least one point) read as float32; ``out`` (15,) receives the sums over the centred, scaled points (x, y)
     of x^4, x^3 y, x^2 y^2, x y^3, y^4, x^3, x^2 y, x y^2, y^3, x^2, x y, y^2, x, y, 1."""
     su, sv = 0.0, 0.0
     u0, u1 = np.inf, -np.inf
@@ -299,7 +309,9 @@ def _same_run(sel: NDArray[np.int64], lo: int, hi: int, before: NDArray[np.int64
 
 @_compiled
 def refit_round(forms: NDArray[np.float64], starts: NDArray[np.int64],
-                active: NDArray[np.bool_], pm: NDArray[np.int64], columns: NDArray[np.float64],
+                active: NDArray[np.bool_], pm: NDArray[np.int64],
+                columns: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                               NDArray[np.float64]],
                 tests: tuple[float, float], before: tuple[NDArray[np.int64], NDArray[np.int64]],
                 least: int, bounds: tuple[float, float, float]
                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
@@ -307,7 +319,7 @@ def refit_round(forms: NDArray[np.float64], starts: NDArray[np.int64],
                            NDArray[np.bool_]]:  # pragma: no cover - compiled
     """One round of :func:`~stackpick_sim.vision.refine.refine_all`: the pixels along each
     ``active`` ellipse (:func:`~stackpick_sim.vision.kernels.along_select` of the pairs
-    ``pm`` with the runs ``starts``, the pixel columns (4, N) u, v, gu, gv and the squared
+    ``pm`` with the runs ``starts``, the pixel columns (N,) u, v, gu, gv and the squared
     distance and cosine bounds ``tests``); an ellipse whose selection repeats the previous
     round's (``before``: its selection and bounds, empty bounds on the first round) keeps its
     fit, one with fewer than ``least`` pixels stops, the others are refitted
@@ -351,7 +363,7 @@ def warm_up() -> None:
     for pixels in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         pieces, tried = kernels.chain_pieces(pixels, bounds + 1, 1, 0.0)
         level_step(pixels, pieces, tried, 1.0, 1.0, 1.0, 1.0, 2, 1, 0.0)
-    empty = np.zeros(0, np.int64)
+    empty, col = np.zeros(0, np.int64), np.zeros(1)
     refit_round(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
-                np.zeros(1, np.int64), np.zeros((4, 1)), (1.0, 1.0), (empty, empty), 5,
+                np.zeros(1, np.int64), (col, col, col, col), (1.0, 1.0), (empty, empty), 5,
                 (1.0, 1.0, 1.0))

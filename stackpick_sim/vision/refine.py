@@ -213,10 +213,10 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
-    # Pixel columns as (4, N) rows: (u, v) and unit gradient (gu, gv).
-    columns = np.stack([points[:, 0], points[:, 1], grads[:, 0], grads[:, 1]]).astype(
-        np.float64, copy=False)
-    u, v = columns[0], columns[1]
+    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv) (no copies of the edge
+    # stage's arrays, transposes of (2, M) rows).
+    u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+    gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
     # Each fit's quadratic form, a row rewritten after its refit.
     given = np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in current], np.float64)
     forms = kernels.ellipse_forms(given)
@@ -236,8 +236,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
         # fit_ellipse's checks and plausible's bounds on them, in one compiled pass: the
         # forms of the fits that pass rewritten, the others stopped.
         sel, at, tried, rows, degrees, ok = kernels_fit.refit_round(
-            forms, starts, active, pm, columns, (4.0 * tol * tol, cos_sq), before, least,
-            bounds)
+            forms, starts, active, pm, (u, v, gu, gv), (4.0 * tol * tol, cos_sq), before,
+            least, bounds)
         before = (sel, at)
         for e, good, (cx, cy, a, b, _), deg in zip(tried.tolist(), ok.tolist(), rows.tolist(),
                                                     degrees.tolist(), strict=True):
