@@ -53,8 +53,9 @@ _POLISH_STEPS = 2
 def _moments(points: NDArray, lo: int, hi: int, out: NDArray[np.float64]
              ) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """The mean (mu, mv) and scale (largest absolute offset from it) of ``points[lo:hi]``
-    (at least one point) read as float32; ``out`` (15,) receives the sums over the centred, scaled points (x, y)
-    of x^4, x^3 y, x^2 y^2, x y^3, y^4, x^3, x^2 y, x y^2, y^3, x^2, x y, y^2, x, y, 1."""
+    (at least one point) read as float32; ``out`` (15,) receives the sums over the centred,
+    scaled points (x, y) of x^4, x^3 y, x^2 y^2, x y^3, y^4, x^3, x^2 y, x y^2, y^3, x^2,
+    x y, y^2, x, y, 1."""
     su, sv = 0.0, 0.0
     u0, u1 = np.inf, -np.inf
     v0, v1 = np.inf, -np.inf
