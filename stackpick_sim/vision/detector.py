@@ -427,18 +427,24 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _nearer_arcs(state, merged, choice, cues, config, every_arc=False)
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
-        if choice.index is None and config.inner_face.enabled:
-            # Every face reads as occluded: a top face inside a lower face's fit.
-            merged, choice = _inner_face(state, merged, choice, cues, config)
+        # Every face reads as occluded: a top face inside a lower face's fit.
+        merged, choice = _inner_face(state, merged, choice, cues, config)
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
-    if config.under_wall.enabled and choice.index is not None and _under_wall(
-            merged, choice, cues, config):
-        # The choice lies behind another face's cylinder (a far rim): the stage again
-        # without it.
-        return top_stage(state.updated(merged=[m for k, m in enumerate(merged)
-                                               if k != choice.index]), config)
-    return state.updated(cues=cues, merged=merged, choice=choice)
+    return _unless_under_wall(state, state.updated(cues=cues, merged=merged, choice=choice),
+                              config)
+
+
+def _unless_under_wall(state: State, found: State, config: DetectorConfig) -> State:
+    """``found`` (the top stage's outcome on ``state``), unless its choice lies behind
+    another face's cylinder (:func:`_under_wall`: a far rim): then the top stage again on
+    ``state`` without that ellipse."""
+    assert found.choice is not None and found.cues is not None
+    choice, merged = found.choice, found.merged
+    if not _under_wall(merged, choice, found.cues, config):
+        return found
+    return top_stage(state.updated(merged=[m for k, m in enumerate(merged)
+                                           if k != choice.index]), config)
 
 
 def _clear(choice: TopChoice, params: CompleteParams) -> bool:
@@ -499,11 +505,13 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
 
 def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
-    """When every face reads as occluded (the rule and its fallbacks chose none): the top
-    rule again with each fit that can enclose a face replaced by its inner refit
-    (:func:`~stackpick_sim.vision.inner_face.refitted`); a refit it chooses replaces its fit
-    in ``merged`` and is chosen (``inner``: the pose's final fit keeps off the silhouette's
-    edge pixels beyond it). Otherwise both unchanged."""
+    """When every face reads as occluded (the rule and its fallbacks chose none) and
+    ``inner_face.enabled``: the top rule again with each fit that can enclose a face replaced
+    by its inner refit (:func:`~stackpick_sim.vision.inner_face.refitted`); a refit it
+    chooses replaces its fit in ``merged`` and is chosen (``inner``: the pose's final fit
+    keeps off the silhouette's edge pixels beyond it). Otherwise both unchanged."""
+    if choice.index is not None or not config.inner_face.enabled:
+        return merged, choice
     check_time(state.deadline, "top")
     ellipses = [m.ellipse for m in merged]
     refits = refitted(ellipses, choice.evidence, state.edges("top"), state.crop, state.gate,
@@ -520,12 +528,13 @@ def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
 
 def _under_wall(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
                 config: DetectorConfig) -> bool:
-    """Whether the chosen face lies under the cylinder of another face that shows at least
-    ``top.min_support`` of its outline (:func:`~stackpick_sim.vision.under_wall.
-    under_a_wall`, ``under_wall.min_share``, ``top.cover_depth_tolerance_m``); never without
-    the kinds' radii and heights."""
-    assert choice.index is not None
-    if cues.depth_radius_of is None or cues.height_of is None:
+    """Whether, with ``under_wall.enabled``, the chosen face lies under the cylinder of
+    another face that shows at least ``top.min_support`` of its outline
+    (:func:`~stackpick_sim.vision.under_wall.under_a_wall`, ``under_wall.min_share``,
+    ``top.cover_depth_tolerance_m``); never without a choice or the kinds' radii and
+    heights."""
+    if (not config.under_wall.enabled or choice.index is None or cues.depth_radius_of is None
+            or cues.height_of is None):
         return False
     covering = [k for k, ev in enumerate(choice.evidence)
                 if k != choice.index and ev.support >= config.top.min_support]
