@@ -257,6 +257,74 @@ def stride_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int,
 
 
 @_compiled
+def _digit_of(hist: NDArray[np.int64], k: int) -> tuple[int, int]:  # pragma: no cover
+    """The digit (histogram bin) the ``k``-th smallest key falls in and its rank among the
+    keys of that digit."""
+    digit = 0
+    while k >= hist[digit]:
+        k -= hist[digit]
+        digit += 1
+    return digit, k
+
+
+@_compiled
+def _kth_key(keys: NDArray[np.int32], low: NDArray[np.int64], k_low: int, k_high: int,
+             buf: NDArray[np.int32]) -> tuple[int, int]:  # pragma: no cover - compiled
+    """The ``k_low``-th and ``k_high``-th smallest (from 0) of non-negative int32 ``keys``
+    (any order, unchanged), by radix selection on their bits 20-30, then 10-19 and 0-9: a
+    level counts the candidates' digits, keeps those of the digit the rank falls in
+    (compacted into ``buf``, scratch of the keys' length) and counts the rank from that
+    digit's first; after the last level every candidate is the key sought. The first level's
+    counts serve both ranks; ``low``: scratch of 2048. Any selection gives the same values:
+    an order statistic is unique."""
+    top = np.zeros(2048, np.int64)
+    for i in range(keys.shape[0]):
+        top[keys[i] >> 20] += 1
+    found = np.empty(2, np.int64)
+    for t in range(2):
+        digit, k = _digit_of(top, k_low if t == 0 else k_high)
+        src, m, shift, mask = keys, keys.shape[0], 20, 2047
+        for _ in range(3):
+            kept = 0
+            for i in range(m):
+                if (src[i] >> shift) & mask == digit:
+                    buf[kept] = src[i]
+                    kept += 1
+            src, m = buf, kept
+            if shift == 0:
+                break
+            shift -= 10
+            mask = 1023
+            low[:1024] = 0
+            for i in range(m):
+                low[(src[i] >> shift) & mask] += 1
+            digit, k = _digit_of(low, k)
+        found[t] = src[0]
+    return found[0], found[1]
+
+
+@_compiled
+def stride_quantiles(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int, gain: float
+                     ) -> tuple[float, float, int]:  # pragma: no cover - compiled
+    """The order statistics :func:`~stackpick_sim.vision.edges.adaptive_thresholds` reads of
+    the :func:`stride_magnitudes` sample (N values): the ``N // 2``-th and the
+    ``min(N - 1, int(0.99 N))``-th smallest (from 0; what ``np.partition`` puts there, as
+    float32 values), and N; (0, 0, 0) for an empty sample. The magnitudes are non-negative
+    float32, whose bit patterns order as their values, so the selection runs on those
+    (:func:`_kth_key`) in place of a partition."""
+    mags = stride_magnitudes(dx, dy, stride, gain)
+    n = mags.shape[0]
+    if n == 0:
+        return 0.0, 0.0, 0
+    keys = mags.view(np.int32)
+    picked = np.empty(2, np.int32)
+    picked[0], picked[1] = _kth_key(keys, np.empty(2048, np.int64), n // 2,
+                                    min(n - 1, int(0.99 * n)), np.empty(n, np.int32))
+    values = picked.view(np.float32)
+    return float(values[0]), float(values[1]), n
+
+
+@_compiled
 def _block_sum(x: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
     """numpy's sum of a block of at most 128 elements ``x[lo:lo + n]``: in order below 8,
     else eight partial sums combined pairwise, then the remainder in order."""
@@ -2015,6 +2083,7 @@ def warm_up() -> None:
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     stride_magnitudes(img, img, 4, 8.0)
+    stride_quantiles(img, img, 4, 8.0)
     strongest_gradients(np.zeros((3, 2, 4, 4), np.int16))
     for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
