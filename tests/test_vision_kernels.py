@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams, RoiParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_fit
 from stackpick_sim.vision.fitting import (
     EQ2_CHECKED_RATIO_SQ,
     distance_rows,
@@ -339,12 +339,13 @@ import sys
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.vision import kernels, kernels_pose, kernels_refine, kernels_top
+from stackpick_sim.vision import kernels, kernels_fit, kernels_pose, kernels_refine, kernels_top
 from stackpick_sim.vision.benchmark.frames import load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.detector import TopObjectDetector
 kernels.warm_up()
-compiled = {f"{m.__name__}.{n}": k for m in (kernels, kernels_top, kernels_pose, kernels_refine)
+compiled = {f"{m.__name__}.{n}": k
+            for m in (kernels, kernels_top, kernels_pose, kernels_refine, kernels_fit)
             for n, k in vars(m).items() if isinstance(k, CPUDispatcher)}
 warm = {n: set(k.signatures) for n, k in compiled.items()}
 scene = load_scene("paper")
@@ -362,7 +363,7 @@ print(sorted(n for n, k in compiled.items() if set(k.signatures) - warm[n]))
 
 
 def test_warm_up_compiles_every_argument_type_the_detector_passes() -> None:
-    # Every compiled pass of the four kernel modules, on colour and grey frames.
+    # Every compiled pass of the kernel modules, on colour and grey frames.
     frames = Path(__file__).parent / "data" / "paper_dev_frames"
     out = subprocess.run([sys.executable, "-c", _COMPILES_AFTER_WARM_UP, str(frames)],
                          capture_output=True, text=True, check=True)
@@ -986,7 +987,8 @@ def test_fit_checks_match_fit_ellipse_and_plausible(rng: np.random.Generator) ->
     top = params.max_axis_diagonals * math.hypot(*shape)
     rows, degrees, ok = kernels.fit_checks(raw, params.min_axis_px, top, EQ2_CHECKED_RATIO_SQ)
     for k, (cx, cy, w, h, angle) in enumerate(raw.tolist()):
-        with mock.patch.object(cv2, "fitEllipseDirect", return_value=((cx, cy), (w, h), angle)):
+        with mock.patch.object(kernels_fit, "direct_fit",
+                               return_value=np.array([cx, cy, w, h, angle])):
             e = fit_ellipse(np.zeros((5, 2), np.int32))
         assert bool(ok[k]) == (e is not None and plausible(e, shape, params))
         if e is not None:

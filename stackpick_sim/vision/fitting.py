@@ -1,12 +1,13 @@
 """Stage 3: ellipse-specific least-squares fits of edge segments (paper Eq. 1 and 2).
 
 The paper writes an ellipse about its centre as ``A x^2 + 2 H x y + B y^2 = 1`` and accepts it
-only when ``A B - H^2 > 0``. Fitzgibbon's direct fit (``cv2.fitEllipseDirect``) minimises the
-algebraic error under exactly that constraint (normalised to ``4AB - (2H)^2 = 1``), so every
+only when ``A B - H^2 > 0``. Fitzgibbon's direct fit (compiled in
+:mod:`~stackpick_sim.vision.kernels_fit`, the same fits as ``cv2.fitEllipseDirect``) minimises
+the algebraic error under exactly that constraint (normalised to ``4AB - (2H)^2 = 1``), so every
 fit it returns is an ellipse; the condition is still checked on the returned quadratic form
 wherever rounding could break it (axis ratios beyond EQ2_CHECKED_RATIO_SQ; below, it holds by a
-wide margin), which also rejects the degenerate fits OpenCV returns for collinear points (zero
-or extreme axes).
+wide margin), which also rejects the degenerate fits of points on a line or on two parallel
+lines (no axes, zero or extreme ones).
 
 Distances of points to an ellipse use the Sampson approximation (algebraic error over its
 gradient), accurate to a few percent within a few pixels of the curve, which is all the
@@ -20,13 +21,12 @@ import math
 from collections.abc import Sequence
 from typing import cast
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_fit
 
 #: The default settings (see FitParams: the reasons for each).
 DEFAULT = FitParams()
@@ -36,22 +36,17 @@ DEFAULT = FitParams()
 EQ2_CHECKED_RATIO_SQ = 1e6
 
 
-_INT32, _FLOAT32 = np.dtype(np.int32), np.dtype(np.float32)
+_INT32, _FLOAT32, _FLOAT64 = np.dtype(np.int32), np.dtype(np.float32), np.dtype(np.float64)
 
 
 def fit_ellipse(points: NDArray) -> Ellipse | None:
     """Ellipse-specific fit of (N, 2) pixels (u, v); None if N < 5 or not an ellipse.
 
-    int32 and float32 points go to OpenCV as they are (it reads int32 points as float32, the
-    same values), others are converted to float32."""
+    The direct fit (:func:`~stackpick_sim.vision.kernels_fit.direct_fit`) reads the points as
+    float32 (int32 pixels exactly)."""
     if points.shape[0] < 5:
         return None
-    dtype = points.dtype
-    # int32: half the call's cost unconverted (dtypes of these types are singletons; any
-    # other, byte-swapped included, is converted).
-    if dtype is not _INT32 and dtype is not _FLOAT32:
-        points = np.asarray(points, np.float32)
-    (cx, cy), (w, h), angle = cv2.fitEllipseDirect(points)
+    cx, cy, w, h, angle = kernels_fit.direct_fit(_fit_input(points)).tolist()
     if not (math.isfinite(cx) and math.isfinite(cy) and w > 0 and h > 0
             and math.isfinite(angle)):
         return None
@@ -65,6 +60,18 @@ def fit_ellipse(points: NDArray) -> Ellipse | None:
     if (a / b) ** 2 > EQ2_CHECKED_RATIO_SQ and not satisfies_eq2(ellipse):
         return None
     return ellipse
+
+
+def _fit_input(points: NDArray) -> NDArray:
+    """(N, 2) ``points`` as the compiled fit takes them: int32, float32 or float64 as they
+    are, other types as float64 (the same float32 values in the fit), C-ordered and
+    writable (each other layout would be another compiled version)."""
+    dtype = points.dtype
+    if dtype is not _INT32 and dtype is not _FLOAT32 and dtype is not _FLOAT64:
+        return np.ascontiguousarray(points, np.float64)
+    if points.flags.c_contiguous and points.flags.writeable:
+        return points
+    return np.array(points, dtype, order="C")
 
 
 def satisfies_eq2(ellipse: Ellipse) -> bool:
@@ -249,10 +256,10 @@ def fit_or_split(points: NDArray, shape: tuple[int, int], depth: int = 3,
 def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
             params: FitParams = DEFAULT) -> list[tuple[int, NDArray, Ellipse, float]]:
     """:func:`fit_or_split` of every chain, level by level: the straightness test of the
-    chains is one compiled pass, then per level the fits' checks with their residuals, the
-    halves of the pieces that failed and their straightness test another (only the direct
-    fit runs per piece). Returns (chain index, points, ellipse, residual) per accepted piece,
-    in the order :func:`fit_or_split` gives them chain after chain."""
+    chains is one compiled pass, then per level another does the direct fits of all the
+    level's pieces, their checks with their residuals, the halves of the pieces that failed
+    and their straightness test. Returns (chain index, points, ellipse, residual) per
+    accepted piece, in the order :func:`fit_or_split` gives them chain after chain."""
     if not chains:
         return []
     sizes = [c.shape[0] for c in chains]
@@ -267,32 +274,20 @@ def fit_all(chains: Sequence[NDArray], shape: tuple[int, int], depth: int = 3,
     found: list[tuple[int, int, NDArray, Ellipse, float]] = []
     offsets = [0, *itertools.accumulate(sizes)]
     for level in range(depth + 1):
-        # Each tried piece: the chain itself on the first level, else a view of it.
-        at = tried.tolist()
-        arrays = [chains[c] if level == 0 else chains[c][lo - offsets[c]:hi - offsets[c]]
-                  for _, lo, hi, c in at]
-        rows, good, pieces, tried = kernels.level_step(
-            _direct_rows(arrays), pixels, pieces, tried, *limits,
-            0 if level == depth else 2 * params.min_fit_px, shortest, params.min_bow_px)
-        found += [(lo, c, q, Ellipse.of(cx, cy, a, b, ang), r)
-                  for (_, lo, _, c), q, ok, (cx, cy, a, b, ang, r)
-                  in zip(at, arrays, good.tolist(), rows.tolist(), strict=True) if ok]
+        # The tried pieces' direct fits, their checks and the next level, in one call.
+        rows, good, pieces, next_tried = kernels_fit.level_step(
+            pixels, pieces, tried, *limits, 0 if level == depth else 2 * params.min_fit_px,
+            shortest, params.min_bow_px)
+        for k in good.nonzero()[0].tolist():
+            _, lo, hi, c = tried[k].tolist()
+            # The accepted piece: the chain itself on the first level, else a view of it.
+            q = chains[c] if level == 0 else chains[c][lo - offsets[c]:hi - offsets[c]]
+            cx, cy, a, b, ang, r = rows[k].tolist()
+            found.append((lo, c, q, Ellipse.of(cx, cy, a, b, ang), r))
+        tried = next_tried
         if not pieces.shape[1]:
             break
     # The accepted pieces of a chain are disjoint: their order along the concatenated pixels
     # is fit_or_split's (first halves first).
     found.sort(key=lambda f: f[0])
     return [(c, q, e, r) for _, c, q, e, r in found]
-
-
-def _direct_rows(pieces: list[NDArray]) -> NDArray[np.float64]:
-    """(K, 5) rows centre u, v, full axes w, h and angle (deg) of ``cv2.fitEllipseDirect`` of
-    each piece (int32 and float32 pixels as they are, others as float32, as
-    :func:`fit_ellipse`)."""
-    out = []
-    for q in pieces:
-        if q.dtype is not _INT32 and q.dtype is not _FLOAT32:
-            q = np.asarray(q, np.float32)
-        (cx, cy), (w, h), angle = cv2.fitEllipseDirect(q)
-        out.append((cx, cy, w, h, angle))
-    return np.array(out, np.float64).reshape(-1, 5)

@@ -2179,3 +2179,6 @@ def warm_up() -> None:
     from stackpick_sim.vision import kernels_refine  # the top face's final fit's passes
 
     kernels_refine.warm_up()
+    from stackpick_sim.vision import kernels_fit  # the direct ellipse fits
+
+    kernels_fit.warm_up()

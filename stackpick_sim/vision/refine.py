@@ -18,13 +18,12 @@ from __future__ import annotations
 import math
 from typing import cast
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams, PoseParams, RefineParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels, kernels_refine
+from stackpick_sim.vision import kernels, kernels_fit, kernels_refine
 from stackpick_sim.vision.contrast import contrast_threshold, perimeter_px, unit_circle
 from stackpick_sim.vision.edges import SOBEL_GAIN, EdgeImage
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
@@ -214,7 +213,8 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     current = list(ellipses)
     if not current or points.shape[0] == 0:
         return current
-    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv).
+    # Pixel columns, contiguous: (u, v) and unit gradient (gu, gv) (no copies of the edge
+    # stage's arrays, transposes of (2, M) rows).
     u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
     gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
     # Each fit's quadratic form, a row rewritten after its refit.
@@ -225,44 +225,25 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     # range of them.
     pm, starts = kernels.box_runs(u, v, forms[:, 0].copy(), forms[:, 1].copy(), reach)
     active = np.ones(len(current), np.bool_)
-    previous: dict[int, bytes] = {}
+    # The previous round's selection and its bounds (none before the first round).
+    before = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     cos_sq = params.min_normal_cos * params.min_normal_cos
     least = max(5, params.min_pixels)  # fit_ellipse's own least
-    max_axis = fits_params.max_axis_diagonals * math.hypot(*shape)
-    live = len(current)
+    bounds = (fits_params.min_axis_px, fits_params.max_axis_diagonals * math.hypot(*shape),
+              EQ2_CHECKED_RATIO_SQ)
     for tol in params.tolerances_px:
-        # The pairs along each active fit, and their pixels, in one compiled pass (pixel
-        # coordinates are exact in float32, the fits' input).
-        sel, at, pixels = kernels.along_select(forms, starts, active, pm, u, v, gu, gv,
-                                               4.0 * tol * tol, cos_sq)
-        bounds = at.tolist()
-        tried, raw = [], []
-        for e in active.nonzero()[0].tolist():
-            lo, hi = bounds[e], bounds[e + 1]
-            key = sel[lo:hi].tobytes()
-            if previous.get(e) == key:
-                continue  # the same pixels as the fit in hand: the same fit
-            previous[e] = key
-            if hi - lo < least:
-                active[e] = False
-                live -= 1
-                continue
-            (cx, cy), (w, h), angle = cv2.fitEllipseDirect(pixels[lo:hi])
-            raw.append((cx, cy, w, h, angle))
-            tried.append(e)
-        if tried:
-            # fit_ellipse's checks and plausible's bounds on all the round's fits at once,
-            # the forms of those that pass rewritten and the others stopped.
-            rows, degrees, ok = kernels.refit_checks(
-                np.array(raw, np.float64), np.array(tried, np.int64), forms, active,
-                fits_params.min_axis_px, max_axis, EQ2_CHECKED_RATIO_SQ)
-            for e, good, (cx, cy, a, b, _), deg in zip(tried, ok.tolist(), rows.tolist(),
-                                                        degrees.tolist(), strict=True):
-                if good:
-                    current[e] = Ellipse.of(cx, cy, a, b, deg)
-                else:
-                    live -= 1
-        if not live:
+        # The pixels along each active fit, the refits of those whose pixels changed,
+        # fit_ellipse's checks and plausible's bounds on them, in one compiled pass: the
+        # forms of the fits that pass rewritten, the others stopped.
+        sel, at, tried, rows, degrees, ok = kernels_fit.refit_round(
+            forms, starts, active, pm, (u, v, gu, gv), (4.0 * tol * tol, cos_sq), before,
+            least, bounds)
+        before = (sel, at)
+        for e, good, (cx, cy, a, b, _), deg in zip(tried.tolist(), ok.tolist(), rows.tolist(),
+                                                    degrees.tolist(), strict=True):
+            if good:
+                current[e] = Ellipse.of(cx, cy, a, b, deg)
+        if not active.any():
             break
     return current
 
