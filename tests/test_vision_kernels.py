@@ -710,6 +710,27 @@ def test_stride_magnitudes_match_the_strided_float32_form(rng: np.random.Generat
         assert got.dtype == want.dtype and np.array_equal(got, want)
 
 
+def test_stride_quantiles_are_the_partitions_order_statistics(rng: np.random.Generator
+                                                              ) -> None:
+    """The edge thresholds' median and 99th percentile of the magnitude sample: the values a
+    partition puts at N // 2 and min(N - 1, int(0.99 N)), on flat, tied, sparse and
+    full-range gradients (and 0 for an empty sample)."""
+    empty = np.zeros((0, 5), np.int16)
+    assert kernels.stride_quantiles(empty, empty, 4, 8.0) == (0.0, 0.0, 0)
+    for h, w, scale, sparse in ((1, 1, 9, False), (3, 7, 1, False), (60, 80, 4080, False),
+                                (61, 83, 3, True), (90, 90, 32767, False), (40, 50, 0, False)):
+        dx = rng.integers(-scale, scale + 1, (h, w)).astype(np.int16)
+        dy = rng.integers(-scale, scale + 1, (h, w)).astype(np.int16)
+        if sparse:  # mostly flat: most magnitudes tie at zero
+            dx[rng.random((h, w)) < 0.9] = 0
+            dy[dx == 0] = 0
+        mags = kernels.stride_magnitudes(dx, dy, 4, 8.0)
+        k50, k99 = mags.size // 2, min(mags.size - 1, int(0.99 * mags.size))
+        mags.partition((k50, k99))
+        assert kernels.stride_quantiles(dx, dy, 4, 8.0) == (float(mags[k50]), float(mags[k99]),
+                                                            mags.size)
+
+
 def _contrast_peaks_numpy(pts: NDArray[np.float64], normals: NDArray[np.float64],
                           gx: NDArray[np.int16], gy: NDArray[np.int16],
                           offsets: NDArray[np.float64], threshold: float, innermost: bool

@@ -190,16 +190,21 @@ def outline_rows(ellipses: Sequence[Ellipse]
                             NDArray[np.float64]]:
     """What the compiled passes over the :func:`outline` samples of several ellipses take:
     (E, 6) rows (cx, cy, a, b and the angle's cosine and sine), the (E,) sample counts and
-    the cosines and sines of every sample's parameter (ellipse by ellipse)."""
-    rows, sizes = [], []
-    for e in ellipses:
-        t = math.radians(e.angle_deg)
-        rows.append((e.cx, e.cy, e.a, e.b, math.cos(t), math.sin(t)))
-        sizes.append(max(16, math.ceil(perimeter_px(e))))
-    tables = [unit_circle(k) for k in sizes]
-    return (np.array(rows, np.float64).reshape(-1, 6), np.array(sizes, np.int64),
-            np.concatenate([t[0] for t in tables]) if tables else np.zeros(0),
-            np.concatenate([t[1] for t in tables]) if tables else np.zeros(0))
+    the cosines and sines of every sample's parameter (ellipse by ellipse); the rows and
+    counts in one compiled pass (kernels.outline_rows: :func:`perimeter_px`'s arithmetic)."""
+    sizes, rows = kernels.outline_rows(np.array(
+        [(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses], np.float64).reshape(-1, 5))
+    ct, st = unit_circles(sizes.tolist())
+    return rows, sizes, ct, st
+
+
+def unit_circles(sizes: Sequence[int]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The :func:`unit_circle` cosines and sines of each size, concatenated (empty for no
+    sizes)."""
+    if not sizes:
+        return np.zeros(0), np.zeros(0)
+    tables = [unit_circle(n) for n in sizes]
+    return np.concatenate([t[0] for t in tables]), np.concatenate([t[1] for t in tables])
 
 
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:

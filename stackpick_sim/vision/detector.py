@@ -635,11 +635,7 @@ STAGES: tuple[Stage, ...] = (
 def _cues(state: State, config: DetectorConfig) -> Cues:
     """What the top rule reads besides the ellipses: the crop's intrinsics, colours, the
     belt's colour and the radius and height of each candidate's kind."""
-    k = state.intrinsics
-    du, dv = state.roi.offset
-    # Built directly: dataclasses.replace costs several times the constructor.
-    k_crop = CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
-                              height=k.height)
+    k_crop = _crop_intrinsics(state.intrinsics, state.roi.offset)
     work = state.work
     rgb = work if work.ndim == 3 else None
     # Each candidate's face colour once, for its radius and the rest test's wall bands.
@@ -659,6 +655,21 @@ def _cues(state: State, config: DetectorConfig) -> Cues:
                 markings=markings, top=config.top, pose=config.pose, radii=config.radii_m,
                 kinds_of=kinds_of,
                 depth_radius_of=depth_radius(radius_of, kinds_of))
+
+
+def _crop_intrinsics(k: CameraIntrinsics, offset: tuple[int, int]) -> CameraIntrinsics:
+    """The intrinsics ``k`` of the crop whose top-left pixel is at ``offset`` (u, v) of the
+    frame: the principal point moved by it, the image size and lens kept as ``k``'s (as
+    ``CameraIntrinsics(fx=k.fx, fy=k.fy, cx=k.cx - du, cy=k.cy - dv, width=k.width,
+    height=k.height)``, an equal object, without re-running the checks ``k`` passed: a
+    finite principal point less whole pixels stays finite)."""
+    du, dv = offset
+    crop = object.__new__(CameraIntrinsics)
+    fields = crop.__dict__
+    fields["fx"], fields["fy"], fields["cx"], fields["cy"] = k.fx, k.fy, k.cx - du, k.cy - dv
+    fields["width"], fields["height"] = k.width, k.height
+    fields["dist"] = CameraIntrinsics.dist  # the default: the crop of the undistorted frame
+    return crop
 
 
 def _select(ellipses: list[Ellipse], found: State, cues: Cues) -> TopChoice:

@@ -98,35 +98,27 @@ def adaptive_thresholds(dx: NDArray[np.int16], dy: NDArray[np.int16],
     """(low, high) Canny thresholds in Sobel units for gradients (H, W) int16 dx, dy, and the
     noise level (median magnitude, grey levels/px), by the ``params``' rule."""
     floor, low_ratio = params.min_high_threshold, params.low_ratio
-    mag = _sampled_magnitudes(dx, dy)
-    if mag.size == 0:
+    median, p99, size = _magnitude_quantiles(dx, dy)
+    if size == 0:
         return floor * low_ratio * SOBEL_GAIN, floor * SOBEL_GAIN, 0.0
-    k50, k99 = mag.size // 2, min(mag.size - 1, int(0.99 * mag.size))
-    mag.partition((k50, k99))  # in place: mag is this function's own array
-    part = mag
-    high = max(floor, params.noise_multiple * float(part[k50]),
-               params.contrast_fraction * float(part[k99]))
-    return low_ratio * high * SOBEL_GAIN, high * SOBEL_GAIN, float(part[k50])
+    high = max(floor, params.noise_multiple * median, params.contrast_fraction * p99)
+    return low_ratio * high * SOBEL_GAIN, high * SOBEL_GAIN, median
 
 
-def _sampled_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> NDArray[np.float32]:
+def _magnitude_quantiles(dx: NDArray[np.int16], dy: NDArray[np.int16]
+                         ) -> tuple[float, float, int]:
     """The statistics' sample: the float32 gradient magnitudes (grey levels/px) of every
-    STATS_STRIDE-th row and column, row-major, in one compiled pass (kernels.
-    stride_magnitudes: ``np.sqrt(sx * sx + sy * sy).ravel() / SOBEL_GAIN`` of the float32
-    samples, the same values); a fresh array the caller may reorder."""
-    return kernels.stride_magnitudes(np.ascontiguousarray(dx), np.ascontiguousarray(dy),
-                                     STATS_STRIDE, SOBEL_GAIN)
+    STATS_STRIDE-th row and column (``np.sqrt(sx * sx + sy * sy) / SOBEL_GAIN`` of the
+    float32 samples ``sx``, ``sy``); its median and 99th percentile (the N // 2-th and the
+    min(N - 1, int(0.99 N))-th smallest value of N) and N, in one compiled pass
+    (kernels.stride_quantiles: the values a partition of the sample puts there)."""
+    return kernels.stride_quantiles(np.ascontiguousarray(dx), np.ascontiguousarray(dy),
+                                    STATS_STRIDE, SOBEL_GAIN)
 
 
 def noise_level(dx: NDArray[np.int16], dy: NDArray[np.int16]) -> float:
-    """The noise level of :func:`adaptive_thresholds` alone (the same value, one order
-    statistic instead of two)."""
-    mag = _sampled_magnitudes(dx, dy)
-    if mag.size == 0:
-        return 0.0
-    k50 = mag.size // 2
-    mag.partition(k50)  # in place: mag is this function's own array
-    return float(mag[k50])
+    """The noise level of :func:`adaptive_thresholds` alone (the same value)."""
+    return _magnitude_quantiles(dx, dy)[0]
 
 
 def _ring_groups(code: int) -> tuple[int, int]:

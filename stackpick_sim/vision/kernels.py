@@ -37,6 +37,16 @@ def _compiled(fn: _F) -> _F:
 
 
 
+def kernel_array(a: Any, dtype: Any = None) -> NDArray[Any]:
+    """``np.require(a, dtype, ("C", "W"))``, the argument type the kernels are compiled for
+    (C-ordered, writable, of ``dtype`` when given): ``a`` itself when it already is one (the
+    same test np.require makes, at a fraction of its cost), else np.require's copy."""
+    if (isinstance(a, np.ndarray) and (dtype is None or a.dtype == dtype)
+            and a.flags.c_contiguous and a.flags.writeable):
+        return a
+    return np.require(a, dtype, ("C", "W"))
+
+
 @_compiled
 def _box_count(pu: NDArray[np.float64], pv: NDArray[np.float64], cx: NDArray[np.float64],
                cy: NDArray[np.float64], reach: NDArray[np.float64]
@@ -254,6 +264,74 @@ def stride_magnitudes(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int,
             out[k] = np.sqrt(x * x + y * y) / g
             k += 1
     return out
+
+
+@_compiled
+def _digit_of(hist: NDArray[np.int64], k: int) -> tuple[int, int]:  # pragma: no cover
+    """The digit (histogram bin) the ``k``-th smallest key falls in and its rank among the
+    keys of that digit."""
+    digit = 0
+    while k >= hist[digit]:
+        k -= hist[digit]
+        digit += 1
+    return digit, k
+
+
+@_compiled
+def _kth_key(keys: NDArray[np.int32], low: NDArray[np.int64], k_low: int, k_high: int,
+             buf: NDArray[np.int32]) -> tuple[int, int]:  # pragma: no cover - compiled
+    """The ``k_low``-th and ``k_high``-th smallest (from 0) of non-negative int32 ``keys``
+    (any order, unchanged), by radix selection on their bits 20-30, then 10-19 and 0-9: a
+    level counts the candidates' digits, keeps those of the digit the rank falls in
+    (compacted into ``buf``, scratch of the keys' length) and counts the rank from that
+    digit's first; after the last level every candidate is the key sought. The first level's
+    counts serve both ranks; ``low``: scratch of 2048. Any selection gives the same values:
+    an order statistic is unique."""
+    top = np.zeros(2048, np.int64)
+    for i in range(keys.shape[0]):
+        top[keys[i] >> 20] += 1
+    found = np.empty(2, np.int64)
+    for t in range(2):
+        digit, k = _digit_of(top, k_low if t == 0 else k_high)
+        src, m, shift, mask = keys, keys.shape[0], 20, 2047
+        for _ in range(3):
+            kept = 0
+            for i in range(m):
+                if (src[i] >> shift) & mask == digit:
+                    buf[kept] = src[i]
+                    kept += 1
+            src, m = buf, kept
+            if shift == 0:
+                break
+            shift -= 10
+            mask = 1023
+            low[:1024] = 0
+            for i in range(m):
+                low[(src[i] >> shift) & mask] += 1
+            digit, k = _digit_of(low, k)
+        found[t] = src[0]
+    return found[0], found[1]
+
+
+@_compiled
+def stride_quantiles(dx: NDArray[np.int16], dy: NDArray[np.int16], stride: int, gain: float
+                     ) -> tuple[float, float, int]:  # pragma: no cover - compiled
+    """The order statistics :func:`~stackpick_sim.vision.edges.adaptive_thresholds` reads of
+    the :func:`stride_magnitudes` sample (N values): the ``N // 2``-th and the
+    ``min(N - 1, int(0.99 N))``-th smallest (from 0; what ``np.partition`` puts there, as
+    float32 values), and N; (0, 0, 0) for an empty sample. The magnitudes are non-negative
+    float32, whose bit patterns order as their values, so the selection runs on those
+    (:func:`_kth_key`) in place of a partition."""
+    mags = stride_magnitudes(dx, dy, stride, gain)
+    n = mags.shape[0]
+    if n == 0:
+        return 0.0, 0.0, 0
+    keys = mags.view(np.int32)
+    picked = np.empty(2, np.int32)
+    picked[0], picked[1] = _kth_key(keys, np.empty(2048, np.int64), n // 2,
+                                    min(n - 1, int(0.99 * n)), np.empty(n, np.int32))
+    values = picked.view(np.float32)
+    return float(values[0]), float(values[1]), n
 
 
 @_compiled
@@ -648,6 +726,26 @@ def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray
 
 
 @_compiled
+def _normal_gradient(gx: NDArray[np.int16], gy: NDArray[np.int16], u: float, v: float,
+                     nu: float, nv: float, step: float) -> float:  # pragma: no cover
+    """|(gx, gy) . n| read bilinearly (:func:`bilinear_uv`, clamped inside) at (u, v) plus
+    ``step`` times the unit normal (nu, nv)."""
+    h, w = gx.shape
+    uk = min(max(u + step * nu, 0.0), w - 1.001)
+    vk = min(max(v + step * nv, 0.0), h - 1.001)
+    u0, v0 = np.int64(uk), np.int64(vk)
+    fu, fv = uk - u0, vk - v0
+    gu, gv = 1 - fu, 1 - fv
+    w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
+    # The four corners by flat index (both >= 0 once clamped), summed as _bilinear sums.
+    fx, fy = gx.ravel(), gy.ravel()
+    at = v0 * w + u0
+    bx = fx[at] * w00 + fx[at + 1] * w10 + fx[at + w] * w01 + fx[at + w + 1] * w11
+    by = fy[at] * w00 + fy[at + 1] * w10 + fy[at + w] * w01 + fy[at + w + 1] * w11
+    return abs(bx * nu + by * nv)
+
+
+@_compiled
 def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.float64],
                   pv: NDArray[np.float64], nu: NDArray[np.float64], nv: NDArray[np.float64],
                   steps: NDArray[np.float64], step_px: float, threshold: float
@@ -656,34 +754,35 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
     (nu, nv), the normal gradient |(gx, gy) . n| read bilinearly at offsets ``steps`` (px,
     ``step_px`` apart), its strongest interior sample (the first of equals) placed by a
     parabola through its neighbours (shift clamped to half a step); the (K, 2) peaks of the
-    samples whose strongest value reaches ``threshold``, in sample order; see
-    :func:`~stackpick_sim.vision.refine.refine_on_profile`."""
+    samples whose strongest value reaches ``threshold``, in sample order (none with fewer
+    than three steps: no interior sample); see
+    :func:`~stackpick_sim.vision.refine.refine_on_profile`. The two outermost offsets are
+    read only for a peak next to them that reaches the threshold."""
     n, k = pu.shape[0], steps.shape[0]
-    qu, qv = np.empty(n * k), np.empty(n * k)
-    for i in range(n):
-        for j in range(k):
-            qu[i * k + j] = pu[i] + steps[j] * nu[i]
-            qv[i * k + j] = pv[i] + steps[j] * nv[i]
-    bx, by = bilinear_uv(gx, gy, qu, qv)
-    g = np.empty(n * k)
-    for i in range(n):
-        for j in range(k):
-            g[i * k + j] = abs(bx[i * k + j] * nu[i] + by[i * k + j] * nv[i])
     out = np.empty((n, 2))
+    if k < 3:
+        return out[:0]
+    g = np.empty(k)
     count = 0
     for i in range(n):
-        best, top = 1, g[i * k + 1]
+        u, v, du, dv = pu[i], pv[i], nu[i], nv[i]
+        for j in range(1, k - 1):
+            g[j] = _normal_gradient(gx, gy, u, v, du, dv, steps[j])
+        best, top = 1, g[1]
         for j in range(2, k - 1):
-            if g[i * k + j] > top:
-                best, top = j, g[i * k + j]
+            if g[j] > top:
+                best, top = j, g[j]
         if top < threshold:
             continue
-        before, after = g[i * k + best - 1], g[i * k + best + 1]
+        before = (g[best - 1] if best > 1
+                  else _normal_gradient(gx, gy, u, v, du, dv, steps[0]))
+        after = (g[best + 1] if best < k - 2
+                 else _normal_gradient(gx, gy, u, v, du, dv, steps[k - 1]))
         curvature = before - 2.0 * top + after
         shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
         offset = steps[best] + min(max(shift, -0.5), 0.5) * step_px
-        out[count, 0] = pu[i] + offset * nu[i]
-        out[count, 1] = pv[i] + offset * nv[i]
+        out[count, 0] = u + offset * du
+        out[count, 1] = v + offset * dv
         count += 1
     return out[:count]
 
@@ -2015,6 +2114,7 @@ def warm_up() -> None:
     point_distances(np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
     pair_lies(np.zeros((1, 2), np.int32), 1, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0)
     stride_magnitudes(img, img, 4, 8.0)
+    stride_quantiles(img, img, 4, 8.0)
     strongest_gradients(np.zeros((3, 2, 4, 4), np.int16))
     for pts in (np.zeros((1, 2), np.int32), np.zeros((1, 2))):
         points_rms(pts, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)

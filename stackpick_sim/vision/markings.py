@@ -90,6 +90,7 @@ from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels_top
 from stackpick_sim.vision.contrast import contrast_profiles, contrast_threshold, outlines
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.kernels import kernel_array
 from stackpick_sim.vision.rings import hole_only
 from stackpick_sim.vision.wall import column_median
 
@@ -316,7 +317,7 @@ def two_surfaces(face: Ellipse, inner: Ellipse, image: NDArray[np.uint8],
     # values as Ellipse.inside, the rounded and clamped pixels and column_median).
     t = math.radians(inner.angle_deg)
     both, own, other = kernels_top.two_part_medians(
-        rim_band(face, params.rim_sample_scale), np.require(image, np.uint8, ("C", "W")),
+        rim_band(face, params.rim_sample_scale), kernel_array(image, np.uint8),
         inner.cx, inner.cy,
         math.cos(t), math.sin(t),
         np.array([max(inner.a - margin_px, 1e-6), max(inner.b - margin_px, 1e-6)]),

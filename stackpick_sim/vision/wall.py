@@ -102,7 +102,7 @@ def face_colour(ellipse: Ellipse, image: NDArray[np.uint8],
     # image, and each channel's median from a sort of its integer values, in one compiled
     # pass (kernels.face_median: the same values as the array form).
     pixels = image if image.ndim == 3 else image[:, :, None]
-    colour = kernels.face_median(np.require(pixels, requirements=("C", "W")), ellipse.cx,
+    colour = kernels.face_median(kernels.kernel_array(pixels), ellipse.cx,
                                  ellipse.cy, scale * ellipse.a, scale * ellipse.b, c, s,
                                  *_FACE_CIRCLE)
     return colour if image.ndim == 3 else np.asarray(colour[0], np.float64)
@@ -178,7 +178,7 @@ def _project_outside(band: NDArray[np.float64], faces: Ellipse | Sequence[Ellips
     # Radial distance outside the ellipse, px (exact on circles, close on squat ellipses),
     # in one compiled pass (kernels.project_outside: the same arithmetic as the array form).
     one = isinstance(faces, Ellipse)
-    points = np.require(band.reshape(3, 1, -1) if one else band, np.float64, ("C", "W"))
+    points = kernels.kernel_array(band.reshape(3, 1, -1) if one else band, np.float64)
     terms = np.array([_terms(faces)] if isinstance(faces, Ellipse)
                      else [_terms(e) for e in faces], np.float64).reshape(-1, 6)
     pu, pv, outside = kernels.project_outside(points, terms, intrinsics.fx, intrinsics.fy,
@@ -225,8 +225,7 @@ def wall_evidences(solutions: Sequence[tuple[NDArray[np.float64], NDArray[np.flo
     # (kernels_pose.wall_hits: solution_bands, then band_evidences' test, the same
     # arithmetic).
     pixels = image if image.ndim == 3 else image[:, :, None]
-    if not (pixels.flags.c_contiguous and pixels.flags.writeable):
-        pixels = np.require(pixels, requirements=("C", "W"))
+    pixels = kernels.kernel_array(pixels)
     c = pixels.shape[2]
     ct, st = unit_circle(WALL_RIM_POINTS)
     colour = _per_channel(face, c)
@@ -253,7 +252,7 @@ def band_evidences(pu: NDArray[np.float64], pv: NDArray[np.float64], keep: NDArr
     samples. One array pass for every solution, of one face or of several."""
     # One compiled pass (kernels.band_hits: the same tests and sums as the array form).
     def rows(a: NDArray) -> NDArray:  # C order and writable: the compiled argument types
-        return np.require(a, requirements=("C", "W"))
+        return kernels.kernel_array(a)
 
     pixels = image if image.ndim == 3 else image[:, :, None]
     c = pixels.shape[2]
@@ -278,7 +277,7 @@ def _per_channel(colour: NDArray[np.float64], channels: int) -> NDArray[np.float
     flat = np.asarray(colour, np.float64).reshape(-1)
     if flat.shape[0] != channels:
         return np.broadcast_to(flat, (channels,)).copy()
-    return np.require(flat, requirements=("C", "W"))
+    return kernels.kernel_array(flat)
 
 
 def _evidences(counts: NDArray[np.int64], hits: NDArray[np.float64]) -> list[WallEvidence]:

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.vision_params import PoseParams, TopParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels_top
+from stackpick_sim.vision.kernels import kernel_array
 from stackpick_sim.vision.pose import unit_circle_poses
 from stackpick_sim.vision.wall import solution_band_points, solution_bands
 
@@ -155,9 +156,9 @@ def _band_cover(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
         rows.append((f.cx, f.cy, math.cos(t), math.sin(t), max(f.a - margin, 1e-6),
                      max(f.b - margin, 1e-6)))
     # One compiled pass (kernels_top.bands_inside: the same arithmetic as the array form).
-    covered = kernels_top.bands_inside(np.require(pu, np.float64, ("C", "W")),
-                                       np.require(pv, np.float64, ("C", "W")),
-                                       np.require(keep, np.bool_, ("C", "W")),
+    covered = kernels_top.bands_inside(kernel_array(pu, np.float64),
+                                       kernel_array(pv, np.float64),
+                                       kernel_array(keep, np.bool_),
                                        np.array(rows, np.float64).reshape(-1, 6))
     return covered, pu, pv, samples
 
