@@ -124,6 +124,10 @@ def test_top_face_linked_with_a_lower_silhouette_is_found_from_the_cut_chain(
     frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "split_at_junctions",
                         lambda chains, *_: [[c] for c in chains])
+    # (When every face then reads as occluded, the lower face's fit round the top and its
+    # sliver holds the top face inside it, and its inner refit finds the top too: off.)
+    monkeypatch.setattr(detector_module, "_inner_face",
+                        lambda state, merged, choice, cues, config: (merged, choice))
     _assert_missed(frame)
 
 

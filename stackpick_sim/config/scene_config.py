@@ -362,7 +362,8 @@ class VisionCfg(StageSections):
     defaults lie well above a pile frame's counts and change nothing on the project's
     scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
     ``[vision.segments]``, ``[vision.fits]``, ``[vision.merging]``, ``[vision.refine]``,
-    ``[vision.gate]``, ``[vision.complete]``, ``[vision.top]``, ``[vision.markings]``,
+    ``[vision.gate]``, ``[vision.complete]``, ``[vision.inner_face]``,
+    ``[vision.under_wall]``, ``[vision.top]``, ``[vision.markings]``,
     ``[vision.report]``, ``[vision.pose]``, ``[vision.ellipses]``:
     stackpick_sim/config/vision_params.py)."""
 

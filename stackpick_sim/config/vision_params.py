@@ -336,6 +336,55 @@ class CompleteParams(Section):
     top rule's extra work."""
 
 @dataclass(frozen=True, kw_only=True)
+class InnerFaceParams(Section):
+    """The top stage's last step, when every face reads as occluded: a top face inside a
+    lower face's fit (:mod:`~stackpick_sim.vision.inner_face`). Its refit is the top stage's
+    inner refit, held to the ``top.inner_refit_*`` settings; the fits refitted show at least
+    ``top.hidden_min_support`` of their outline."""
+
+    SECTION: ClassVar[str] = "inner_face"
+
+    enabled: bool = True
+    """When the top rule and its fallbacks chose no face, each fit that fails on edges inside
+    (a T-junction allowed) is refitted on its innermost consistent edge (``top.inner_refit_*``)
+    and the rule run again with the refits in their fits' place; a refit it chooses is the
+    top face. The failure class *a top face inside a lower face's fit*: a small top object
+    standing on a larger one of its colour and shade, nearly concentric, is fitted round the
+    lower face's strong silhouette, with its own wall's boundary inside the fit as edges, and
+    no face passes the rule. Costs nothing on frames where a face is chosen (a contrast
+    refit of the few such fits on the others)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class UnderWallParams(Section):
+    """The top stage's check of its choice against the other faces' cylinders: a face lying
+    under a nearer cylinder's body (the cover test in reverse,
+    :mod:`~stackpick_sim.vision.under_wall`). The covering faces show at least
+    ``top.min_support`` of their outline (a whole face's, apart from a T-junction: its colour,
+    hence its radius, is its own); the depth margin is ``top.cover_depth_tolerance_m``."""
+
+    SECTION: ClassVar[str] = "under_wall"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_share": (0.0, 1.0, "")}
+
+    enabled: bool = True
+    """Whether a chosen face lying under another face's cylinder gives up the choice: it is
+    left out and the top stage runs again over the other faces. The failure class *the far
+    rim of a steep cylinder*: its wall's silhouette beyond its face, closed by the face's near
+    rim or a neighbour's arc, is fitted as an ellipse of about the face's size that passes
+    the top rule, while the true face fails on a neighbour's outline touching it. Placed
+    where its size and kind put it, that ellipse's face lies behind the cylinder's own wall
+    (needs the object kinds' radii and heights)."""
+    min_share: float = 0.9
+    """Share [0, 1] of the chosen face's disc (its centre and 12 samples on each ring at
+    0.35, 0.65 and 0.9 of its radius) that must lie behind another face's cylinder, under
+    each of its own two pose solutions and one of the other's, for the face to lie under
+    it: a far rim lies wholly behind its cylinder's wall (1.0 on rendered cluttered
+    frames), while the true top faces chosen on rendered paper, grey and cluttered frames lie
+    behind no well-supported face's cylinder at all (0.0); 0.9 leaves a few samples of the
+    outer ring to a pose's fit and tilt errors."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class TopParams(Section):
     """``top`` stage: the top rule (:func:`~stackpick_sim.vision.occlusion.select_top`) and
     what follows it.
@@ -960,6 +1009,8 @@ class StageSections:
     refine: RefineParams = field(default_factory=RefineParams)
     gate: GateParams = field(default_factory=GateParams)
     complete: CompleteParams = field(default_factory=CompleteParams)
+    inner_face: InnerFaceParams = field(default_factory=InnerFaceParams)
+    under_wall: UnderWallParams = field(default_factory=UnderWallParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)

@@ -47,7 +47,7 @@ from stackpick_sim.config.vision_params import (
 from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision import kernels_refine
-from stackpick_sim.vision.contrast import refit_on_contrast, widest_inset_px
+from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.detection import DetectedEllipse, Detection
 from stackpick_sim.vision.edges import (
     MIN_SIDE_PX,
@@ -62,6 +62,7 @@ from stackpick_sim.vision.fitting import (
     plausible,
     rms_residual,
 )
+from stackpick_sim.vision.inner_face import inner_refit, refitted
 from stackpick_sim.vision.kind_size import depth_radius, kinds_by_size
 from stackpick_sim.vision.limits import (
     Deadline,
@@ -120,6 +121,7 @@ from stackpick_sim.vision.stages import (
     check_time,
     run_stages,
 )
+from stackpick_sim.vision.under_wall import under_a_wall
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
@@ -400,7 +402,8 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
-    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``). Before
+    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``), then
+    a face inside a fit that reads as occluded (``inner_face``). Before
     those, when its first choice is not clear, faces the merge never fitted whose outline is
     faint along part of its length join it (``complete``), and when no ellipse passed the
     rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
@@ -424,9 +427,24 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _nearer_arcs(state, merged, choice, cues, config, every_arc=False)
     if choice.index is None:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
+        # Every face reads as occluded: a top face inside a lower face's fit.
+        merged, choice = _inner_face(state, merged, choice, cues, config)
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
-    return state.updated(cues=cues, merged=merged, choice=choice)
+    return _unless_under_wall(state, state.updated(cues=cues, merged=merged, choice=choice),
+                              config)
+
+
+def _unless_under_wall(state: State, found: State, config: DetectorConfig) -> State:
+    """``found`` (the top stage's outcome on ``state``), unless its choice lies behind
+    another face's cylinder (:func:`_under_wall`: a far rim): then the top stage again on
+    ``state`` without that ellipse."""
+    assert found.choice is not None and found.cues is not None
+    choice, merged = found.choice, found.merged
+    if not _under_wall(merged, choice, found.cues, config):
+        return found
+    return top_stage(state.updated(merged=[m for k, m in enumerate(merged)
+                                           if k != choice.index]), config)
 
 
 def _clear(choice: TopChoice, params: CompleteParams) -> bool:
@@ -473,29 +491,57 @@ def _inner_refit(state: State, merged: list[MergedEllipse], choice: TopChoice,
     i = choice.index
     if choice.evidence[i].occluded:  # chosen with markings, or by a later check
         return merged, choice
-    fit = merged[i].ellipse
     grad = state.edges("top")
-    # Round by round (each re-centres on the last): a round that leaves more than
-    # inner_refit_max_area of the fit's area (most faces) ends the refit, at half its cost.
-    top = config.top
-    refit = refit_on_contrast(fit, grad, True, top, inner_reach_px=top.inner_refit_reach_px,
-                              rounds=1)
-    for _ in range(top.contrast_rounds - 1):
-        if refit is None or refit.a * refit.b > top.inner_refit_max_area * fit.a * fit.b:
-            break
-        refit = refit_on_contrast(refit, grad, True, top,
-                                  inner_reach_px=top.inner_refit_reach_px, rounds=1)
-    gate = state.gate
-    if (refit is None or refit.a * refit.b > config.top.inner_refit_max_area * fit.a * fit.b
-            or widest_inset_px(fit, refit) < config.top.inner_refit_min_inset_px
-            or not plausible(refit, state.crop, config.fits)
-            or (gate is not None and not gate[0] <= refit.a <= gate[1])):
+    refit = inner_refit(merged[i].ellipse, grad, state.crop, state.gate, config.top,
+                        config.fits)
+    if refit is None:
         return merged, choice
     evidence = select_top([refit], grad, edge_points=state.points,
                           params=config.top).evidence[0]
     if evidence.occluded:
         return merged, choice
     return _inner_choice(merged, choice, i, refit, evidence)
+
+
+def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """When every face reads as occluded (the rule and its fallbacks chose none) and
+    ``inner_face.enabled``: the top rule again with each fit that can enclose a face replaced
+    by its inner refit (:func:`~stackpick_sim.vision.inner_face.refitted`); a refit it
+    chooses replaces its fit in ``merged`` and is chosen (``inner``: the pose's final fit
+    keeps off the silhouette's edge pixels beyond it). Otherwise both unchanged."""
+    if choice.index is not None or not config.inner_face.enabled:
+        return merged, choice
+    check_time(state.deadline, "top")
+    ellipses = [m.ellipse for m in merged]
+    refits = refitted(ellipses, choice.evidence, state.edges("top"), state.crop, state.gate,
+                      config.top, config.fits)
+    if not refits:
+        return merged, choice
+    again = _select([refits.get(i, e) for i, e in enumerate(ellipses)], state, cues)
+    i = again.index
+    if i is None or i not in refits:
+        return merged, choice
+    merged, choice = _inner_choice(merged, choice, i, refits[i], again.evidence[i])
+    return merged, replace(choice, reason="")
+
+
+def _under_wall(merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                config: DetectorConfig) -> bool:
+    """Whether, with ``under_wall.enabled``, the chosen face lies under the cylinder of
+    another face that shows at least ``top.min_support`` of its outline
+    (:func:`~stackpick_sim.vision.under_wall.under_a_wall`, ``under_wall.min_share``,
+    ``top.cover_depth_tolerance_m``); never without a choice or the kinds' radii and
+    heights."""
+    if (not config.under_wall.enabled or choice.index is None or cues.depth_radius_of is None
+            or cues.height_of is None):
+        return False
+    covering = [k for k, ev in enumerate(choice.evidence)
+                if k != choice.index and ev.support >= config.top.min_support]
+    return bool(covering) and under_a_wall(
+        [m.ellipse for m in merged], choice.index, covering, cues.k_crop,
+        cues.depth_radius_of, cues.height_of, config.under_wall.min_share,
+        config.top.cover_depth_tolerance_m)
 
 
 def _inner_choice(merged: list[MergedEllipse], choice: TopChoice, i: int, refit: Ellipse,

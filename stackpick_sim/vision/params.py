@@ -12,6 +12,7 @@ from stackpick_sim.config.vision_params import (
     EllipsesParams,
     FitParams,
     GateParams,
+    InnerFaceParams,
     MarkingParams,
     MergeParams,
     PoseParams,
@@ -22,6 +23,7 @@ from stackpick_sim.config.vision_params import (
     SegmentParams,
     StageSections,
     TopParams,
+    UnderWallParams,
     sections_of,
 )
 
@@ -32,6 +34,7 @@ __all__ = [
     "EllipsesParams",
     "FitParams",
     "GateParams",
+    "InnerFaceParams",
     "MarkingParams",
     "MergeParams",
     "PoseParams",
@@ -42,5 +45,6 @@ __all__ = [
     "SegmentParams",
     "StageSections",
     "TopParams",
+    "UnderWallParams",
     "sections_of",
 ]
