@@ -1,5 +1,5 @@
 """The top rule's compiled kernels: the arc-pair screen rejects only pairs the exact fit rejects,
-its fit is OpenCV's, and the inside test gives Ellipse.inside's flags."""
+its fit is the exact path's, and the inside test gives Ellipse.inside's flags."""
 
 from __future__ import annotations
 
@@ -51,25 +51,26 @@ def _table(arcs: list[NDArray[np.int32]]
     return pixels, starts, pairs
 
 
-def test_direct_fit_is_opencvs_ellipse_where_it_decides(rng: np.random.Generator) -> None:
+def test_screen_fit_is_the_exact_paths_ellipse(rng: np.random.Generator) -> None:
     arcs = _arcs(rng, 12, 4)
     pixels, starts, pairs = _table(arcs)
-    decided = 0
+    union = np.empty_like(pixels)
+    row, sums, work = np.empty((1, 5)), np.empty(15), np.empty((3, 3, 3))
+    fitted = 0
     for i, j in pairs.tolist():
         ranges = np.array([starts[i], starts[i + 1], starts[j], starts[j + 1]], np.int64)
-        cu, cv, major, minor, angle, ok = kernels_top.direct_fit(pixels, ranges)
+        cu, cv, major, minor, angle, ok = kernels_top._pair_fit(pixels, ranges, union, row,
+                                                                sums, work)
+        exact = fit_ellipse(np.concatenate([arcs[i], arcs[j]]))
         if not ok:
             continue
-        exact = fit_ellipse(np.concatenate([arcs[i], arcs[j]]))
         assert exact is not None
-        decided += 1
-        # OpenCV's results are float32: the same ellipse to that rounding.
-        assert cu == pytest.approx(exact.cx, rel=1e-6) and cv == pytest.approx(exact.cy, rel=1e-6)
-        assert major == pytest.approx(exact.a, rel=1e-6)
-        assert minor == pytest.approx(exact.b, rel=1e-6)
+        fitted += 1
+        # The same fit of the same pixels in the same order: the same values.
+        assert (cu, cv, major, minor) == (exact.cx, exact.cy, exact.a, exact.b)
         turn = (math.degrees(angle) - exact.angle_deg + 90.0) % 180.0 - 90.0
-        assert abs(math.radians(turn)) * exact.a < 1e-3
-    assert decided > 0.5 * len(pairs)
+        assert abs(turn) < 1e-9
+    assert fitted > 0.5 * len(pairs)
 
 
 def test_screen_rejects_only_pairs_the_exact_checks_reject(rng: np.random.Generator) -> None:
