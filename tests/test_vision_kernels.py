@@ -339,13 +339,15 @@ import sys
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.vision import kernels, kernels_fit, kernels_pose, kernels_refine, kernels_top
+from stackpick_sim.vision import (kernels, kernels_fit, kernels_pose, kernels_refine,
+                                  kernels_top, under_wall)
 from stackpick_sim.vision.benchmark.frames import load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.detector import TopObjectDetector
 kernels.warm_up()
 compiled = {f"{m.__name__}.{n}": k
-            for m in (kernels, kernels_top, kernels_pose, kernels_refine, kernels_fit)
+            for m in (kernels, kernels_top, kernels_pose, kernels_refine, kernels_fit,
+                      under_wall)
             for n, k in vars(m).items() if isinstance(k, CPUDispatcher)}
 warm = {n: set(k.signatures) for n, k in compiled.items()}
 scene = load_scene("paper")

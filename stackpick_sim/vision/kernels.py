@@ -2182,3 +2182,6 @@ def warm_up() -> None:
     from stackpick_sim.vision import kernels_fit  # the direct ellipse fits
 
     kernels_fit.warm_up()
+    from stackpick_sim.vision import under_wall  # the far-rim test's pass
+
+    under_wall.warm_up()

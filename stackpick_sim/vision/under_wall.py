@@ -188,3 +188,10 @@ def under_a_wall(faces: Sequence[Ellipse], i: int, covering: Sequence[int],
                 and _share(mine, face_radius, theirs, radius, height, tolerance) >= min_share):
             return True
     return False
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the compiled pass for the argument types
+    :func:`hidden_share` passes."""
+    solutions = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, -1.0]] * 2)
+    _share(solutions, 0.03, solutions, 0.03, 0.03, 0.001)
