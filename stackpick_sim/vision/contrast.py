@@ -194,17 +194,11 @@ def outline_rows(ellipses: Sequence[Ellipse]
     counts in one compiled pass (kernels.outline_rows: :func:`perimeter_px`'s arithmetic)."""
     sizes, rows = kernels.outline_rows(np.array(
         [(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses], np.float64).reshape(-1, 5))
-    ct, st = unit_circles(sizes.tolist())
-    return rows, sizes, ct, st
-
-
-def unit_circles(sizes: Sequence[int]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The :func:`unit_circle` cosines and sines of each size, concatenated (empty for no
-    sizes)."""
-    if not sizes:
-        return np.zeros(0), np.zeros(0)
-    tables = [unit_circle(n) for n in sizes]
-    return np.concatenate([t[0] for t in tables]), np.concatenate([t[1] for t in tables])
+    if not ellipses:
+        return rows, sizes, np.zeros(0), np.zeros(0)
+    tables = [unit_circle(n) for n in sizes.tolist()]
+    return (rows, sizes, np.concatenate([t[0] for t in tables]),
+            np.concatenate([t[1] for t in tables]))
 
 
 def outlines(ellipses: Sequence[Ellipse]) -> Outlines:

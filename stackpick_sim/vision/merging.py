@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from stackpick_sim.config.vision_params import FitParams, MergeParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision import kernels
-from stackpick_sim.vision.contrast import perimeter_px, unit_circle, unit_circles
+from stackpick_sim.vision.contrast import outline_rows, perimeter_px, unit_circle
 from stackpick_sim.vision.fitting import DEFAULT as FIT_DEFAULT
 from stackpick_sim.vision.fitting import (
     distance_rows,
@@ -98,14 +98,9 @@ def boundary_shares(ways: list[tuple[Ellipse, Ellipse]], tol_px: float) -> list[
     (the same values as pair by pair)."""
     if not ways:
         return []
-    sizes, rows = [], []
-    for one, _ in ways:
-        sizes.append(max(16, math.ceil(perimeter_px(one))))
-        th = math.radians(one.angle_deg)
-        rows.append((one.cx, one.cy, one.a, one.b, math.cos(th), math.sin(th)))
     # The samples and their distances to the other ellipse in one compiled pass.
     shares = kernels.outline_near_shares(
-        np.array(rows, np.float64), np.array(sizes, np.int64), *unit_circles(sizes),
+        *outline_rows([one for one, _ in ways]),
         distance_rows(ellipse_params([other for _, other in ways])), tol_px)
     return cast("list[float]", shares.tolist())
 
@@ -129,12 +124,10 @@ def support_shares(ellipses: list[Ellipse], support: NDArray[np.uint8], radius: 
     dilated map."""
     if not ellipses:
         return np.zeros(0)
-    # The sample counts and the rows in one compiled pass, then the rounded samples (as
-    # boundary_samples' points) looked up in another.
-    counts, rows = kernels.outline_rows(np.array(
-        [(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in ellipses], np.float64))
-    return kernels.outline_support(np.ascontiguousarray(support, np.uint8), rows, counts,
-                                   *unit_circles(counts.tolist()), radius)
+    # The rows and sample counts (contrast.outline_rows), then the rounded samples (as
+    # boundary_samples' points) looked up in one compiled pass.
+    return kernels.outline_support(np.ascontiguousarray(support, np.uint8),
+                                   *outline_rows(ellipses), radius)
 
 
 @dataclass(kw_only=True)
