@@ -69,9 +69,7 @@ def _fit_input(points: NDArray) -> NDArray:
     dtype = points.dtype
     if dtype is not _INT32 and dtype is not _FLOAT32 and dtype is not _FLOAT64:
         return np.ascontiguousarray(points, np.float64)
-    if points.flags.c_contiguous and points.flags.writeable:
-        return points
-    return np.array(points, dtype, order="C")
+    return kernels.kernel_array(points)
 
 
 def satisfies_eq2(ellipse: Ellipse) -> bool:
