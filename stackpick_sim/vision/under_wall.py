@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.kernels import _compiled
+from stackpick_sim.vision.kernels_pose import plane_axes
 from stackpick_sim.vision.markings import holds_centre
 from stackpick_sim.vision.pose import unit_circle_poses
 
@@ -86,13 +87,7 @@ def _hidden_share(faces: NDArray[np.float64], face_radius: float, others: NDArra
     for f in range(2):
         centre, normal = faces[f, :3] * face_radius, faces[f, 3:]
         # An orthonormal basis (u, v) of the face's plane.
-        h0, h1 = (1.0, 0.0) if abs(normal[0]) < 0.9 else (0.0, 1.0)
-        u0, u1, u2 = -normal[2] * h1, normal[2] * h0, normal[0] * h1 - normal[1] * h0
-        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-        u0, u1, u2 = u0 / un, u1 / un, u2 / un
-        v0 = normal[1] * u2 - normal[2] * u1
-        v1 = normal[2] * u0 - normal[0] * u2
-        v2 = normal[0] * u1 - normal[1] * u0
+        u0, u1, u2, v0, v1, v2 = plane_axes(normal[0], normal[1], normal[2])
         best = 0.0
         for o in range(2):
             c, n = others[o, :3] * other_radius, others[o, 3:]
