@@ -114,3 +114,17 @@ def test_segments_split_at_junction() -> None:
     for chain in segs.chains:
         steps = np.abs(np.diff(chain, axis=0)).max(axis=1)
         assert np.all(steps == 1), "chains must be ordered 8-connected paths"
+
+
+def test_crop_intrinsics_equal_the_checked_constructors() -> None:
+    from stackpick_sim.geometry import CameraIntrinsics
+    from stackpick_sim.vision.detector import _crop_intrinsics
+
+    k = CameraIntrinsics(fx=290.5, fy=291.0, cx=159.5, cy=119.5, width=320, height=240,
+                         dist=(0.1, -0.05, 0.001, 0.0, 0.0))
+    crop = _crop_intrinsics(k, (12, 7))
+    # Every field, a new one included: the crop of the undistorted frame has no distortion.
+    assert crop == CameraIntrinsics(fx=290.5, fy=291.0, cx=147.5, cy=112.5, width=320,
+                                    height=240)
+    assert vars(crop) == vars(CameraIntrinsics(fx=290.5, fy=291.0, cx=147.5, cy=112.5,
+                                               width=320, height=240))
