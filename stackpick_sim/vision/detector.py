@@ -386,8 +386,9 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     merged = state.merged
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
                          config.refine, config.fits)
+    # An ellipse the refit left as it was keeps its record.
     return state.updated(merged=[
-        MergedEllipse.of(e, m.segments, m.residual_px, m.support)
+        m if e is m.ellipse else MergedEllipse.of(e, m.segments, m.residual_px, m.support)
         for m, e in zip(merged, refined, strict=True)])
 
 
