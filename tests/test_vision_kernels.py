@@ -1252,3 +1252,43 @@ def test_set_indices_are_the_flat_nonzero_pixels(rng: np.random.Generator,
     for density in (0.0, 0.03, 0.5, 1.0):
         image = (rng.random(shape) < density).astype(np.uint8) * np.uint8(255)
         assert np.array_equal(kernels._set_indices(image), np.flatnonzero(image))
+
+
+def _pixel_curves(rng: np.random.Generator) -> list[NDArray[np.int32]]:
+    """Pixel curves of the kinds the segments stage approximates: rasterised ellipse arcs
+    (distinct pixels, open or whole), 8-connected random walks (revisits and straight runs)
+    and short pieces."""
+    curves = []
+    steps = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)])
+    for _ in range(600):
+        a, b = rng.uniform(3.0, 60.0, 2)
+        t0 = rng.uniform(0.0, 2 * np.pi)
+        t = np.linspace(t0, t0 + rng.uniform(0.3, 2 * np.pi), 400)
+        pts = np.rint(np.column_stack([100 + a * np.cos(t), 100 + b * np.sin(t)]))
+        moved = np.r_[True, np.any(np.diff(pts, axis=0) != 0, axis=1)]
+        curves.append(np.ascontiguousarray(pts[moved], np.int32))
+        walk = steps[rng.integers(0, 8, int(rng.integers(1, 90)))]
+        curves.append(np.ascontiguousarray(np.cumsum(walk, axis=0) + 50, np.int32))
+    return curves
+
+
+def test_poly_dp_is_opencvs_polygonal_approximation(rng: np.random.Generator) -> None:
+    for curve in _pixel_curves(rng):
+        for closed in (False, True):
+            for eps in (0.5, 1.0, 2.5):
+                out = np.empty((curve.shape[0] + 1, 2), np.int32)
+                stack = np.empty((curve.shape[0] + 2, 2), np.int64)
+                count = kernels.poly_dp(curve, closed, eps, out, stack)
+                want = cv2.approxPolyDP(curve, eps, closed).reshape(-1, 2)
+                assert np.array_equal(out[:count], want), (curve.tolist(), closed, eps)
+
+
+def test_chain_polys_are_each_chains_polygon(rng: np.random.Generator) -> None:
+    curves = _pixel_curves(rng)[:200]
+    closed = rng.uniform(0, 1, len(curves)) < 0.5
+    bounds = np.array([0, *np.cumsum([c.shape[0] for c in curves])], np.int64)
+    polys, poly_bounds = kernels.chain_polys(np.concatenate(curves), bounds, closed, 1.0)
+    assert poly_bounds[-1] == polys.shape[0]
+    for c, curve in enumerate(curves):
+        want = cv2.approxPolyDP(curve, 1.0, bool(closed[c])).reshape(-1, 2)
+        assert np.array_equal(polys[poly_bounds[c]:poly_bounds[c + 1]], want)

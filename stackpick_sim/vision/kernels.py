@@ -1976,6 +1976,151 @@ def ordered_chains(contours: NDArray[np.int32], lengths: NDArray[np.int64],
 
 
 @_compiled
+def _dp_slices(pts: NDArray[np.int32], n: int, closed: bool, eps_sq: float,
+               out: NDArray[np.int32], stack: NDArray[np.int64]
+               ) -> tuple[int, bool]:  # pragma: no cover - compiled
+    """The Ramer-Douglas-Peucker recursion of :func:`poly_dp` on the ``n`` pixels ``pts``:
+    the kept vertices written into ``out`` (their count returned) and whether the curve was
+    taken as closed (an open one whose ends coincide is). ``stack``: (n + 2, 2) scratch."""
+    top, count, iters = 0, 0, 3
+    if not closed:
+        if pts[n - 1, 0] != pts[0, 0] or pts[n - 1, 1] != pts[0, 1]:
+            stack[0, 0], stack[0, 1] = 0, n - 1
+            top = 1
+        else:
+            closed, iters = True, 1
+    if closed:
+        # Two roughly farthest pixels: from a pixel, the farthest one, then from there.
+        pos, right, far_sq = 0, 0, 0.0
+        for _ in range(iters):
+            pos = (pos + right) % n
+            sx, sy = pts[pos, 0], pts[pos, 1]
+            pos = (pos + 1) % n
+            far_sq = 0.0
+            for j in range(1, n):
+                dx, dy = float(pts[pos, 0] - sx), float(pts[pos, 1] - sy)
+                pos = (pos + 1) % n
+                if dx * dx + dy * dy > far_sq:
+                    far_sq = dx * dx + dy * dy
+                    right = j
+        if far_sq > eps_sq:
+            start = pos % n
+            stack[0, 0], stack[0, 1] = (right + start) % n, start
+            stack[1, 0], stack[1, 1] = start, (right + start) % n
+            top = 2
+        else:
+            out[0, 0], out[0, 1] = pts[pos, 0], pts[pos, 1]
+            count = 1
+    while top > 0:
+        top -= 1
+        lo, hi = stack[top, 0], stack[top, 1]
+        pos = (lo + 1) % n
+        if pos != hi:
+            sx, sy, ex, ey = pts[lo, 0], pts[lo, 1], pts[hi, 0], pts[hi, 1]
+            dx, dy = float(ex - sx), float(ey - sy)
+            chord_sq = dx * dx + dy * dy
+            # The farthest pixel from the chord as a segment (beyond an end: from that end),
+            # squared distances times the chord's squared length (whole numbers).
+            far, split = 0.0, 0
+            while pos != hi:
+                qx, qy = pts[pos, 0] - sx, pts[pos, 1] - sy
+                along = qx * dx + qy * dy
+                if along < 0:
+                    d = (qx * qx + qy * qy) * chord_sq
+                elif along > chord_sq:
+                    rx, ry = pts[pos, 0] - ex, pts[pos, 1] - ey
+                    d = (rx * rx + ry * ry) * chord_sq
+                else:
+                    across = qy * dx - qx * dy
+                    d = across * across
+                if d > far:
+                    far, split = d, pos
+                pos = (pos + 1) % n
+            flat = far <= eps_sq * chord_sq
+        else:
+            flat = True
+        if flat:
+            out[count, 0], out[count, 1] = pts[lo, 0], pts[lo, 1]
+            count += 1
+        else:
+            stack[top, 0], stack[top, 1] = split, hi
+            stack[top + 1, 0], stack[top + 1, 1] = lo, split
+            top += 2
+    if not closed:
+        out[count, 0], out[count, 1] = pts[n - 1, 0], pts[n - 1, 1]
+        count += 1
+    return count, closed
+
+
+@_compiled
+def poly_dp(pts: NDArray[np.int32], closed: bool, eps: float, out: NDArray[np.int32],
+            stack: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
+    """``cv2.approxPolyDP(pts, eps, closed)`` of (n, 2) int32 pixels (n >= 1), the same
+    vertices in the same order (OpenCV's Ramer-Douglas-Peucker recursion: a closed curve
+    split first at two roughly farthest pixels, each stretch split at its farthest pixel
+    from its chord, as a segment, until none is more than ``eps`` off it; then a pass dropping a vertex
+    that lies within eps / sqrt(2) of the line through its neighbours, between them),
+    written into ``out`` ((n + 1, 2) or larger); returns their count. ``stack``: (n + 2, 2)
+    scratch."""
+    n = pts.shape[0]
+    eps_sq = eps * eps
+    count, _ = _dp_slices(pts, n, closed, eps_sq, out, stack)
+    # The clean-up pass over the vertices (cyclically for a closed curve).
+    new_count = count
+    pos = count - 1 if closed else 0
+    sx, sy = out[pos, 0], out[pos, 1]
+    pos = (pos + 1) % count
+    wpos = pos
+    px, py = out[pos, 0], out[pos, 1]
+    pos = (pos + 1) % count
+    i = 0 if closed else 1
+    stop = count if closed else count - 1
+    while i < stop and new_count > 2:
+        ex, ey = out[pos, 0], out[pos, 1]
+        pos = (pos + 1) % count
+        dx, dy = float(ex - sx), float(ey - sy)
+        d = abs((px - sx) * dy - (py - sy) * dx)
+        inner = float((px - sx) * (ex - px) + (py - sy) * (ey - py))
+        if d * d <= 0.5 * eps_sq * (dx * dx + dy * dy) and dx != 0 and dy != 0 and inner >= 0:
+            new_count -= 1
+            out[wpos, 0], out[wpos, 1] = ex, ey
+            sx, sy = ex, ey
+            wpos = (wpos + 1) % count
+            px, py = out[pos, 0], out[pos, 1]
+            pos = (pos + 1) % count
+            i += 2
+            continue
+        out[wpos, 0], out[wpos, 1] = px, py
+        sx, sy = px, py
+        wpos = (wpos + 1) % count
+        px, py = ex, ey
+        i += 1
+    if not closed:
+        out[wpos, 0], out[wpos, 1] = px, py
+    return new_count
+
+
+@_compiled
+def chain_polys(chains: NDArray[np.int32], bounds: NDArray[np.int64],
+                closed: NDArray[np.bool_], eps: float
+                ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """:func:`poly_dp` of each chain (``chains[bounds[c]:bounds[c + 1]]``, ``closed[c]``):
+    the polygons' vertices concatenated and their bounds (C + 1,), as :func:`chain_arcs`
+    takes them."""
+    n_c = bounds.shape[0] - 1
+    polys = np.empty((chains.shape[0] + n_c, 2), np.int32)
+    poly_bounds = np.zeros(n_c + 1, np.int64)
+    stack = np.empty((chains.shape[0] + 2, 2), np.int64)
+    k = 0
+    for c in range(n_c):
+        lo, hi = bounds[c], bounds[c + 1]
+        if hi > lo:
+            k += poly_dp(chains[lo:hi], closed[c], eps, polys[k:], stack)
+        poly_bounds[c + 1] = k
+    return polys[:k], poly_bounds
+
+
+@_compiled
 def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDArray[np.bool_],
                polys: NDArray[np.int32], poly_bounds: NDArray[np.int64], shortest: int,
                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
@@ -2161,8 +2306,8 @@ def warm_up() -> None:
     _, end, _ = junctions_cut(grid, *set_pixels(grid))
     junctions_cut_uv(grid, np.zeros((2, 1)))
     pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
-    chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
-               1.0)
+    polys, poly_bounds = chain_polys(pixels, bounds, closed, 1.0)
+    chain_arcs(pixels, bounds, closed, polys, poly_bounds, 2, 1.0, 1.0, 1.0, 1.0)
     stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)

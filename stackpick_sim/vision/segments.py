@@ -7,8 +7,7 @@ chain from one end to the other and back; the first half is the ordered chain), 
 are split again at corners, so a cylinder's straight side wall and the arc of its face that
 meet at a corner are never fitted together.
 
-Everything per pixel is done by OpenCV or compiled passes; no Python loop runs per segment
-but the polygon approximation's.
+Everything per pixel is done by OpenCV or compiled passes; no Python loop runs per segment.
 """
 
 from __future__ import annotations
@@ -104,9 +103,10 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
     (u, v) in row-major order when at hand (the edge stage lists them; pixels that are not
     exactly those are ignored, and the map is read instead).
 
-    Three compiled passes around OpenCV's contour follower and polygon approximation: the
-    junctions cut out and the end points marked, the contours ordered from end to end, the
-    chains cut at their corners (:func:`split_chain`, all chains at once)."""
+    Four compiled passes around OpenCV's contour follower: the junctions cut out and the end
+    points marked, the contours ordered from end to end, the chains' polygonal
+    approximations (OpenCV's, :func:`~stackpick_sim.vision.kernels.poly_dp`), the chains
+    cut at their corners (:func:`split_chain`, all chains at once)."""
     shortest = params.min_chain_px
     edges = np.ascontiguousarray(edges, np.uint8)
     cut, end = _junctions_cut(edges, pixels)
@@ -127,19 +127,14 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
         cast("NDArray[np.int32]", np.concatenate(kept).reshape(-1, 2)),
         np.array([c.shape[0] for c in kept], np.int64),
         end, shortest)
-    # Each chain's polygon (OpenCV reads an (N, 2) int32 array as N points), then the cuts
-    # of all chains in one pass.
-    starts = bounds.tolist()
-    polys = [cast("NDArray[np.int32]", cv2.approxPolyDP(ordered[i:j], params.poly_epsilon_px,
-                                                        shut))
-             for i, j, shut in zip(starts, starts[1:], closed.tolist(), strict=False)]
-    if not polys:
+    if bounds.shape[0] < 2:
         return EdgeSegments(chains=(), edges=edges)
+    # Each chain's polygon (kernels.chain_polys: cv2.approxPolyDP's vertices), then the cuts
+    # of all chains, in two compiled passes.
+    polys, poly_bounds = kernels.chain_polys(ordered, bounds, closed, params.poly_epsilon_px)
     turned, arcs = kernels.chain_arcs(
-        ordered, bounds, closed, np.concatenate(polys).reshape(-1, 2),
-        np.array([0, *itertools.accumulate([len(q) for q in polys])], np.int64), shortest,
-        params.corner_angle_deg, params.spike_min_deg, params.spike_ratio,
-        params.min_signed_turn_deg)
+        ordered, bounds, closed, polys, poly_bounds, shortest, params.corner_angle_deg,
+        params.spike_min_deg, params.spike_ratio, params.min_signed_turn_deg)
     return EdgeSegments(chains=tuple([turned[i:j] for i, j in arcs.tolist()]), edges=edges)
 
 
