@@ -2057,11 +2057,11 @@ def poly_dp(pts: NDArray[np.int32], closed: bool, eps: float, out: NDArray[np.in
             stack: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
     """``cv2.approxPolyDP(pts, eps, closed)`` of (n, 2) int32 pixels (n >= 1), the same
     vertices in the same order (OpenCV's Ramer-Douglas-Peucker recursion: a closed curve
-    split first at two roughly farthest pixels, each stretch split at its farthest pixel
-    from its chord, as a segment, until none is more than ``eps`` off it; then a pass dropping a vertex
-    that lies within eps / sqrt(2) of the line through its neighbours, between them),
-    written into ``out`` ((n + 1, 2) or larger); returns their count. ``stack``: (n + 2, 2)
-    scratch."""
+    split first at two roughly farthest pixels, each stretch split at its pixel farthest
+    from its chord (as a segment) until none is more than ``eps`` off it; then a pass
+    dropping a vertex that lies within eps / sqrt(2) of the line through its neighbours,
+    between them), written into ``out`` ((n + 1, 2) or larger); returns their count.
+    ``stack``: (n + 2, 2) scratch."""
     n = pts.shape[0]
     eps_sq = eps * eps
     count, _ = _dp_slices(pts, n, closed, eps_sq, out, stack)

@@ -370,7 +370,7 @@ def refine_rounds(given: NDArray[np.float64],
     ``cos_sq``, the least pixels ``least`` and the fit ``bounds``) until no ellipse is
     active. Returns per ellipse the (cx, cy, a, b, angle deg) of its last refit that passed
     and whether one did (the others keep ``given``)."""
-    u, v, gu, gv = columns
+    u, v = columns[0], columns[1]
     n_e = given.shape[0]
     forms = kernels.ellipse_forms(given)
     reach = np.empty(n_e)
