@@ -1220,17 +1220,15 @@ def test_level_histogram_and_belt_box_match_the_array_forms(rng: np.random.Gener
         assert tuple(box.tolist()) == cv2.boundingRect(fore)
 
 
-def test_junctions_cut_uv_is_junctions_cut_of_the_whole_pixels(rng: np.random.Generator
-                                                               ) -> None:
+def test_uv_rows_cols_are_the_whole_pixels(rng: np.random.Generator) -> None:
     edges = (rng.random((40, 50)) < 0.3).astype(np.uint8)
     rows, cols = kernels.set_pixels(edges)
     uv = np.vstack([cols, rows]).astype(np.float64)
-    want = kernels.junctions_cut(edges, rows, cols)
-    got = kernels.junctions_cut_uv(edges, uv)
-    assert got[2] and want[2]
-    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    got_rows, got_cols, whole = kernels.uv_rows_cols(uv)
+    assert whole
+    assert np.array_equal(got_rows, rows) and np.array_equal(got_cols, cols)
     uv[0, 3] += 0.5  # not a pixel
-    assert not kernels.junctions_cut_uv(edges, uv)[2]
+    assert not kernels.uv_rows_cols(uv)[2]
 
 
 def test_outline_rows_match_the_perimeter_and_the_angle(rng: np.random.Generator) -> None:
@@ -1292,3 +1290,40 @@ def test_chain_polys_are_each_chains_polygon(rng: np.random.Generator) -> None:
     for c, curve in enumerate(curves):
         want = cv2.approxPolyDP(curve, 1.0, bool(closed[c])).reshape(-1, 2)
         assert np.array_equal(polys[poly_bounds[c]:poly_bounds[c + 1]], want)
+
+
+def _outer_contours_opencv(binary: NDArray[np.uint8]) -> tuple[list[list[int]], list[int]]:
+    """cv2.findContours' contours without a parent (RETR_CCOMP, every pixel), concatenated,
+    and their lengths."""
+    contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hierarchy is None:
+        return [], []
+    outer = [c.reshape(-1, 2) for c, h in zip(contours, hierarchy[0], strict=True) if h[3] == -1]
+    return [p for c in outer for p in c.tolist()], [c.shape[0] for c in outer]
+
+
+@pytest.mark.parametrize("kind", ["blobs", "arcs", "cut arcs"])
+def test_outer_contours_are_opencvs_contours_without_a_parent(rng: np.random.Generator,
+                                                              kind: str) -> None:
+    for _ in range(300):
+        h, w = (int(n) for n in rng.integers(1, 90, 2))
+        if kind == "blobs":  # random blobs, with holes, nested pieces and single pixels
+            binary = (rng.uniform(0, 1, (h, w)) < rng.uniform(0.05, 0.6)).astype(np.uint8)
+        else:
+            binary = np.zeros((h, w), np.uint8)
+            for _ in range(int(rng.integers(1, 5))):
+                centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+                axes = (int(rng.integers(1, 30)), int(rng.integers(1, 30)))
+                cv2.ellipse(binary, centre, axes, float(rng.uniform(0, 180)),
+                            float(rng.uniform(0, 360)), float(rng.uniform(0, 360)), 1, 1)
+            if kind == "cut arcs":  # the segments stage's input: junctions cut out
+                binary = kernels.junctions_cut(binary, *kernels.set_pixels(binary))[0]
+        want_pixels, want_lengths = _outer_contours_opencv(binary)
+        pixels, lengths = kernels.outer_contours(binary)
+        assert pixels.tolist() == want_pixels
+        assert lengths.tolist() == want_lengths
+        # Given more pixels than the set ones (row-major), the same.
+        more = binary | (rng.uniform(0, 1, binary.shape) < 0.2)
+        pixels, lengths = kernels.contours_at(binary, *kernels.set_pixels(more))
+        assert pixels.tolist() == want_pixels
+        assert lengths.tolist() == want_lengths

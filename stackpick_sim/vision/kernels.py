@@ -1912,18 +1912,17 @@ def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArr
 
 
 @_compiled
-def junctions_cut_uv(edges: NDArray[np.uint8], uv: NDArray[np.float64]
-                     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8],
-                                bool]:  # pragma: no cover - compiled
-    """:func:`junctions_cut` of the pixels given as (2, M) rows u, v (whole numbers, as the
-    edge stage lists them; one that is not: not valid)."""
+def uv_rows_cols(uv: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], bool]:  # pragma: no cover
+    """The rows and columns of pixels given as (2, M) rows u, v, and whether they are whole
+    numbers (as the edge stage lists them)."""
     n = uv.shape[1]
     rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
     for j in range(n):
         rows[j], cols[j] = np.int64(uv[1, j]), np.int64(uv[0, j])
         if rows[j] != uv[1, j] or cols[j] != uv[0, j]:
-            return np.zeros((1, 1), np.uint8), np.zeros((1, 1), np.uint8), False
-    return junctions_cut(edges, rows, cols)
+            return rows, cols, False
+    return rows, cols, True
 
 
 @_compiled
@@ -1931,6 +1930,125 @@ def _padded_box(flat: NDArray[np.uint8], i: int, wp: int) -> int:  # pragma: no 
     """The 3x3 sum round flat index ``i`` of a map of row length ``wp`` with a zero border."""
     return (int(flat[i - wp - 1]) + flat[i - wp] + flat[i - wp + 1] + flat[i - 1] + flat[i]
             + flat[i + 1] + flat[i + wp - 1] + flat[i + wp] + flat[i + wp + 1])
+
+
+#: The 8 directions of the border follower, counter-clockwise from east (image rows down):
+#: column and row steps.
+_STEP_U = np.array([1, 1, 0, -1, -1, -1, 0, 1], np.int64)
+_STEP_V = np.array([0, -1, -1, -1, 0, 1, 1, 1], np.int64)
+
+
+@_compiled
+def _follow_border(flat: NDArray[np.int8], at: int, offsets: NDArray[np.int64], hole: bool,
+                   out: NDArray[np.int64], k: int) -> int:  # pragma: no cover - compiled
+    """Follow the border that starts at flat index ``at`` of a zero-padded map (``offsets``:
+    the flat steps of the 8 directions, twice over; 1: a set pixel not yet visited; the
+    pixels passed are marked 2, or -2 where the pixel east of them is background), Suzuki
+    and Abe's border following as OpenCV's contour finder does it (the first neighbour
+    searched clockwise from the west for an outer border, from the east for a hole; then
+    counter-clockwise round each pixel from the one it came from). An outer border's pixels
+    passed are written (flat indices) into ``out`` from ``k`` on; returns the next free
+    place."""
+    s_end = 0 if hole else 4
+    s = s_end
+    first = at
+    while True:
+        s = (s - 1) & 7
+        first = at + offsets[s]
+        if flat[first] != 0 or s == s_end:
+            break
+    if flat[first] == 0:  # a single pixel
+        flat[at] = -2
+        if not hole:
+            out[k] = at
+            k += 1
+        return k
+    here = at
+    while True:
+        s_end = s
+        nxt = here
+        while s < 15:
+            s += 1
+            nxt = here + offsets[s]
+            if flat[nxt] != 0:
+                break
+        s &= 7
+        if 1 <= s <= s_end:  # the pixel east of this one was searched: background
+            flat[here] = -2
+        elif flat[here] == 1:
+            flat[here] = 2
+        if not hole:
+            out[k] = here
+            k += 1
+        if nxt == at and here == first:
+            return k
+        here = nxt
+        s = (s + 4) & 7
+
+
+@_compiled
+def contours_at(binary: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64]
+                ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """:func:`outer_contours` of an (H, W) map given pixels (``rows``, ``cols``) in
+    row-major order among which are all its set ones (the others are skipped): the raster
+    scan visits only those and the pixel after each."""
+    h, w = binary.shape
+    wp = w + 2
+    flat = np.zeros((h + 2) * wp, np.int8)
+    n = 0
+    for j in range(rows.shape[0]):
+        if binary[rows[j], cols[j]]:
+            flat[(rows[j] + 1) * wp + cols[j] + 1] = 1
+            n += 1
+    offsets = np.empty(16, np.int64)
+    for d in range(8):
+        offsets[d] = offsets[d + 8] = _STEP_V[d] * wp + _STEP_U[d]
+    # A pixel is passed at most once per set neighbour (once when it has none).
+    out = np.empty(8 * n + 1, np.int64)
+    starts = np.empty(n + 1, np.int64)
+    count, k = 0, 0
+    # The scan's value of the pixel before (0 past a background pixel) and where it is.
+    prev, prev_at = 0, -1
+    for j in range(rows.shape[0]):
+        at = (rows[j] + 1) * wp + cols[j] + 1
+        if flat[at] == 0 and binary[rows[j], cols[j]] == 0:
+            continue  # not a set pixel
+        if at != prev_at + 1:
+            prev = 0
+        p = flat[at]
+        if prev == 0 and p == 1:  # an outer border starts here
+            starts[count] = k
+            count += 1
+            k = _follow_border(flat, at, offsets, False, out, k)
+            p = flat[at]
+        prev, prev_at = p, at
+        # The pixel after: a hole's border starts at this one when it is background.
+        if flat[at + 1] == 0 and p >= 1:
+            _follow_border(flat, at, offsets, True, out, k)
+            prev = 0
+    starts[count] = k
+    # OpenCV lists them last found first.
+    pixels = np.empty((k, 2), np.int32)
+    lengths = np.empty(count, np.int64)
+    m = 0
+    for i in range(count - 1, -1, -1):
+        lengths[count - 1 - i] = starts[i + 1] - starts[i]
+        for q in range(starts[i], starts[i + 1]):
+            pixels[m, 0], pixels[m, 1] = out[q] % wp - 1, out[q] // wp - 1
+            m += 1
+    return pixels, lengths
+
+
+@_compiled
+def outer_contours(binary: NDArray[np.uint8]
+                   ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """The outer borders of the set pixels of an (H, W) map, as
+    ``cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)`` gives the contours
+    without a parent: their pixels (u, v), concatenated in OpenCV's order (the last found in
+    the raster scan first), and their lengths. The holes' borders are followed too (their
+    marks decide where later borders start) but not listed."""
+    rows, cols = set_pixels(binary)
+    return contours_at(binary, rows, cols)
 
 
 @_compiled
@@ -2304,8 +2422,9 @@ def warm_up() -> None:
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     grid = np.zeros((4, 4), np.uint8)
     _, end, _ = junctions_cut(grid, *set_pixels(grid))
-    junctions_cut_uv(grid, np.zeros((2, 1)))
-    pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
+    uv_rows_cols(np.zeros((2, 1)))
+    pixels, bounds, closed = ordered_chains(*outer_contours(grid), end, 2)
+    contours_at(grid, *set_pixels(grid))
     polys, poly_bounds = chain_polys(pixels, bounds, closed, 1.0)
     chain_arcs(pixels, bounds, closed, polys, poly_bounds, 2, 1.0, 1.0, 1.0, 1.0)
     stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)

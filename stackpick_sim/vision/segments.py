@@ -2,12 +2,12 @@
 
 Each edge pixel is classified by its count of 8-connected edge neighbours: 2 continues a
 segment, 1 ends one, 3 or more is a junction. Junction pixels are cut out, every remaining
-8-connected chain is traced in order (OpenCV's contour follower walks a one-pixel-wide open
-chain from one end to the other and back; the first half is the ordered chain), and chains
-are split again at corners, so a cylinder's straight side wall and the arc of its face that
-meet at a corner are never fitted together.
+8-connected chain is traced in order (a border follower, the one of OpenCV's contour finder,
+walks a one-pixel-wide open chain from one end to the other and back; the first half is the
+ordered chain), and chains are split again at corners, so a cylinder's straight side wall and
+the arc of its face that meet at a corner are never fitted together.
 
-Everything per pixel is done by OpenCV or compiled passes; no Python loop runs per segment.
+Everything per pixel is done by compiled passes; no Python loop runs per segment.
 """
 
 from __future__ import annotations
@@ -103,30 +103,29 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
     (u, v) in row-major order when at hand (the edge stage lists them; pixels that are not
     exactly those are ignored, and the map is read instead).
 
-    Four compiled passes around OpenCV's contour follower: the junctions cut out and the end
-    points marked, the contours ordered from end to end, the chains' polygonal
-    approximations (OpenCV's, :func:`~stackpick_sim.vision.kernels.poly_dp`), the chains
-    cut at their corners (:func:`split_chain`, all chains at once)."""
+    Five compiled passes: the junctions cut out and the end points marked, the pieces'
+    outer borders (OpenCV's contours, :func:`~stackpick_sim.vision.kernels.outer_contours`),
+    the contours ordered from end to end, the chains' polygonal approximations (OpenCV's,
+    :func:`~stackpick_sim.vision.kernels.poly_dp`), the chains cut at their corners
+    (:func:`split_chain`, all chains at once)."""
     shortest = params.min_chain_px
     edges = np.ascontiguousarray(edges, np.uint8)
-    cut, end = _junctions_cut(edges, pixels)
-    contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
-    if hierarchy is None:
-        return EdgeSegments(chains=(), edges=edges)
-    # Hole boundaries (with a parent) repeat their outer contour's pixels.
-    parents = hierarchy[0][:, 3].tolist()
-    # The contours as OpenCV gives them, (N, 1, 2) each: reshaped once, concatenated.
-    kept = [c for c, parent in zip(contours, parents, strict=True)
-            if parent == -1 and c.shape[0] >= shortest]
-    if not kept:
-        return EdgeSegments(chains=(), edges=edges)
-    if max_contours is not None and len(kept) > max_contours:
-        longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
-        kept = [kept[i] for i in sorted(longest[:max_contours])]
-    ordered, bounds, closed = kernels.ordered_chains(
-        cast("NDArray[np.int32]", np.concatenate(kept).reshape(-1, 2)),
-        np.array([c.shape[0] for c in kept], np.int64),
-        end, shortest)
+    cut, end, rows, cols = _junctions_cut(edges, pixels)
+    # The outer borders of the pieces (cv2.findContours' contours without a parent, in its
+    # order: hole boundaries repeat their outer contour's pixels), in one compiled pass over
+    # the edge pixels (a superset of the cut map's).
+    contours, lengths = kernels.contours_at(cut, rows, cols)
+    if max_contours is not None:
+        # The longest that many of those that can give a chain (in their order); a shorter
+        # contour gives none (ordered_chains' chains are parts of their contours).
+        long = (lengths >= shortest).nonzero()[0].tolist()
+        if len(long) > max_contours:
+            sizes = lengths.tolist()
+            kept = sorted(sorted(long, key=lambda i: (-sizes[i], i))[:max_contours])
+            starts = [0, *itertools.accumulate(sizes)]
+            contours = np.concatenate([contours[starts[i]:starts[i + 1]] for i in kept])
+            lengths = lengths[kept]
+    ordered, bounds, closed = kernels.ordered_chains(contours, lengths, end, shortest)
     if bounds.shape[0] < 2:
         return EdgeSegments(chains=(), edges=edges)
     # Each chain's polygon (kernels.chain_polys: cv2.approxPolyDP's vertices), then the cuts
@@ -139,15 +138,19 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
 
 
 def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
-                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.int64],
+                              NDArray[np.int64]]:
     """:func:`~stackpick_sim.vision.kernels.junctions_cut` of the 0/1 map ``edges`` on its
-    set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's."""
+    set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's; and
+    the rows and columns of those pixels."""
     if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
         # The (2, M) rows u, v the columns are a view of, when they are.
         uv = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
-        cut, end, valid = kernels.junctions_cut_uv(edges, np.asarray(uv, np.float64))
-        if valid:
-            return cut, end
+        rows, cols, whole = kernels.uv_rows_cols(np.asarray(uv, np.float64))
+        if whole:
+            cut, end, valid = kernels.junctions_cut(edges, rows, cols)
+            if valid:
+                return cut, end, rows, cols
     rows, cols = kernels.set_pixels(edges)
     cut, end, _ = kernels.junctions_cut(edges, rows, cols)
-    return cut, end
+    return cut, end, rows, cols
