@@ -304,9 +304,9 @@ class TopObjectDetector:
         in order, each timed into the detection's ``timings_ms``."""
         timings: dict[str, float] = {}
         shape = (int(img.shape[0]), int(img.shape[1]))
-        state = State(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
-                      roi=Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), work=img, crop=shape,
-                      timings_ms=timings)
+        state = State.start(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
+                            roi=Roi.of(0, 0, shape[1], shape[0]), work=img, crop=shape,
+                            timings_ms=timings)
         try:
             state = run_stages(self.config.stages, state, self.config, t0)
         except OutOfTime as out:
