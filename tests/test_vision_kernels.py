@@ -1327,3 +1327,18 @@ def test_outer_contours_are_opencvs_contours_without_a_parent(rng: np.random.Gen
         pixels, lengths = kernels.contours_at(binary, *kernels.set_pixels(more))
         assert pixels.tolist() == want_pixels
         assert lengths.tolist() == want_lengths
+
+
+def test_longest_contours_keep_the_longest_in_their_order(rng: np.random.Generator) -> None:
+    for _ in range(200):
+        lengths = rng.integers(1, 12, int(rng.integers(0, 30))).astype(np.int64)  # many ties
+        contours = rng.integers(0, 100, (int(lengths.sum()), 2)).astype(np.int32)
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        shortest, cap = int(rng.integers(1, 6)), int(rng.integers(0, 10))
+        long = [i for i in range(lengths.shape[0]) if lengths[i] >= shortest]
+        kept = (sorted(sorted(long, key=lambda i: (-lengths[i], i))[:cap])
+                if len(long) > cap else list(range(lengths.shape[0])))
+        got, got_lengths = kernels.longest_contours(contours, lengths, shortest, cap)
+        assert got_lengths.tolist() == lengths[kept].tolist()
+        want = [contours[starts[i]:starts[i + 1]] for i in kept]
+        assert np.array_equal(got, np.concatenate(want) if want else np.zeros((0, 2)))

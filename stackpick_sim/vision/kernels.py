@@ -2275,6 +2275,59 @@ def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDA
 
 
 @_compiled
+def longest_contours(contours: NDArray[np.int32], lengths: NDArray[np.int64], shortest: int,
+                     cap: int) -> tuple[NDArray[np.int32],
+                                        NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Of the contours (``contours`` concatenated, ``lengths`` each) of at least ``shortest``
+    pixels, the ``cap`` longest (the first of equals) in their order when there are more
+    (the others give no chain of ``shortest`` pixels); else all of them as they are."""
+    long = np.nonzero(lengths >= shortest)[0]
+    if long.shape[0] <= cap:
+        return contours, lengths
+    order = np.argsort(-lengths[long], kind="mergesort")  # stable: the first of equals
+    kept = np.sort(long[order[:cap]])
+    starts = np.zeros(lengths.shape[0] + 1, np.int64)
+    for i in range(lengths.shape[0]):
+        starts[i + 1] = starts[i] + lengths[i]
+    total = 0
+    for i in kept:
+        total += lengths[i]
+    out = np.empty((total, 2), np.int32)
+    k = 0
+    for i in kept:
+        out[k:k + lengths[i]] = contours[starts[i]:starts[i + 1]]
+        k += lengths[i]
+    return out, lengths[kept]
+
+
+@_compiled
+def linked_chains(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64],
+                  cap: int, shortest: int, eps: float,
+                  turns: tuple[float, float, float, float]
+                  ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """The compiled passes of :func:`~stackpick_sim.vision.segments.link_segments` in one
+    call, on a 0/1 map ``edges`` (H, W) whose set pixels are ``rows``, ``cols`` (row-major;
+    when they are not, the map's are read): the junctions cut out and the end points marked
+    (:func:`junctions_cut`), the pieces' outer borders (:func:`contours_at`), the ``cap``
+    longest (``cap`` < 0: all; :func:`longest_contours`), ordered from end to end
+    (:func:`ordered_chains`), their polygons (:func:`chain_polys`, tolerance ``eps``) and
+    the arcs between their corners (:func:`chain_arcs` with ``turns``: the corner angle,
+    the spike angle and ratio, the least signed turn). Returns :func:`chain_arcs`' pixels
+    and arc ranges."""
+    cut, end, valid = junctions_cut(edges, rows, cols)
+    if not valid:
+        rows, cols = set_pixels(edges)
+        cut, end, valid = junctions_cut(edges, rows, cols)
+    contours, lengths = contours_at(cut, rows, cols)
+    if cap >= 0:
+        contours, lengths = longest_contours(contours, lengths, shortest, cap)
+    ordered, bounds, closed = ordered_chains(contours, lengths, end, shortest)
+    polys, poly_bounds = chain_polys(ordered, bounds, closed, eps)
+    return chain_arcs(ordered, bounds, closed, polys, poly_bounds, shortest, turns[0],
+                      turns[1], turns[2], turns[3])
+
+
+@_compiled
 def pair_products(pair_g: NDArray[np.int64], pair_p: NDArray[np.int64],
                   owner: NDArray[np.int64], n_groups: int
                   ) -> NDArray[np.float64]:  # pragma: no cover - compiled
@@ -2427,6 +2480,9 @@ def warm_up() -> None:
     contours_at(grid, *set_pixels(grid))
     polys, poly_bounds = chain_polys(pixels, bounds, closed, 1.0)
     chain_arcs(pixels, bounds, closed, polys, poly_bounds, 2, 1.0, 1.0, 1.0, 1.0)
+    rows, cols = set_pixels(grid)
+    linked_chains(grid, rows, cols, 1, 2, 1.0, (1.0, 1.0, 1.0, 1.0))
+    longest_contours(*outer_contours(grid), 2, 1)
     stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)

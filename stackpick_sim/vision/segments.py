@@ -103,54 +103,33 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
     (u, v) in row-major order when at hand (the edge stage lists them; pixels that are not
     exactly those are ignored, and the map is read instead).
 
-    Five compiled passes: the junctions cut out and the end points marked, the pieces'
-    outer borders (OpenCV's contours, :func:`~stackpick_sim.vision.kernels.outer_contours`),
-    the contours ordered from end to end, the chains' polygonal approximations (OpenCV's,
-    :func:`~stackpick_sim.vision.kernels.poly_dp`), the chains cut at their corners
-    (:func:`split_chain`, all chains at once)."""
-    shortest = params.min_chain_px
+    One compiled call (:func:`~stackpick_sim.vision.kernels.linked_chains`): the junctions
+    cut out and the end points marked, the pieces' outer borders (OpenCV's contours), the
+    contours ordered from end to end, the chains' polygonal approximations (OpenCV's), the
+    chains cut at their corners (:func:`split_chain`, all chains at once)."""
     edges = np.ascontiguousarray(edges, np.uint8)
-    cut, end, rows, cols = _junctions_cut(edges, pixels)
-    # The outer borders of the pieces (cv2.findContours' contours without a parent, in its
-    # order: hole boundaries repeat their outer contour's pixels), in one compiled pass over
-    # the edge pixels (a superset of the cut map's).
-    contours, lengths = kernels.contours_at(cut, rows, cols)
-    if max_contours is not None:
-        # The longest that many of those that can give a chain (in their order); a shorter
-        # contour gives none (ordered_chains' chains are parts of their contours).
-        long = (lengths >= shortest).nonzero()[0].tolist()
-        if len(long) > max_contours:
-            sizes = lengths.tolist()
-            kept = sorted(sorted(long, key=lambda i: (-sizes[i], i))[:max_contours])
-            starts = [0, *itertools.accumulate(sizes)]
-            contours = np.concatenate([contours[starts[i]:starts[i + 1]] for i in kept])
-            lengths = lengths[kept]
-    ordered, bounds, closed = kernels.ordered_chains(contours, lengths, end, shortest)
-    if bounds.shape[0] < 2:
-        return EdgeSegments(chains=(), edges=edges)
-    # Each chain's polygon (kernels.chain_polys: cv2.approxPolyDP's vertices), then the cuts
-    # of all chains, in two compiled passes.
-    polys, poly_bounds = kernels.chain_polys(ordered, bounds, closed, params.poly_epsilon_px)
-    turned, arcs = kernels.chain_arcs(
-        ordered, bounds, closed, polys, poly_bounds, shortest, params.corner_angle_deg,
-        params.spike_min_deg, params.spike_ratio, params.min_signed_turn_deg)
+    rows, cols = _set_pixels(edges, pixels)
+    # Every pass in one compiled call (kernels.linked_chains): the junctions cut, the pieces'
+    # outer borders (cv2.findContours' contours without a parent: hole boundaries repeat
+    # their outer contour's pixels) over the edge pixels, the longest that many, ordered,
+    # their polygons (cv2.approxPolyDP's) and the arcs between their corners.
+    turned, arcs = kernels.linked_chains(
+        edges, rows, cols, -1 if max_contours is None else int(max_contours),
+        int(params.min_chain_px), float(params.poly_epsilon_px),
+        (float(params.corner_angle_deg), float(params.spike_min_deg),
+         float(params.spike_ratio), float(params.min_signed_turn_deg)))
     return EdgeSegments(chains=tuple([turned[i:j] for i, j in arcs.tolist()]), edges=edges)
 
 
-def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
-                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.int64],
-                              NDArray[np.int64]]:
-    """:func:`~stackpick_sim.vision.kernels.junctions_cut` of the 0/1 map ``edges`` on its
-    set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's; and
-    the rows and columns of those pixels."""
+def _set_pixels(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The rows and columns of the set pixels of the 0/1 map ``edges``, row-major: those of
+    ``pixels`` (M, 2) (u, v) when they are as many whole pixels (the kernels check that they
+    are the map's), else the map's own."""
     if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
         # The (2, M) rows u, v the columns are a view of, when they are.
         uv = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
         rows, cols, whole = kernels.uv_rows_cols(np.asarray(uv, np.float64))
         if whole:
-            cut, end, valid = kernels.junctions_cut(edges, rows, cols)
-            if valid:
-                return cut, end, rows, cols
-    rows, cols = kernels.set_pixels(edges)
-    cut, end, _ = kernels.junctions_cut(edges, rows, cols)
-    return cut, end, rows, cols
+            return rows, cols
+    return kernels.set_pixels(edges)
