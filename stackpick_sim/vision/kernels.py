@@ -2094,6 +2094,56 @@ def ordered_chains(contours: NDArray[np.int32], lengths: NDArray[np.int64],
 
 
 @_compiled
+def _far_pair(pts: NDArray[np.int32], n: int, iters: int
+              ) -> tuple[int, int, float]:  # pragma: no cover - compiled
+    """Two roughly farthest of the ``n`` pixels ``pts`` (a closed curve), as OpenCV's
+    approximation finds them: from pixel 0 the farthest one, then from there (``iters``
+    rounds; the first of equals). Returns the last round's start, the offset of its
+    farthest pixel from it and their squared distance."""
+    pos, right, far_sq = 0, 0, 0.0
+    for _ in range(iters):
+        pos = (pos + right) % n
+        sx, sy = pts[pos, 0], pts[pos, 1]
+        far_sq = 0.0
+        for j in range(1, n):
+            q = (pos + j) % n
+            dx, dy = float(pts[q, 0] - sx), float(pts[q, 1] - sy)
+            if dx * dx + dy * dy > far_sq:
+                far_sq = dx * dx + dy * dy
+                right = j
+    return pos, right, far_sq
+
+
+@_compiled
+def _far_from_chord(pts: NDArray[np.int32], n: int, lo: int, hi: int
+                    ) -> tuple[float, int, float]:  # pragma: no cover - compiled
+    """The pixel of the stretch ``lo`` .. ``hi`` (cyclically, ends excluded) of the ``n``
+    pixels ``pts`` farthest from the chord as a segment (beyond an end: from that end; the
+    first of equals): its squared distance times the chord's squared length (whole
+    numbers), its index, and the chord's squared length."""
+    sx, sy, ex, ey = pts[lo, 0], pts[lo, 1], pts[hi, 0], pts[hi, 1]
+    dx, dy = float(ex - sx), float(ey - sy)
+    chord_sq = dx * dx + dy * dy
+    far, split = 0.0, 0
+    pos = (lo + 1) % n
+    while pos != hi:
+        qx, qy = pts[pos, 0] - sx, pts[pos, 1] - sy
+        along = qx * dx + qy * dy
+        if along < 0:
+            d = (qx * qx + qy * qy) * chord_sq
+        elif along > chord_sq:
+            rx, ry = pts[pos, 0] - ex, pts[pos, 1] - ey
+            d = (rx * rx + ry * ry) * chord_sq
+        else:
+            across = qy * dx - qx * dy
+            d = across * across
+        if d > far:
+            far, split = d, pos
+        pos = (pos + 1) % n
+    return far, split, chord_sq
+
+
+@_compiled
 def _dp_slices(pts: NDArray[np.int32], n: int, closed: bool, eps_sq: float,
                out: NDArray[np.int32], stack: NDArray[np.int64]
                ) -> tuple[int, bool]:  # pragma: no cover - compiled
@@ -2108,55 +2158,21 @@ def _dp_slices(pts: NDArray[np.int32], n: int, closed: bool, eps_sq: float,
         else:
             closed, iters = True, 1
     if closed:
-        # Two roughly farthest pixels: from a pixel, the farthest one, then from there.
-        pos, right, far_sq = 0, 0, 0.0
-        for _ in range(iters):
-            pos = (pos + right) % n
-            sx, sy = pts[pos, 0], pts[pos, 1]
-            pos = (pos + 1) % n
-            far_sq = 0.0
-            for j in range(1, n):
-                dx, dy = float(pts[pos, 0] - sx), float(pts[pos, 1] - sy)
-                pos = (pos + 1) % n
-                if dx * dx + dy * dy > far_sq:
-                    far_sq = dx * dx + dy * dy
-                    right = j
+        start, right, far_sq = _far_pair(pts, n, iters)
         if far_sq > eps_sq:
-            start = pos % n
             stack[0, 0], stack[0, 1] = (right + start) % n, start
             stack[1, 0], stack[1, 1] = start, (right + start) % n
             top = 2
         else:
-            out[0, 0], out[0, 1] = pts[pos, 0], pts[pos, 1]
+            out[0, 0], out[0, 1] = pts[start, 0], pts[start, 1]
             count = 1
     while top > 0:
         top -= 1
         lo, hi = stack[top, 0], stack[top, 1]
-        pos = (lo + 1) % n
-        if pos != hi:
-            sx, sy, ex, ey = pts[lo, 0], pts[lo, 1], pts[hi, 0], pts[hi, 1]
-            dx, dy = float(ex - sx), float(ey - sy)
-            chord_sq = dx * dx + dy * dy
-            # The farthest pixel from the chord as a segment (beyond an end: from that end),
-            # squared distances times the chord's squared length (whole numbers).
-            far, split = 0.0, 0
-            while pos != hi:
-                qx, qy = pts[pos, 0] - sx, pts[pos, 1] - sy
-                along = qx * dx + qy * dy
-                if along < 0:
-                    d = (qx * qx + qy * qy) * chord_sq
-                elif along > chord_sq:
-                    rx, ry = pts[pos, 0] - ex, pts[pos, 1] - ey
-                    d = (rx * rx + ry * ry) * chord_sq
-                else:
-                    across = qy * dx - qx * dy
-                    d = across * across
-                if d > far:
-                    far, split = d, pos
-                pos = (pos + 1) % n
+        flat, split = True, 0
+        if (lo + 1) % n != hi:
+            far, split, chord_sq = _far_from_chord(pts, n, lo, hi)
             flat = far <= eps_sq * chord_sq
-        else:
-            flat = True
         if flat:
             out[count, 0], out[count, 1] = pts[lo, 0], pts[lo, 1]
             count += 1
