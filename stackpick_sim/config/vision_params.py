@@ -565,6 +565,14 @@ class TopParams(Section):
     A wrong radius moves a face by centimetres along its rays (the radii's ratio at
     0.2-0.3 m); scaling both faces alike keeps a touching pair within a few mm (3-5 mm on
     rendered grey paper-scene frames), which this leaves undecided."""
+    rest_untold_solutions: bool = True
+    """The rest test (:mod:`~stackpick_sim.vision.resting`) also judges a pair with a face
+    whose wall bands cannot tell its two pose solutions apart (the failure class *a whole
+    lower face with an untold solution*: the object leaning on a face hides the wall band
+    that would tell its solution, or a face nearly square to the camera shows too little
+    of either): each of its solutions is tried, and a rest counts when every combination
+    in contact finds it the same way. Off, such a pair gives no evidence and the lower
+    face, whole and best supported, can be taken over the partly seen face resting on it."""
     arc_split_reach_px: float = 6.0
     """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
     within this distance (px): Canny runs a face's outline on into a lower same-colour face's

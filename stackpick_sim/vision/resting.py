@@ -173,7 +173,38 @@ def _rests(faces: Sequence[Ellipse], bodies: _Bodies,
             and not apart[(p, q)][picks[p]][picks[q]]]
     for _upper, lower in _resting_pairs(bodies, picks, todo, params):
         under[bodies.kinds[lower][0]] = True
+    if params.rest_untold_solutions:
+        for lower in _untold_rests(bodies, picks, near, apart, params):
+            under[bodies.kinds[lower][0]] = True
     return under
+
+
+def _untold_rests(bodies: _Bodies, picks: dict[int, int], near: list[tuple[int, int]],
+                  apart: dict[tuple[int, int], list[list[bool]]], params: TopParams
+                  ) -> list[int]:
+    """The lower bodies (indices into ``bodies.kinds``) of the ``near`` pairs with a face
+    whose wall bands cannot tell its pose solution (not in ``picks``), found resting under
+    its solutions (``rest_untold_solutions``): every combination of the untold faces'
+    solutions (the told face's own) not ``apart`` is tried, and a rest counts when those in
+    contact all find it one way (the failure class *a whole lower face with an untold
+    solution*: a face square-ish to the camera, or whose wall is hidden by the object
+    leaning on it, shows no band that tells its solutions apart)."""
+    lowers = []
+    for p, q in near:
+        if p in picks and q in picks:
+            continue
+        combos = [(j, k) for j in _solutions(picks, p) for k in _solutions(picks, q)
+                  if not apart[(p, q)][j][k]]
+        found = {pair for j, k in combos
+                 for pair in _resting_pairs(bodies, {p: j, q: k}, [(p, q)], params)}
+        if len(found) == 1:
+            lowers.append(found.pop()[1])
+    return lowers
+
+
+def _solutions(picks: dict[int, int], p: int) -> tuple[int, ...]:
+    """Body ``p``'s pose solutions to try: its pick, else both."""
+    return (picks[p],) if p in picks else (0, 1)
 
 
 def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
