@@ -566,13 +566,15 @@ class TopParams(Section):
     0.2-0.3 m); scaling both faces alike keeps a touching pair within a few mm (3-5 mm on
     rendered grey paper-scene frames), which this leaves undecided."""
     rest_untold_solutions: bool = True
-    """The rest test (:mod:`~stackpick_sim.vision.resting`) also judges a pair with a face
-    whose wall bands cannot tell its two pose solutions apart (the failure class *a whole
-    lower face with an untold solution*: the object leaning on a face hides the wall band
-    that would tell its solution, or a face nearly square to the camera shows too little
-    of either): each of its solutions is tried, and a rest counts when every combination
-    in contact finds it the same way. Off, such a pair gives no evidence and the lower
-    face, whole and best supported, can be taken over the partly seen face resting on it."""
+    """The rest test (:mod:`~stackpick_sim.vision.resting`) also judges a pair in which one
+    face's wall bands cannot tell its two pose solutions apart: the failure class *a whole
+    lower face chosen over the face leaning on it, its solution untold* (the leaning object
+    hides the wall band that would tell the lower face's solution, so the pair gave no
+    evidence, and the whole, best-supported lower face was taken over the partly seen top
+    face). Each of the untold face's solutions is tried (with the other face's told one),
+    and a rest counts when every combination in contact finds it the same way with the
+    untold face as the lower body; an untold face found resting on another gives no
+    evidence (nothing hides its band: its fit is rough). Off: such pairs give no evidence."""
     arc_split_reach_px: float = 6.0
     """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
     within this distance (px): Canny runs a face's outline on into a lower same-colour face's

@@ -20,7 +20,10 @@ over a fixed set of directions, all pairs in one array pass. When the bodies tou
 the top rule's ``rest_contact_gap_m`` .. ``rest_max_penetration_m``) and the normal points up
 (UP_CAM) by ``rest_min_up`` or more, A rests on B (settings: :class:`~stackpick_sim.config.
 vision_params.TopParams`). A face seen square on (neither solution's band visible) takes the smaller
-tilt, as the pose does; a face whose visible bands cannot tell its solution gives no evidence.
+tilt, as the pose does. A face whose visible bands cannot tell its solution can be found
+under another face (``rest_untold_solutions``: the leaning object often hides the band that
+would tell), when every combination of its solutions in contact finds that one rest; it is
+no evidence as the upper face.
 """
 
 from __future__ import annotations
@@ -186,9 +189,9 @@ def _untold_rests(bodies: _Bodies, picks: dict[int, int], near: list[tuple[int, 
     whose wall bands cannot tell its pose solution (not in ``picks``), found resting under
     its solutions (``rest_untold_solutions``): every combination of the untold faces'
     solutions (the told face's own) not ``apart`` is tried, and a rest counts when those in
-    contact all find it one way (the failure class *a whole lower face with an untold
-    solution*: a face square-ish to the camera, or whose wall is hidden by the object
-    leaning on it, shows no band that tells its solutions apart)."""
+    contact all find it one way, the untold face the lower (the failure class *a whole
+    lower face chosen over the face leaning on it, its solution untold*: the leaning object
+    hides the wall band that would tell the lower face's solution)."""
     lowers = []
     for p, q in near:
         if p in picks and q in picks:
@@ -197,8 +200,11 @@ def _untold_rests(bodies: _Bodies, picks: dict[int, int], near: list[tuple[int, 
                   if not apart[(p, q)][j][k]]
         found = {pair for j, k in combos
                  for pair in _resting_pairs(bodies, {p: j, q: k}, [(p, q)], params)}
-        if len(found) == 1:
-            lowers.append(found.pop()[1])
+        lower = found.pop()[1] if len(found) == 1 else None
+        if lower is not None and lower not in picks:
+            # Only the face leaned on: the leaning object hides the band that would tell
+            # its solution; an untold upper face's contact is no evidence.
+            lowers.append(lower)
     return lowers
 
 
