@@ -572,9 +572,11 @@ class TopParams(Section):
     hides the wall band that would tell the lower face's solution, so the pair gave no
     evidence, and the whole, best-supported lower face was taken over the partly seen top
     face). Each of the untold face's solutions is tried (with the other face's told one),
-    and a rest counts when every combination in contact finds it the same way with the
-    untold face as the lower body; an untold face found resting on another gives no
-    evidence (nothing hides its band: its fit is rough). Off: such pairs give no evidence."""
+    and a rest counts when the combinations that find one all find it the same way, with
+    the untold face as the lower body. An untold face found resting on another gives no
+    evidence: nothing resting on it hides its band, so bands that cannot tell point to a
+    rough fit (on rendered grey paper-scene frames, such a rest put a true top face under a
+    partly seen, roughly fitted lower one). Off: such pairs give no evidence."""
     arc_split_reach_px: float = 6.0
     """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
     within this distance (px): Canny runs a face's outline on into a lower same-colour face's

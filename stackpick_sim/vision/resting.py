@@ -22,8 +22,8 @@ the top rule's ``rest_contact_gap_m`` .. ``rest_max_penetration_m``) and the nor
 vision_params.TopParams`). A face seen square on (neither solution's band visible) takes the smaller
 tilt, as the pose does. A face whose visible bands cannot tell its solution can be found
 under another face (``rest_untold_solutions``: the leaning object often hides the band that
-would tell), when every combination of its solutions in contact finds that one rest; it is
-no evidence as the upper face.
+would tell), when the combinations of its solutions that find a rest all find that one; it
+is no evidence as the upper face.
 """
 
 from __future__ import annotations
@@ -188,8 +188,8 @@ def _untold_rests(bodies: _Bodies, picks: dict[int, int], near: list[tuple[int, 
     """The lower bodies (indices into ``bodies.kinds``) of the ``near`` pairs with a face
     whose wall bands cannot tell its pose solution (not in ``picks``), found resting under
     its solutions (``rest_untold_solutions``): every combination of the untold faces'
-    solutions (the told face's own) not ``apart`` is tried, and a rest counts when those in
-    contact all find it one way, the untold face the lower (the failure class *a whole
+    solutions (the told face's own) not ``apart`` is tried, and a rest counts when those
+    that find one all find it one way, the untold face the lower (the failure class *a whole
     lower face chosen over the face leaning on it, its solution untold*: the leaning object
     hides the wall band that would tell the lower face's solution)."""
     lowers = []
