@@ -182,6 +182,32 @@ def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator
     assert want.sum() > 0 or pixels < 100
 
 
+@pytest.mark.parametrize("order", ["row-major", "shuffled"])
+def test_occlusion_counts_are_the_sorted_pixels_counts(rng: np.random.Generator,
+                                                       order: str) -> None:
+    # The evidence's counts in one call: the pixels in row-major order (sorted when they are
+    # not), then the interior counts and the gap evidence on them.
+    ellipses = _ellipses(rng, 6)
+    table, sizes, ct, st = outline_rows(ellipses)
+    pts, _ = kernels.outline_samples(table, sizes, ct, st)
+    ok = rng.random(int(sizes.sum())) < 0.7
+    uv = np.unique(rng.integers(0, 80, (1200, 2)), axis=0)[:, ::-1].astype(np.float64)
+    if order == "shuffled":
+        uv = uv[rng.permutation(uv.shape[0])]
+    pu, pv = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+    margin, tol, reach, junction, crossing = 2.5, 0.8, 4.0, 2.0, 4.0
+    got = kernels_pose.occlusion_counts(ok, sizes, pts, table, pu, pv, margin, 3, reach,
+                                        junction ** 2, crossing ** 2, tol)
+    width = int(pu.max()) + 2
+    keys = pv * width + pu
+    by_row = np.argsort(keys, kind="stable")
+    want = (*kernels_pose.gap_evidence(ok, sizes, pts, table, pu[by_row], pv[by_row], 3,
+                                       reach, junction ** 2, crossing ** 2, tol),
+            kernels_pose.interior_counts_of(table, margin, keys[by_row], width))
+    assert [g.tolist() for g in got] == [w.tolist() for w in want]
+    assert want[2].sum() > 0 and want[3].sum() > 0
+
+
 def _axes(normal: np.ndarray) -> tuple[list[float], list[float]]:
     """The plane basis of a normal on Python floats (u = n x helper, normalised; v = n x u)."""
     norm = math.sqrt(sum(x * x for x in normal.tolist()))

@@ -178,6 +178,30 @@ def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArra
 
 
 @_compiled
+def occlusion_counts(ok: NDArray[np.bool_], counts: NDArray[np.int64], pts: NDArray[np.float64],
+                     rows: NDArray[np.float64], pu: NDArray[np.float64],
+                     pv: NDArray[np.float64], margin_px: float, min_gap: int, reach: float,
+                     junction_sq: float, crossing_sq: float, tol_px: float
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
+                                NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Per outline of the ellipses of (E, 6) ``rows`` (``counts[e]`` samples each, (2, N)
+    ``pts``, which are ``ok``), over the edge pixels (pu, pv) (integer values >= 0, any
+    order): :func:`gap_evidence`'s ok samples, longest gap and T-junction ends, and
+    :func:`interior_counts_of` with ``margin_px``; the pixels put in row-major order first
+    (:func:`~stackpick_sim.vision.kernels.row_keys`, a stable sort where they are not in
+    it), as :func:`~stackpick_sim.vision.occlusion._row_major` does: the evidence's counts
+    in one call (the same values)."""
+    keys, width, ascending = kernels.row_keys(pu, pv)
+    if not ascending:
+        order = np.argsort(keys, kind="mergesort")
+        keys, pu, pv = keys[order], pu[order], pv[order]
+    interior = interior_counts_of(rows, margin_px, keys, width)
+    supported, longest, occluded = gap_evidence(ok, counts, pts, rows, pu, pv, min_gap, reach,
+                                                junction_sq, crossing_sq, tol_px)
+    return supported, longest, occluded, interior
+
+
+@_compiled
 def plane_axes(n0: float, n1: float, n2: float
            ) -> tuple[float, float, float, float, float, float]:  # pragma: no cover - compiled
     """The in-plane axes u, v of the normal (n0, n1, n2), six floats: u = n x e (e the helper
@@ -274,6 +298,8 @@ def warm_up() -> None:
     contrast_ok(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64), 8.0,
                 1.0)
     interior_counts_of(rows, 0.5, col, 4)
+    occlusion_counts(np.ones(16, np.bool_), counts, np.zeros((2, 16)), rows, col, col, 0.5, 5,
+                     1.0, 1.0, 1.0, 1.0)
     gap_evidence(np.ones(16, np.bool_), counts, np.zeros((2, 16)), rows, col, col, 5, 1.0,
                  1.0, 1.0, 1.0)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
