@@ -208,6 +208,38 @@ def test_occlusion_counts_are_the_sorted_pixels_counts(rng: np.random.Generator,
     assert want[2].sum() > 0 and want[3].sum() > 0
 
 
+def _cone_on_floats(e: Ellipse, camera: tuple[float, float, float, float]) -> list[float]:
+    """The cone K^T C K's six entries, the ellipse's terms and the camera, on Python floats
+    (the ellipse's pixel conic C: M = R diag(1/a^2, 1/b^2) R^T, d = -M c, f = -d.c - 1)."""
+    fx, fy, kcx, kcy = camera
+    t = math.radians(e.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / e.a ** 2, 1.0 / e.b ** 2
+    m00, m01, m11 = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
+    d0 = -(m00 * e.cx + m01 * e.cy)
+    d1 = -(m01 * e.cx + m11 * e.cy)
+    f = -(d0 * e.cx + d1 * e.cy) - 1.0
+    r0, r1 = m00 * kcx + m01 * kcy + d0, m01 * kcx + m11 * kcy + d1
+    q = [fx * fx * m00, fx * fy * m01, fx * r0, fy * fy * m11, fy * r1,
+         kcx * r0 + kcy * r1 + (d0 * kcx + d1 * kcy + f)]
+    return [*q, e.cx, e.cy, math.cos(t), math.sin(t), e.a ** 2, e.b ** 2, *camera]
+
+
+def test_cone_of_is_the_float_arithmetic(rng: np.random.Generator) -> None:
+    camera = (277.1, 276.3, 160.4, 119.8)
+    ellipses = [*_ellipses(rng, 300, 320.0, 240.0),
+                Ellipse.of(3.0, 4.0, 1e-60, 1e-61, 10.0)]  # entries beyond 1e100
+    for e in ellipses:
+        cone, packed, moderate = kernels_pose.cone_of(e.cx, e.cy, e.a ** 2, e.b ** 2,
+                                                      e.angle_deg, *camera)
+        want = _cone_on_floats(e, camera)
+        q = want[:6]
+        assert packed.tolist() == want
+        assert cone.tolist() == [[q[0], q[1], q[2]], [q[1], q[3], q[4]], [q[2], q[4], q[5]]]
+        assert moderate == all(abs(x) <= 1e100 for x in q)
+    assert not moderate
+
+
 def _axes(normal: np.ndarray) -> tuple[list[float], list[float]]:
     """The plane basis of a normal on Python floats (u = n x helper, normalised; v = n x u)."""
     norm = math.sqrt(sum(x * x for x in normal.tolist()))
