@@ -107,13 +107,20 @@ def test_supported_samples_read_the_image_threshold(rng: np.random.Generator) ->
     assert np.array_equal(ok, want)
 
 
+def _sampled_outlines(rng: np.random.Generator, n: int, share: float
+                      ) -> tuple[list[Ellipse], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` random ellipses, their outline rows and sample counts, their (2, N) outline
+    samples and which of them are supported (about ``share`` of them, at random)."""
+    ellipses = _ellipses(rng, n)
+    table, sizes, ct, st = outline_rows(ellipses)
+    pts, _ = kernels.outline_samples(table, sizes, ct, st)
+    return ellipses, table, sizes, pts, rng.random(int(sizes.sum())) < share
+
+
 @pytest.mark.parametrize("min_gap", [1, 3, 6])
 def test_gap_evidence_is_the_runs_then_the_junction_test(rng: np.random.Generator,
                                                          min_gap: int) -> None:
-    ellipses = _ellipses(rng, 6)
-    table, sizes, ct, st = outline_rows(ellipses)
-    pts, _ = kernels.outline_samples(table, sizes, ct, st)
-    ok = rng.random(int(sizes.sum())) < 0.75
+    ellipses, table, sizes, pts, ok = _sampled_outlines(rng, 6, 0.75)
     ok[: sizes[0]] = True  # one outline wholly supported, one not
     ok[sizes[0]: sizes[0] + sizes[1]] = False
     ok[int(sizes[:3].sum()) - 2:int(sizes[:3].sum()) + 3] = False  # a run over an outline end
@@ -187,10 +194,7 @@ def test_occlusion_counts_are_the_sorted_pixels_counts(rng: np.random.Generator,
                                                        order: str) -> None:
     # The evidence's counts in one call: the pixels in row-major order (sorted when they are
     # not), then the interior counts and the gap evidence on them.
-    ellipses = _ellipses(rng, 6)
-    table, sizes, ct, st = outline_rows(ellipses)
-    pts, _ = kernels.outline_samples(table, sizes, ct, st)
-    ok = rng.random(int(sizes.sum())) < 0.7
+    _, table, sizes, pts, ok = _sampled_outlines(rng, 6, 0.7)
     uv = np.unique(rng.integers(0, 80, (1200, 2)), axis=0)[:, ::-1].astype(np.float64)
     if order == "shuffled":
         uv = uv[rng.permutation(uv.shape[0])]
