@@ -847,7 +847,7 @@ def _circle_solutions_python(q: list[float], evals: list[float], evecs: list[lis
 
 def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -> None:
     from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-    from stackpick_sim.vision.pose import _conic_terms
+    from stackpick_sim.vision.kernels_pose import cone_of
 
     k = CameraIntrinsics(fx=277.1, fy=277.1, cx=160.0, cy=120.0, width=320, height=240)
     camera = (k.fx, k.fy, k.cx, k.cy)
@@ -855,10 +855,8 @@ def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -
         a = float(rng.uniform(8.0, 80.0))
         e = Ellipse(cx=float(rng.uniform(0, 320)), cy=float(rng.uniform(0, 240)), a=a,
                     b=a * float(rng.uniform(0.3, 1.0)), angle_deg=float(rng.uniform(0, 180)))
-        (m00, m01, d0), (m11, d1, f) = _conic_terms(e)
-        r0, r1 = m00 * k.cx + m01 * k.cy + d0, m01 * k.cx + m11 * k.cy + d1
-        q = [k.fx * k.fx * m00, k.fx * k.fy * m01, k.fx * r0, k.fy * k.fy * m11, k.fy * r1,
-             k.cx * r0 + k.cy * r1 + (d0 * k.cx + d1 * k.cy + f)]
+        # The cone's entries (cone_of: the float arithmetic, see its test).
+        q = cone_of(e.cx, e.cy, e.a ** 2, e.b ** 2, e.angle_deg, *camera)[1][:6].tolist()
         w, v = np.linalg.eigh(np.array([[q[0], q[1], q[2]], [q[1], q[3], q[4]],
                                         [q[2], q[4], q[5]]]))
         t = math.radians(e.angle_deg)

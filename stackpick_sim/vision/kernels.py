@@ -726,11 +726,12 @@ def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray
 
 
 @_compiled
-def _normal_gradient(gx: NDArray[np.int16], gy: NDArray[np.int16], u: float, v: float,
-                     nu: float, nv: float, step: float) -> float:  # pragma: no cover
+def _normal_gradient(fx: NDArray[np.int16], fy: NDArray[np.int16], h: int, w: int, u: float,
+                     v: float, nu: float, nv: float, step: float) -> float:  # pragma: no cover
     """|(gx, gy) . n| read bilinearly (:func:`bilinear_uv`, clamped inside) at (u, v) plus
-    ``step`` times the unit normal (nu, nv)."""
-    h, w = gx.shape
+    ``step`` times the unit normal (nu, nv), the (H, W) = (``h``, ``w``) gradients given
+    flat (row-major: ``fx``, ``fy``; flattened once by the caller, as a view made per read
+    costs several times the read)."""
     uk = min(max(u + step * nu, 0.0), w - 1.001)
     vk = min(max(v + step * nv, 0.0), h - 1.001)
     u0, v0 = np.int64(uk), np.int64(vk)
@@ -738,7 +739,6 @@ def _normal_gradient(gx: NDArray[np.int16], gy: NDArray[np.int16], u: float, v: 
     gu, gv = 1 - fu, 1 - fv
     w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
     # The four corners by flat index (both >= 0 once clamped), summed as _bilinear sums.
-    fx, fy = gx.ravel(), gy.ravel()
     at = v0 * w + u0
     bx = fx[at] * w00 + fx[at + 1] * w10 + fx[at + w] * w01 + fx[at + w + 1] * w11
     by = fy[at] * w00 + fy[at + 1] * w10 + fy[at + w] * w01 + fy[at + w + 1] * w11
@@ -764,10 +764,12 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
         return out[:0]
     g = np.empty(k)
     count = 0
+    h, w = gx.shape
+    fx, fy = gx.ravel(), gy.ravel()
     for i in range(n):
         u, v, du, dv = pu[i], pv[i], nu[i], nv[i]
         for j in range(1, k - 1):
-            g[j] = _normal_gradient(gx, gy, u, v, du, dv, steps[j])
+            g[j] = _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[j])
         best, top = 1, g[1]
         for j in range(2, k - 1):
             if g[j] > top:
@@ -775,9 +777,9 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
         if top < threshold:
             continue
         before = (g[best - 1] if best > 1
-                  else _normal_gradient(gx, gy, u, v, du, dv, steps[0]))
+                  else _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[0]))
         after = (g[best + 1] if best < k - 2
-                 else _normal_gradient(gx, gy, u, v, du, dv, steps[k - 1]))
+                 else _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[k - 1]))
         curvature = before - 2.0 * top + after
         shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
         offset = steps[best] + min(max(shift, -0.5), 0.5) * step_px
