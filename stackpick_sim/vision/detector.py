@@ -404,8 +404,9 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
-    (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
-    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``), then
+    (``top.rest_check``), the check for a face leaning on it (``lean``), the hidden-face
+    check (``top.hidden_check``) and the inner refit (``top.inner_refit``), and when it
+    chose none, its fallbacks (``top.fallbacks``), then
     a face inside a fit that reads as occluded (``inner_face``). Before
     those, when its first choice is not clear, faces the merge never fitted whose outline is
     faint along part of its length join it (``complete``), and when no ellipse passed the
@@ -422,8 +423,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if config.top.rest_check and choice.index is not None:
         choice = _rest_check(state, merged, choice, cues, config.top)
-    if config.lean.enabled and choice.index is not None:
-        choice = _lean_check(state, merged, choice, cues, config)
+    choice = _lean_check(state, merged, choice, cues, config)
     if (config.top.hidden_check and choice.index is not None and cues.radius_of is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
@@ -575,13 +575,15 @@ def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
 
 def _lean_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
                 config: DetectorConfig) -> TopChoice:
-    """``choice``, unless it passed the rule outright and a face with no T-junction, its
-    outline short of the rule's support, rests on it (:func:`~stackpick_sim.vision.leaning.
-    select_leaning`, ``lean``): that face takes it. Unchanged without the kinds' heights and
-    colour, or without their radii (from colour, else of two kinds or more)."""
-    assert choice.index is not None
+    """``choice``, unless, with ``lean.enabled``, it passed the rule outright and a face with
+    no T-junction, its outline short of the rule's support, rests on it (:func:`~stackpick_sim.
+    vision.leaning.select_leaning`): that face takes it. Unchanged without a choice, the
+    kinds' heights and colour, or their radii (from colour, else of two kinds or more)."""
+    if (not config.lean.enabled or choice.index is None
+            or choice.evidence[choice.index].occluded):
+        return choice
     rests = _rest_test_of(cues, config)
-    if rests is None or choice.evidence[choice.index].occluded:
+    if rests is None:
         return choice
     above = select_leaning([m.ellipse for m in merged], choice.evidence, choice.index,
                            state.points, rests, config.lean)
