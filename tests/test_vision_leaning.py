@@ -8,26 +8,21 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from dev_frames import GREY, GREY_DATA, dev_frame
+from dev_frames import GREY, GREY_DATA, dev_frame, top_iou
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import Ellipse, mask_iou
+from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
-from stackpick_sim.vision.detector import TopObjectDetector
 from stackpick_sim.vision.leaning import leaning_faces
 from stackpick_sim.vision.occlusion import OcclusionEvidence
 from stackpick_sim.vision.params import LeanParams, TopParams
 
 
 def _top_iou(frame: BenchFrame, enabled: bool) -> float:
-    config = detector_config(frame)
-    config = replace(config, lean=LeanParams(enabled=enabled))
-    found = TopObjectDetector(config).detect(frame.image_rgb).top_ellipse
-    assert found is not None
-    return max(mask_iou(found, f.ellipse, frame.shape) for f in frame.tops)
+    return top_iou(frame, replace(detector_config(frame), lean=LeanParams(enabled=enabled)))
 
 
 def test_a_face_leaning_on_the_chosen_whole_face_takes_the_choice() -> None:
