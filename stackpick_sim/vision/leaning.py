@@ -47,12 +47,15 @@ def leaning_faces(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
              if i != chosen and ev.weakly_supported and ev.support >= params.min_support
              and not ev.occluded_ends and not unobstructed(ev)
              and not _better_fit(ellipses, evidence, i, chosen)]
-    if not short:
-        return []
+    # Only faces with edges inside need their edges counted away from the rim band.
+    inside = [i for i in short if evidence[i].edges_inside]
+    if not inside:
+        return short
     top = evidence[chosen].params
-    deep = deep_edge_counts([ellipses[i] for i in short], edge_points, top.rim_band_px)
-    return [i for i, d in zip(short, deep, strict=True)
-            if d <= top.max_interior_share * evidence[i].perimeter_px]
+    deep = deep_edge_counts([ellipses[i] for i in inside], edge_points, top.rim_band_px)
+    rimmed = {i for i, d in zip(inside, deep, strict=True)
+              if d <= top.max_interior_share * evidence[i].perimeter_px}
+    return [i for i in short if not evidence[i].edges_inside or i in rimmed]
 
 
 def _better_fit(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence], i: int,
