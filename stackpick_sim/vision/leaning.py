@@ -44,8 +44,7 @@ def leaning_faces(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
     face nor a looser fit of a better-supported face. ``edge_points``: the edge map's pixels
     (M, 2) (u, v) in ``np.nonzero`` order."""
     short = [i for i, ev in enumerate(evidence)
-             if i != chosen and ev.weakly_supported and ev.support >= params.min_support
-             and not ev.occluded_ends and not unobstructed(ev)
+             if i != chosen and _short_outlined(ev, params)
              and not _better_fit(ellipses, evidence, i, chosen)]
     # Only faces with edges inside need their edges counted away from the rim band.
     inside = [i for i in short if evidence[i].edges_inside]
@@ -56,6 +55,13 @@ def leaning_faces(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvide
     rimmed = {i for i, d in zip(inside, deep, strict=True)
               if d <= top.max_interior_share * evidence[i].perimeter_px}
     return [i for i in short if not evidence[i].edges_inside or i in rimmed]
+
+
+def _short_outlined(ev: OcclusionEvidence, params: LeanParams) -> bool:
+    """Support in [``params.min_support``, ``top.min_support``), no T-junction end, not
+    unobstructed (the rule's rest test weighs those)."""
+    return (ev.weakly_supported and ev.support >= params.min_support and not ev.occluded_ends
+            and not unobstructed(ev))
 
 
 def _better_fit(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence], i: int,
