@@ -122,6 +122,7 @@ from stackpick_sim.vision.stages import (
     run_stages,
 )
 from stackpick_sim.vision.under_wall import under_a_wall
+from stackpick_sim.vision.whole_refit import whole_refits
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
@@ -429,6 +430,8 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
         # Every face reads as occluded: a top face inside a lower face's fit.
         merged, choice = _inner_face(state, merged, choice, cues, config)
+        # A top face fitted round its own wall, shown whole by its refit.
+        merged, choice = _whole_refit(state, merged, choice, cues, config)
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
     return _unless_under_wall(state, state.updated(cues=cues, merged=merged, choice=choice),
@@ -523,6 +526,33 @@ def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
     if i is None or i not in refits:
         return merged, choice
     merged, choice = _inner_choice(merged, choice, i, refits[i], again.evidence[i])
+    return merged, replace(choice, reason="")
+
+
+def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """With ``whole_refit.enabled``, when the choice (a fallback's) is none or fails the rule
+    itself: the top rule again with each fit that fails it refitted on its innermost
+    consistent edge where the refit passes it outright (:func:`~stackpick_sim.vision.
+    whole_refit.whole_refits`); a refit it chooses replaces its fit in ``merged`` and is
+    chosen (``inner``: the pose's final fit keeps to it). Both unchanged when the chosen
+    face's own refit passes too (it shows whole), or no refit is chosen."""
+    i = choice.index
+    if not config.whole_refit.enabled or (i is not None and not choice.evidence[i].occluded):
+        return merged, choice
+    check_time(state.deadline, "top")
+    ellipses = [m.ellipse for m in merged]
+    refits = whole_refits(ellipses, choice.evidence, state.edges("top"), state.points,
+                          state.crop, state.gate, config.whole_refit.min_support,
+                          config.whole_refit.reach_px, config.top, config.fits)
+    if not refits or i in refits:
+        return merged, choice
+    keys = list(refits)
+    again = _select([refits[k] for k in keys], state, cues)
+    if again.index is None:
+        return merged, choice
+    j = keys[again.index]
+    merged, choice = _inner_choice(merged, choice, j, refits[j], again.evidence[again.index])
     return merged, replace(choice, reason="")
 
 
