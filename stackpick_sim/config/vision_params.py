@@ -364,7 +364,8 @@ class WholeRefitParams(Section):
 
     SECTION: ClassVar[str] = "whole_refit"
     RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
-        "min_support": (0.0, 1.0, ""), "reach_px": (1, 30, "px")}
+        "min_support": (0.0, 1.0, ""), "reach_px": (1, 30, "px"),
+        "settled_iou": (0.0, 1.0, "")}
 
     enabled: bool = True
     """When no face passed the top rule outright and the fallbacks chose none, or chose one
@@ -384,6 +385,13 @@ class WholeRefitParams(Section):
     reach_px: int = 20
     """How far (px) inside a fit the refit looks for the face's innermost consistent edge:
     the widest band of its own wall a fit takes in beyond a top face's rim."""
+    settled_iou: float = 0.95
+    """A fallback's face whose refit on its innermost consistent edge overlaps its fit by at
+    least this area intersection over union (ratio) lies on its own outline and keeps the
+    choice: its boundary with a face of its colour shows no contrast, but what shows is its
+    own. Fitted on their outline, such faces move by under a pixel (overlap 0.98 and more on
+    rendered cluttered and grey frames); a fit round part of a face's wall or on arcs of two
+    outlines moves by several (0.92 and less)."""
 
 
 @dataclass(frozen=True, kw_only=True)

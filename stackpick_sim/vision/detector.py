@@ -122,7 +122,7 @@ from stackpick_sim.vision.stages import (
     run_stages,
 )
 from stackpick_sim.vision.under_wall import under_a_wall
-from stackpick_sim.vision.whole_refit import whole_refits
+from stackpick_sim.vision.whole_refit import settled, whole_refits
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
@@ -531,27 +531,32 @@ def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
 
 def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
                  config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
-    """With ``whole_refit.enabled``, when the choice (a fallback's) is none or fails the rule
-    itself: the top rule again with each fit that fails it refitted on its innermost
-    consistent edge where the refit passes it outright (:func:`~stackpick_sim.vision.
-    whole_refit.whole_refits`); a refit it chooses replaces its fit in ``merged`` and is
-    chosen (``inner``: the pose's final fit keeps to it). Both unchanged when the chosen
-    face's own refit passes too (it shows whole), or no refit is chosen."""
-    i = choice.index
-    if not config.whole_refit.enabled or (i is not None and not choice.evidence[i].occluded):
+    """With ``whole_refit.enabled``, when the choice (a fallback's) is none, or fails the rule
+    itself and moves when refitted on its innermost consistent edge (not :func:`~stackpick_
+    sim.vision.whole_refit.settled`, ``whole_refit.settled_iou``): the top rule over the
+    refits of the fits that fail it which pass it outright (:func:`~stackpick_sim.vision.
+    whole_refit.whole_refits`); the refit it chooses replaces its fit in ``merged`` and is
+    chosen (``inner``: the pose's final fit keeps to it). Otherwise both unchanged."""
+    params, i = config.whole_refit, choice.index
+    if not params.enabled or (i is not None and not choice.evidence[i].occluded):
         return merged, choice
     check_time(state.deadline, "top")
-    ellipses = [m.ellipse for m in merged]
-    refits = whole_refits(ellipses, choice.evidence, state.edges("top"), state.points,
-                          state.crop, state.gate, config.whole_refit.min_support,
-                          config.whole_refit.reach_px, config.top, config.fits)
-    if not refits or i in refits:
+    grad = state.edges("top")
+    if i is not None and settled(merged[i].ellipse, grad, params.reach_px, config.top,
+                                 params.settled_iou):
         return merged, choice
+    refits = whole_refits([m.ellipse for m in merged], choice.evidence, grad, state.points,
+                          state.crop, state.gate, params.min_support, params.reach_px,
+                          config.top, config.fits)
     keys = list(refits)
     again = _select([refits[k] for k in keys], state, cues)
     if again.index is None:
         return merged, choice
     j = keys[again.index]
+    if (i is not None and cues.depth_radius_of is not None
+            and clearly_nearest([merged[i].ellipse, refits[j]], cues.k_crop,
+                                cues.depth_radius_of, config.top) == 0):
+        return merged, choice
     merged, choice = _inner_choice(merged, choice, j, refits[j], again.evidence[again.index])
     return merged, replace(choice, reason="")
 

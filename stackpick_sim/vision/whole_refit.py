@@ -36,8 +36,20 @@ from stackpick_sim.config.vision_params import FitParams, TopParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.faint_faces import area_iou
 from stackpick_sim.vision.fitting import plausible
 from stackpick_sim.vision.occlusion import OcclusionEvidence, select_top
+
+
+def settled(fit: Ellipse, grad: EdgeImage, reach_px: int, top: TopParams, min_iou: float
+            ) -> bool:
+    """Whether ``fit`` lies on its own outline: its refit on its innermost consistent edge
+    (within ``reach_px`` inward, ``top.contrast_*``) overlaps it by at least ``min_iou``
+    (area intersection over union). A face fitted round part of its wall, or on arcs of two
+    outlines, moves when so refitted; a face fitted on its outline stays (its refit lands on
+    the edge it was fitted on), though part of that outline may show no contrast."""
+    refit = refit_on_contrast(fit, grad, True, top, inner_reach_px=reach_px)
+    return refit is not None and area_iou(fit, refit) >= min_iou
 
 
 def candidates(evidence: Sequence[OcclusionEvidence], min_support: float) -> list[int]:
