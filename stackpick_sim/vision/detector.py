@@ -122,7 +122,7 @@ from stackpick_sim.vision.stages import (
     run_stages,
 )
 from stackpick_sim.vision.under_wall import under_a_wall
-from stackpick_sim.vision.whole_refit import settled, whole_refits
+from stackpick_sim.vision.whole_refit import below, settled, whole_refits
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
 
@@ -554,8 +554,8 @@ def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, c
         return merged, choice
     j = keys[again.index]
     if (i is not None and cues.depth_radius_of is not None
-            and clearly_nearest([merged[i].ellipse, refits[j]], cues.k_crop,
-                                cues.depth_radius_of, config.top) == 0):
+            and below(refits[j], merged[i].ellipse, cues.k_crop, cues.depth_radius_of,
+                      config.top)):
         return merged, choice
     merged, choice = _inner_choice(merged, choice, j, refits[j], again.evidence[again.index])
     return merged, replace(choice, reason="")

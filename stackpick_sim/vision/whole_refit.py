@@ -27,18 +27,23 @@ fits' place, and a refit it chooses is the top face.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import FitParams, TopParams
-from stackpick_sim.geometry import Ellipse
+from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.faint_faces import area_iou
 from stackpick_sim.vision.fitting import plausible
-from stackpick_sim.vision.occlusion import OcclusionEvidence, select_top
+from stackpick_sim.vision.occlusion import (
+    OcclusionEvidence,
+    clearly_nearest,
+    holds_centre,
+    select_top,
+)
 
 
 def settled(fit: Ellipse, grad: EdgeImage, reach_px: int, top: TopParams, min_iou: float
@@ -78,3 +83,17 @@ def whole_refits(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEviden
     judged = select_top([found[i] for i in keys], grad, edge_points=edge_points,
                         params=top).evidence
     return {i: found[i] for i, ev in zip(keys, judged, strict=True) if not ev.occluded}
+
+
+def below(refit: Ellipse, chosen: Ellipse, intrinsics: CameraIntrinsics,
+          radius_of: Callable[[Ellipse], float | None], top: TopParams) -> bool:
+    """Whether ``refit`` is another face than the fallback's ``chosen`` one (neither holds
+    the other's centre) and lies clearly farther from the camera than it
+    (:func:`~stackpick_sim.vision.occlusion.clearly_nearest`, ``top.depth_tie_m``; radii
+    from ``radius_of``): a lower face's fit that runs into a T-junction or holds edges
+    inside, its refit shrunk past them, under a top face fitted a little off its outline. A
+    refit of the chosen face itself replaces it, though the fit round its wall reads
+    nearer."""
+    if holds_centre(refit, chosen) or holds_centre(chosen, refit):
+        return False
+    return clearly_nearest([chosen, refit], intrinsics, radius_of, top) == 0
