@@ -368,16 +368,16 @@ class WholeRefitParams(Section):
         "settled_iou": (0.0, 1.0, "")}
 
     enabled: bool = True
-    """When no face passed the top rule outright and the fallbacks chose none, or chose one
-    that fails the rule itself, each fit that fails the rule with at least ``min_support``
-    of its outline showing is refitted on its innermost consistent edge; the refits that
-    pass the rule outright join it again in their fits' place, and a refit it chooses is the
-    top face, unless the fallback's own face shows whole so refitted. The failure class *a
-    top face fitted round its own wall*: a top face over faces of its colour and shade,
-    fitted on its strong arcs and its wall's silhouette beyond its rim (or a neighbour's arc
-    running on from it), fails the rule on a T-junction, edges inside or support, while the
-    fallbacks take a lower face whose occluder only clips its rim, or none. Costs nothing on
-    frames where a face passes the rule outright."""
+    """When the fallbacks chose no face, or one that fails the rule itself and moves when
+    refitted on its innermost consistent edge (``settled_iou``), each fit that fails the
+    rule with at least ``min_support`` of its outline showing is refitted so; the rule runs
+    again over the refits that pass it outright, and the refit it chooses is the top face,
+    unless it is another face than the fallback's, clearly farther (``top.depth_tie_m``).
+    The failure class *a top face fitted round its own wall*: a top face over faces of its
+    colour and shade, fitted on its strong arcs and its wall's silhouette beyond its rim (or
+    a neighbour's arc running on from it), fails the rule on a T-junction, edges inside or
+    support, while the fallbacks take a lower face, a misfit of one, or none. Costs nothing
+    on frames where a face passes the rule outright."""
     min_support: float = 0.6
     """Share [0, 1] of its outline a fit must show to be refitted: at least half of a face
     (as the scoring counts faces, and ``top.hidden_min_support``); fits of arcs of two

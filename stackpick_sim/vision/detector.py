@@ -122,9 +122,9 @@ from stackpick_sim.vision.stages import (
     run_stages,
 )
 from stackpick_sim.vision.under_wall import under_a_wall
-from stackpick_sim.vision.whole_refit import below, settled, whole_refits
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
+from stackpick_sim.vision.whole_refit import below, settled, whole_refits
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
@@ -404,7 +404,8 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
     (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``), then
-    a face inside a fit that reads as occluded (``inner_face``). Before
+    a face inside a fit that reads as occluded (``inner_face``) and a top face fitted round
+    its own wall (``whole_refit``). Before
     those, when its first choice is not clear, faces the merge never fitted whose outline is
     faint along part of its length join it (``complete``), and when no ellipse passed the
     rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
