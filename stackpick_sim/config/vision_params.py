@@ -372,7 +372,8 @@ class WholeRefitParams(Section):
     refitted on its innermost consistent edge (``settled_iou``), each fit that fails the
     rule with at least ``min_support`` of its outline showing is refitted so; the rule runs
     again over the refits that pass it outright, and the refit it chooses is the top face,
-    unless it is another face than the fallback's, clearly farther (``top.depth_tie_m``).
+    unless it is another face than the fallback's, clearly farther (``top.depth_tie_m``),
+    or the fallback's face passes so refitted too (it shows whole: it keeps the choice).
     The failure class *a top face fitted round its own wall*: a top face over faces of its
     colour and shade, fitted on its strong arcs and its wall's silhouette beyond its rim (or
     a neighbour's arc running on from it), fails the rule on a T-junction, edges inside or

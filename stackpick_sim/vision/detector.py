@@ -536,8 +536,9 @@ def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, c
     itself and moves when refitted on its innermost consistent edge (not :func:`~stackpick_
     sim.vision.whole_refit.settled`, ``whole_refit.settled_iou``): the top rule over the
     refits of the fits that fail it which pass it outright (:func:`~stackpick_sim.vision.
-    whole_refit.whole_refits`); the refit it chooses replaces its fit in ``merged`` and is
-    chosen (``inner``: the pose's final fit keeps to it). Otherwise both unchanged."""
+    whole_refit.whole_refits`), unless the fallback's face is one of them (it shows whole);
+    the refit it chooses replaces its fit in ``merged`` and is chosen (``inner``: the pose's
+    final fit keeps to it). Otherwise both unchanged."""
     params, i = config.whole_refit, choice.index
     if not params.enabled or (i is not None and not choice.evidence[i].occluded):
         return merged, choice
@@ -549,6 +550,8 @@ def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, c
     refits = whole_refits([m.ellipse for m in merged], choice.evidence, grad, state.points,
                           state.crop, state.gate, params.min_support, params.reach_px,
                           config.top, config.fits)
+    if i in refits:  # the fallback's face shows whole so refitted: it keeps the choice
+        return merged, choice
     keys = list(refits)
     again = _select([refits[k] for k in keys], state, cues)
     if again.index is None:
