@@ -9,7 +9,7 @@ import pytest
 
 from stackpick_sim.config.vision_params import SegmentParams
 from stackpick_sim.geometry import Ellipse
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels, kernels_fit
 from stackpick_sim.vision.contrast import contrast_profile, contrast_profiles, outline, outlines
 from stackpick_sim.vision.edges import (
     adaptive_thresholds,
@@ -139,6 +139,55 @@ def test_refine_all_is_each_ellipse_refined_alone(
     for k in (2, 3):
         truth, fit = STACK[k], together[len(STACK) + k]
         assert abs(fit.cx - truth.cx) < 0.3 and abs(fit.cy - truth.cy) < 0.3
+
+
+
+def _rounds_one_by_one(given: np.ndarray, columns: tuple[np.ndarray, ...],
+                       tolerances: tuple[float, ...], cos_sq: float, least: int,
+                       bounds: tuple[float, float, float]) -> list[tuple[float, ...] | None]:
+    """The refit rounds one compiled round at a time (kernels_fit.refit_round), the rounds'
+    loop in Python: per ellipse its last refit that passed (cx, cy, a, b, angle deg), or
+    None."""
+    u, v = columns[0], columns[1]
+    forms = kernels.ellipse_forms(given)
+    reach = given[:, 2] + tolerances[0] + 1
+    pm, starts = kernels.box_runs(u, v, forms[:, 0].copy(), forms[:, 1].copy(), reach)
+    active = np.ones(given.shape[0], np.bool_)
+    before = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    out: list[tuple[float, ...] | None] = [None] * given.shape[0]
+    for tol in tolerances:
+        sel, at, tried, rows, degrees, ok = kernels_fit.refit_round(
+            forms, starts, active, pm, columns, (4.0 * tol * tol, cos_sq), before, least,
+            bounds)
+        before = (sel, at)
+        for e, good, row, deg in zip(tried.tolist(), ok.tolist(), rows.tolist(),
+                                     degrees.tolist(), strict=True):
+            if good:
+                out[e] = (*row[:4], deg)
+        if not active.any():
+            break
+    return out
+
+
+@pytest.mark.parametrize("tolerances", [(2.5, 1.5, 1.2), (3.0, 0.6), (1.2,)])
+def test_refine_rounds_are_the_rounds_one_at_a_time(
+        scene: tuple[np.ndarray, list[Ellipse]], tolerances: tuple[float, ...]) -> None:
+    image, probes = scene
+    points, grads = edge_points(edge_image(image))
+    columns = tuple(np.ascontiguousarray(c) for c in (*points.T, *grads.T))
+    rng = np.random.default_rng(11)
+    # The probes and randomly moved copies of them (some too far off to refit).
+    given = np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in probes] * 4)
+    given[len(probes):] += rng.normal(0.0, [2.0, 2.0, 1.5, 1.5, 8.0],
+                                      (given.shape[0] - len(probes), 5))
+    bounds = (4.0, 1.5 * float(np.hypot(*SHAPE)), 1e6)
+    want = _rounds_one_by_one(given, columns, tolerances, 0.5, 20, bounds)
+    final, changed = kernels_fit.refine_rounds(given, columns, np.array(tolerances), 0.5, 20,
+                                               bounds)
+    assert any(w is not None for w in want) and any(w is None for w in want)
+    assert changed.tolist() == [w is not None for w in want]
+    for e, w in enumerate(want):
+        assert final[e].tolist() == (given[e].tolist() if w is None else list(w))
 
 
 def test_refine_collects_the_pixels_along_each_fit(

@@ -847,7 +847,7 @@ def _circle_solutions_python(q: list[float], evals: list[float], evecs: list[lis
 
 def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -> None:
     from stackpick_sim.geometry import CameraIntrinsics, Ellipse
-    from stackpick_sim.vision.pose import _conic_terms
+    from stackpick_sim.vision.kernels_pose import cone_of
 
     k = CameraIntrinsics(fx=277.1, fy=277.1, cx=160.0, cy=120.0, width=320, height=240)
     camera = (k.fx, k.fy, k.cx, k.cy)
@@ -855,10 +855,8 @@ def test_circle_solutions_match_the_float_arithmetic(rng: np.random.Generator) -
         a = float(rng.uniform(8.0, 80.0))
         e = Ellipse(cx=float(rng.uniform(0, 320)), cy=float(rng.uniform(0, 240)), a=a,
                     b=a * float(rng.uniform(0.3, 1.0)), angle_deg=float(rng.uniform(0, 180)))
-        (m00, m01, d0), (m11, d1, f) = _conic_terms(e)
-        r0, r1 = m00 * k.cx + m01 * k.cy + d0, m01 * k.cx + m11 * k.cy + d1
-        q = [k.fx * k.fx * m00, k.fx * k.fy * m01, k.fx * r0, k.fy * k.fy * m11, k.fy * r1,
-             k.cx * r0 + k.cy * r1 + (d0 * k.cx + d1 * k.cy + f)]
+        # The cone's entries (cone_of: the float arithmetic, see its test).
+        q = cone_of(e.cx, e.cy, e.a ** 2, e.b ** 2, e.angle_deg, *camera)[1][:6].tolist()
         w, v = np.linalg.eigh(np.array([[q[0], q[1], q[2]], [q[1], q[3], q[4]],
                                         [q[2], q[4], q[5]]]))
         t = math.radians(e.angle_deg)
@@ -1220,17 +1218,15 @@ def test_level_histogram_and_belt_box_match_the_array_forms(rng: np.random.Gener
         assert tuple(box.tolist()) == cv2.boundingRect(fore)
 
 
-def test_junctions_cut_uv_is_junctions_cut_of_the_whole_pixels(rng: np.random.Generator
-                                                               ) -> None:
+def test_uv_rows_cols_are_the_whole_pixels(rng: np.random.Generator) -> None:
     edges = (rng.random((40, 50)) < 0.3).astype(np.uint8)
     rows, cols = kernels.set_pixels(edges)
     uv = np.vstack([cols, rows]).astype(np.float64)
-    want = kernels.junctions_cut(edges, rows, cols)
-    got = kernels.junctions_cut_uv(edges, uv)
-    assert got[2] and want[2]
-    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    got_rows, got_cols, whole = kernels.uv_rows_cols(uv)
+    assert whole
+    assert np.array_equal(got_rows, rows) and np.array_equal(got_cols, cols)
     uv[0, 3] += 0.5  # not a pixel
-    assert not kernels.junctions_cut_uv(edges, uv)[2]
+    assert not kernels.uv_rows_cols(uv)[2]
 
 
 def test_outline_rows_match_the_perimeter_and_the_angle(rng: np.random.Generator) -> None:
@@ -1252,3 +1248,95 @@ def test_set_indices_are_the_flat_nonzero_pixels(rng: np.random.Generator,
     for density in (0.0, 0.03, 0.5, 1.0):
         image = (rng.random(shape) < density).astype(np.uint8) * np.uint8(255)
         assert np.array_equal(kernels._set_indices(image), np.flatnonzero(image))
+
+
+def _pixel_curves(rng: np.random.Generator) -> list[NDArray[np.int32]]:
+    """Pixel curves of the kinds the segments stage approximates: rasterised ellipse arcs
+    (distinct pixels, open or whole), 8-connected random walks (revisits and straight runs)
+    and short pieces."""
+    curves = []
+    steps = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)])
+    for _ in range(600):
+        a, b = rng.uniform(3.0, 60.0, 2)
+        t0 = rng.uniform(0.0, 2 * np.pi)
+        t = np.linspace(t0, t0 + rng.uniform(0.3, 2 * np.pi), 400)
+        pts = np.rint(np.column_stack([100 + a * np.cos(t), 100 + b * np.sin(t)]))
+        moved = np.r_[True, np.any(np.diff(pts, axis=0) != 0, axis=1)]
+        curves.append(np.ascontiguousarray(pts[moved], np.int32))
+        walk = steps[rng.integers(0, 8, int(rng.integers(1, 90)))]
+        curves.append(np.ascontiguousarray(np.cumsum(walk, axis=0) + 50, np.int32))
+    return curves
+
+
+def test_poly_dp_is_opencvs_polygonal_approximation(rng: np.random.Generator) -> None:
+    for curve in _pixel_curves(rng):
+        for closed in (False, True):
+            for eps in (0.5, 1.0, 2.5):
+                out = np.empty((curve.shape[0] + 1, 2), np.int32)
+                stack = np.empty((curve.shape[0] + 2, 2), np.int64)
+                count = kernels.poly_dp(curve, closed, eps, out, stack)
+                want = cv2.approxPolyDP(curve, eps, closed).reshape(-1, 2)
+                assert np.array_equal(out[:count], want), (curve.tolist(), closed, eps)
+
+
+def test_chain_polys_are_each_chains_polygon(rng: np.random.Generator) -> None:
+    curves = _pixel_curves(rng)[:200]
+    closed = rng.uniform(0, 1, len(curves)) < 0.5
+    bounds = np.array([0, *np.cumsum([c.shape[0] for c in curves])], np.int64)
+    polys, poly_bounds = kernels.chain_polys(np.concatenate(curves), bounds, closed, 1.0)
+    assert poly_bounds[-1] == polys.shape[0]
+    for c, curve in enumerate(curves):
+        want = cv2.approxPolyDP(curve, 1.0, bool(closed[c])).reshape(-1, 2)
+        assert np.array_equal(polys[poly_bounds[c]:poly_bounds[c + 1]], want)
+
+
+def _outer_contours_opencv(binary: NDArray[np.uint8]) -> tuple[list[list[int]], list[int]]:
+    """cv2.findContours' contours without a parent (RETR_CCOMP, every pixel), concatenated,
+    and their lengths."""
+    contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hierarchy is None:
+        return [], []
+    outer = [c.reshape(-1, 2) for c, h in zip(contours, hierarchy[0], strict=True) if h[3] == -1]
+    return [p for c in outer for p in c.tolist()], [c.shape[0] for c in outer]
+
+
+@pytest.mark.parametrize("kind", ["blobs", "arcs", "cut arcs"])
+def test_outer_contours_are_opencvs_contours_without_a_parent(rng: np.random.Generator,
+                                                              kind: str) -> None:
+    for _ in range(300):
+        h, w = (int(n) for n in rng.integers(1, 90, 2))
+        if kind == "blobs":  # random blobs, with holes, nested pieces and single pixels
+            binary = (rng.uniform(0, 1, (h, w)) < rng.uniform(0.05, 0.6)).astype(np.uint8)
+        else:
+            binary = np.zeros((h, w), np.uint8)
+            for _ in range(int(rng.integers(1, 5))):
+                centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+                axes = (int(rng.integers(1, 30)), int(rng.integers(1, 30)))
+                cv2.ellipse(binary, centre, axes, float(rng.uniform(0, 180)),
+                            float(rng.uniform(0, 360)), float(rng.uniform(0, 360)), 1, 1)
+            if kind == "cut arcs":  # the segments stage's input: junctions cut out
+                binary = kernels.junctions_cut(binary, *kernels.set_pixels(binary))[0]
+        want_pixels, want_lengths = _outer_contours_opencv(binary)
+        pixels, lengths = kernels.outer_contours(binary)
+        assert pixels.tolist() == want_pixels
+        assert lengths.tolist() == want_lengths
+        # Given more pixels than the set ones (row-major), the same.
+        more = binary | (rng.uniform(0, 1, binary.shape) < 0.2)
+        pixels, lengths = kernels.contours_at(binary, *kernels.set_pixels(more))
+        assert pixels.tolist() == want_pixels
+        assert lengths.tolist() == want_lengths
+
+
+def test_longest_contours_keep_the_longest_in_their_order(rng: np.random.Generator) -> None:
+    for _ in range(200):
+        lengths = rng.integers(1, 12, int(rng.integers(0, 30))).astype(np.int64)  # many ties
+        contours = rng.integers(0, 100, (int(lengths.sum()), 2)).astype(np.int32)
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        shortest, cap = int(rng.integers(1, 6)), int(rng.integers(0, 10))
+        long = [i for i in range(lengths.shape[0]) if lengths[i] >= shortest]
+        kept = (sorted(sorted(long, key=lambda i: (-lengths[i], i))[:cap])
+                if len(long) > cap else list(range(lengths.shape[0])))
+        got, got_lengths = kernels.longest_contours(contours, lengths, shortest, cap)
+        assert got_lengths.tolist() == lengths[kept].tolist()
+        want = [contours[starts[i]:starts[i + 1]] for i in kept]
+        assert np.array_equal(got, np.concatenate(want) if want else np.zeros((0, 2)))

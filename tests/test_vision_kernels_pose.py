@@ -107,13 +107,20 @@ def test_supported_samples_read_the_image_threshold(rng: np.random.Generator) ->
     assert np.array_equal(ok, want)
 
 
+def _sampled_outlines(rng: np.random.Generator, n: int, share: float
+                      ) -> tuple[list[Ellipse], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` random ellipses, their outline rows and sample counts, their (2, N) outline
+    samples and which of them are supported (about ``share`` of them, at random)."""
+    ellipses = _ellipses(rng, n)
+    table, sizes, ct, st = outline_rows(ellipses)
+    pts, _ = kernels.outline_samples(table, sizes, ct, st)
+    return ellipses, table, sizes, pts, rng.random(int(sizes.sum())) < share
+
+
 @pytest.mark.parametrize("min_gap", [1, 3, 6])
 def test_gap_evidence_is_the_runs_then_the_junction_test(rng: np.random.Generator,
                                                          min_gap: int) -> None:
-    ellipses = _ellipses(rng, 6)
-    table, sizes, ct, st = outline_rows(ellipses)
-    pts, _ = kernels.outline_samples(table, sizes, ct, st)
-    ok = rng.random(int(sizes.sum())) < 0.75
+    ellipses, table, sizes, pts, ok = _sampled_outlines(rng, 6, 0.75)
     ok[: sizes[0]] = True  # one outline wholly supported, one not
     ok[sizes[0]: sizes[0] + sizes[1]] = False
     ok[int(sizes[:3].sum()) - 2:int(sizes[:3].sum()) + 3] = False  # a run over an outline end
@@ -180,6 +187,61 @@ def test_interior_counts_of_are_the_shrunk_forms_counts(rng: np.random.Generator
     got = kernels_pose.interior_counts_of(outline_rows(ellipses)[0], margin, keys, width)
     assert np.array_equal(got, want)
     assert want.sum() > 0 or pixels < 100
+
+
+@pytest.mark.parametrize("order", ["row-major", "shuffled"])
+def test_occlusion_counts_are_the_sorted_pixels_counts(rng: np.random.Generator,
+                                                       order: str) -> None:
+    # The evidence's counts in one call: the pixels in row-major order (sorted when they are
+    # not), then the interior counts and the gap evidence on them.
+    _, table, sizes, pts, ok = _sampled_outlines(rng, 6, 0.7)
+    uv = np.unique(rng.integers(0, 80, (1200, 2)), axis=0)[:, ::-1].astype(np.float64)
+    if order == "shuffled":
+        uv = uv[rng.permutation(uv.shape[0])]
+    pu, pv = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+    margin, tol, reach, junction, crossing = 2.5, 0.8, 4.0, 2.0, 4.0
+    got = kernels_pose.occlusion_counts(ok, sizes, pts, table, pu, pv, margin, 3, reach,
+                                        junction ** 2, crossing ** 2, tol)
+    width = int(pu.max()) + 2
+    keys = pv * width + pu
+    by_row = np.argsort(keys, kind="stable")
+    want = (*kernels_pose.gap_evidence(ok, sizes, pts, table, pu[by_row], pv[by_row], 3,
+                                       reach, junction ** 2, crossing ** 2, tol),
+            kernels_pose.interior_counts_of(table, margin, keys[by_row], width))
+    assert [g.tolist() for g in got] == [w.tolist() for w in want]
+    assert want[2].sum() > 0 and want[3].sum() > 0
+
+
+def _cone_on_floats(e: Ellipse, camera: tuple[float, float, float, float]) -> list[float]:
+    """The cone K^T C K's six entries, the ellipse's terms and the camera, on Python floats
+    (the ellipse's pixel conic C: M = R diag(1/a^2, 1/b^2) R^T, d = -M c, f = -d.c - 1)."""
+    fx, fy, kcx, kcy = camera
+    t = math.radians(e.angle_deg)
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / e.a ** 2, 1.0 / e.b ** 2
+    m00, m01, m11 = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
+    d0 = -(m00 * e.cx + m01 * e.cy)
+    d1 = -(m01 * e.cx + m11 * e.cy)
+    f = -(d0 * e.cx + d1 * e.cy) - 1.0
+    r0, r1 = m00 * kcx + m01 * kcy + d0, m01 * kcx + m11 * kcy + d1
+    q = [fx * fx * m00, fx * fy * m01, fx * r0, fy * fy * m11, fy * r1,
+         kcx * r0 + kcy * r1 + (d0 * kcx + d1 * kcy + f)]
+    return [*q, e.cx, e.cy, math.cos(t), math.sin(t), e.a ** 2, e.b ** 2, *camera]
+
+
+def test_cone_of_is_the_float_arithmetic(rng: np.random.Generator) -> None:
+    camera = (277.1, 276.3, 160.4, 119.8)
+    ellipses = [*_ellipses(rng, 300, 320.0, 240.0),
+                Ellipse.of(3.0, 4.0, 1e-60, 1e-61, 10.0)]  # entries beyond 1e100
+    for e in ellipses:
+        cone, packed, moderate = kernels_pose.cone_of(e.cx, e.cy, e.a ** 2, e.b ** 2,
+                                                      e.angle_deg, *camera)
+        want = _cone_on_floats(e, camera)
+        q = want[:6]
+        assert packed.tolist() == want
+        assert cone.tolist() == [[q[0], q[1], q[2]], [q[1], q[3], q[4]], [q[2], q[4], q[5]]]
+        assert moderate == all(abs(x) <= 1e100 for x in q)
+    assert not moderate
 
 
 def _axes(normal: np.ndarray) -> tuple[list[float], list[float]]:

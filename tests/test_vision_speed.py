@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 from stackpick_sim.geometry import Ellipse
+from stackpick_sim.vision import kernels
 from stackpick_sim.vision.contrast import outlines
 from stackpick_sim.vision.detection import DetectedEllipse
 from stackpick_sim.vision.detector import _chromaticities
 from stackpick_sim.vision.edges import RING, STAIR_LUTS, colour_gradients, remove_stairs
 from stackpick_sim.vision.fitting import ellipse_params, grouped_distances, pair_distances
 from stackpick_sim.vision.merging import _repeats
-from stackpick_sim.vision.pose import CirclePose, _eigh
+from stackpick_sim.vision.pose import CirclePose, _solutions
 from stackpick_sim.vision.wall import _floats
 
 RNG = np.random.default_rng(7)
@@ -118,22 +119,31 @@ def test_circle_pose_of_is_the_constructor() -> None:
         fast.normal_cam = centre  # type: ignore[misc]
 
 
+def _on_numpys_eigh(cone: np.ndarray, packed: np.ndarray) -> tuple[np.ndarray, bool]:
+    """kernels.circle_solutions of a cone's (16,) row on np.linalg.eigh of the cone."""
+    w, v = np.linalg.eigh(cone)
+    return kernels.circle_solutions(packed[:6], w, v, packed[6:12], packed[12:])
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e40, 1e99, 1e101])
-def test_eigh_is_numpys(scale: float) -> None:
+def test_circle_solutions_are_on_numpys_eigh(scale: float) -> None:
     m = RNG.normal(0.0, 1.0, (3, 3))
-    rows = ((m + m.T) * scale).tolist()
-    w, v = _eigh(rows)
-    want_w, want_v = np.linalg.eigh(np.array(rows))
-    np.testing.assert_array_equal(w, want_w)
-    np.testing.assert_array_equal(v, want_v)
+    cone = (m + m.T) * scale
+    packed = np.concatenate([cone[np.triu_indices(3)], RNG.uniform(1.0, 2.0, 10)])
+    moderate = bool(np.all(np.abs(cone) <= 1e100))  # as kernels_pose.cone_of tells it
+    got, ok = _solutions(cone, packed, moderate)
+    want, want_ok = _on_numpys_eigh(cone, packed)
+    np.testing.assert_array_equal(got, want)
+    assert ok == want_ok and moderate == (scale < 1e100)
 
 
-def test_eigh_of_non_finite_entries_is_numpys() -> None:
-    rows = [[1.0, 0.0, 0.0], [0.0, float("nan"), 0.0], [0.0, 0.0, 2.0]]
-    w, v = _eigh(rows)
-    want_w, want_v = np.linalg.eigh(np.array(rows))
-    np.testing.assert_array_equal(w, want_w)
-    np.testing.assert_array_equal(v, want_v)
+def test_circle_solutions_of_non_finite_entries_are_on_numpys_eigh() -> None:
+    cone = np.diag([1.0, float("nan"), 2.0])
+    packed = np.concatenate([cone[np.triu_indices(3)], np.ones(10)])
+    got, ok = _solutions(cone, packed, False)
+    want, want_ok = _on_numpys_eigh(cone, packed)
+    np.testing.assert_array_equal(got, want)
+    assert ok == want_ok
 
 
 def test_chromaticities_of_tuples_and_lists_are_alike() -> None:

@@ -4,7 +4,7 @@ reachable from a scene's [vision] table, --set and sweep --param."""
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -18,6 +18,7 @@ from stackpick_sim.exceptions import ConfigError
 from stackpick_sim.runs.sweep import grid, parse_param
 from stackpick_sim.vision.detector import REQUIRED_STAGES, STAGES, DetectorConfig, detect
 from stackpick_sim.vision.edges import edge_image
+from stackpick_sim.vision.limits import Deadline
 from stackpick_sim.vision.params import (
     EdgeParams,
     FitParams,
@@ -30,7 +31,7 @@ from stackpick_sim.vision.params import (
     SegmentParams,
     TopParams,
 )
-from stackpick_sim.vision.roi import find_roi
+from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import Stage, StageError, State
 
@@ -255,3 +256,23 @@ def test_a_state_updated_is_the_state_replaced(image: np.ndarray) -> None:
     assert state.gate is None  # unchanged
     with pytest.raises(TypeError, match="ellipses"):
         state.updated(ellipses=[])
+
+
+def test_a_state_started_is_the_state_constructed(image: np.ndarray) -> None:
+    given = {"image": image, "intrinsics": K, "deadline": Deadline(0.0, 100.0),
+             "roi": Roi.of(0, 0, SHAPE[1], SHAPE[0]), "work": image, "crop": SHAPE,
+             "timings_ms": {}}
+    started, built = State.start(**given), State(**given)  # type: ignore[arg-type]
+    for f in fields(State):
+        got, want = getattr(started, f.name), getattr(built, f.name)
+        if isinstance(want, np.ndarray):
+            assert got.dtype == want.dtype and np.array_equal(got, want), f.name
+        else:
+            assert got == want, f.name
+    assert started.roi == Roi(u0=0, v0=0, u1=SHAPE[1], v1=SHAPE[0])
+    # Each state its own mutable defaults, as the constructor's.
+    assert State.start(**given).merged is not started.merged
+    with pytest.raises(TypeError, match="ellipses"):
+        State.start(**given, ellipses=[])
+    with pytest.raises(TypeError, match="deadline"):
+        State.start(**{k: v for k, v in given.items() if k != "deadline"})

@@ -605,6 +605,18 @@ class TopParams(Section):
     A wrong radius moves a face by centimetres along its rays (the radii's ratio at
     0.2-0.3 m); scaling both faces alike keeps a touching pair within a few mm (3-5 mm on
     rendered grey paper-scene frames), which this leaves undecided."""
+    rest_untold_solutions: bool = True
+    """The rest test (:mod:`~stackpick_sim.vision.resting`) also judges a pair in which one
+    face's wall bands cannot tell its two pose solutions apart: the failure class *a whole
+    lower face chosen over the face leaning on it, its solution untold* (the leaning object
+    hides the wall band that would tell the lower face's solution, so the pair gave no
+    evidence, and the whole, best-supported lower face was taken over the partly seen top
+    face). Each of the untold face's solutions is tried (with the other face's told one),
+    and a rest counts when the combinations that find one all find it the same way, with
+    the untold face as the lower body. An untold face found resting on another gives no
+    evidence: nothing resting on it hides its band, so bands that cannot tell point to a
+    rough fit (on rendered grey paper-scene frames, such a rest put a true top face under a
+    partly seen, roughly fitted lower one). Off: such pairs give no evidence."""
     arc_split_reach_px: float = 6.0
     """For the arc-pair fallbacks, a chain is cut at its pixel nearest to another chain's end
     within this distance (px): Canny runs a face's outline on into a lower same-colour face's

@@ -305,9 +305,9 @@ class TopObjectDetector:
         in order, each timed into the detection's ``timings_ms``."""
         timings: dict[str, float] = {}
         shape = (int(img.shape[0]), int(img.shape[1]))
-        state = State(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
-                      roi=Roi(u0=0, v0=0, u1=shape[1], v1=shape[0]), work=img, crop=shape,
-                      timings_ms=timings)
+        state = State.start(image=img, intrinsics=self._intrinsics(shape), deadline=deadline,
+                            roi=Roi.of(0, 0, shape[1], shape[0]), work=img, crop=shape,
+                            timings_ms=timings)
         try:
             state = run_stages(self.config.stages, state, self.config, t0)
         except OutOfTime as out:
@@ -387,8 +387,9 @@ def refine_stage(state: State, config: DetectorConfig) -> State:
     merged = state.merged
     refined = refine_all([m.ellipse for m in merged], state.points, state.grads, state.crop,
                          config.refine, config.fits)
+    # An ellipse the refit left as it was keeps its record.
     return state.updated(merged=[
-        MergedEllipse.of(e, m.segments, m.residual_px, m.support)
+        m if e is m.ellipse else MergedEllipse.of(e, m.segments, m.residual_px, m.support)
         for m, e in zip(merged, refined, strict=True)])
 
 

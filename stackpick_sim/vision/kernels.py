@@ -726,11 +726,12 @@ def subpixel_along(pu: NDArray[np.float64], pv: NDArray[np.float64], gu: NDArray
 
 
 @_compiled
-def _normal_gradient(gx: NDArray[np.int16], gy: NDArray[np.int16], u: float, v: float,
-                     nu: float, nv: float, step: float) -> float:  # pragma: no cover
+def _normal_gradient(fx: NDArray[np.int16], fy: NDArray[np.int16], h: int, w: int, u: float,
+                     v: float, nu: float, nv: float, step: float) -> float:  # pragma: no cover
     """|(gx, gy) . n| read bilinearly (:func:`bilinear_uv`, clamped inside) at (u, v) plus
-    ``step`` times the unit normal (nu, nv)."""
-    h, w = gx.shape
+    ``step`` times the unit normal (nu, nv), the (H, W) = (``h``, ``w``) gradients given
+    flat (row-major: ``fx``, ``fy``; flattened once by the caller, as a view made per read
+    costs several times the read)."""
     uk = min(max(u + step * nu, 0.0), w - 1.001)
     vk = min(max(v + step * nv, 0.0), h - 1.001)
     u0, v0 = np.int64(uk), np.int64(vk)
@@ -738,7 +739,6 @@ def _normal_gradient(gx: NDArray[np.int16], gy: NDArray[np.int16], u: float, v: 
     gu, gv = 1 - fu, 1 - fv
     w00, w10, w01, w11 = gu * gv, fu * gv, gu * fv, fu * fv
     # The four corners by flat index (both >= 0 once clamped), summed as _bilinear sums.
-    fx, fy = gx.ravel(), gy.ravel()
     at = v0 * w + u0
     bx = fx[at] * w00 + fx[at + 1] * w10 + fx[at + w] * w01 + fx[at + w + 1] * w11
     by = fy[at] * w00 + fy[at + 1] * w10 + fy[at + w] * w01 + fy[at + w + 1] * w11
@@ -764,10 +764,12 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
         return out[:0]
     g = np.empty(k)
     count = 0
+    h, w = gx.shape
+    fx, fy = gx.ravel(), gy.ravel()
     for i in range(n):
         u, v, du, dv = pu[i], pv[i], nu[i], nv[i]
         for j in range(1, k - 1):
-            g[j] = _normal_gradient(gx, gy, u, v, du, dv, steps[j])
+            g[j] = _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[j])
         best, top = 1, g[1]
         for j in range(2, k - 1):
             if g[j] > top:
@@ -775,9 +777,9 @@ def profile_peaks(gx: NDArray[np.int16], gy: NDArray[np.int16], pu: NDArray[np.f
         if top < threshold:
             continue
         before = (g[best - 1] if best > 1
-                  else _normal_gradient(gx, gy, u, v, du, dv, steps[0]))
+                  else _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[0]))
         after = (g[best + 1] if best < k - 2
-                 else _normal_gradient(gx, gy, u, v, du, dv, steps[k - 1]))
+                 else _normal_gradient(fx, fy, h, w, u, v, du, dv, steps[k - 1]))
         curvature = before - 2.0 * top + after
         shift = 0.5 * (before - after) / curvature if curvature < -1e-9 else 0.0
         offset = steps[best] + min(max(shift, -0.5), 0.5) * step_px
@@ -1912,18 +1914,17 @@ def junctions_cut(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArr
 
 
 @_compiled
-def junctions_cut_uv(edges: NDArray[np.uint8], uv: NDArray[np.float64]
-                     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8],
-                                bool]:  # pragma: no cover - compiled
-    """:func:`junctions_cut` of the pixels given as (2, M) rows u, v (whole numbers, as the
-    edge stage lists them; one that is not: not valid)."""
+def uv_rows_cols(uv: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], bool]:  # pragma: no cover
+    """The rows and columns of pixels given as (2, M) rows u, v, and whether they are whole
+    numbers (as the edge stage lists them)."""
     n = uv.shape[1]
     rows, cols = np.empty(n, np.int64), np.empty(n, np.int64)
     for j in range(n):
         rows[j], cols[j] = np.int64(uv[1, j]), np.int64(uv[0, j])
         if rows[j] != uv[1, j] or cols[j] != uv[0, j]:
-            return np.zeros((1, 1), np.uint8), np.zeros((1, 1), np.uint8), False
-    return junctions_cut(edges, rows, cols)
+            return rows, cols, False
+    return rows, cols, True
 
 
 @_compiled
@@ -1931,6 +1932,125 @@ def _padded_box(flat: NDArray[np.uint8], i: int, wp: int) -> int:  # pragma: no 
     """The 3x3 sum round flat index ``i`` of a map of row length ``wp`` with a zero border."""
     return (int(flat[i - wp - 1]) + flat[i - wp] + flat[i - wp + 1] + flat[i - 1] + flat[i]
             + flat[i + 1] + flat[i + wp - 1] + flat[i + wp] + flat[i + wp + 1])
+
+
+#: The 8 directions of the border follower, counter-clockwise from east (image rows down):
+#: column and row steps.
+_STEP_U = np.array([1, 1, 0, -1, -1, -1, 0, 1], np.int64)
+_STEP_V = np.array([0, -1, -1, -1, 0, 1, 1, 1], np.int64)
+
+
+@_compiled
+def _follow_border(flat: NDArray[np.int8], at: int, offsets: NDArray[np.int64], hole: bool,
+                   out: NDArray[np.int64], k: int) -> int:  # pragma: no cover - compiled
+    """Follow the border that starts at flat index ``at`` of a zero-padded map (``offsets``:
+    the flat steps of the 8 directions, twice over; 1: a set pixel not yet visited; the
+    pixels passed are marked 2, or -2 where the pixel east of them is background), Suzuki
+    and Abe's border following as OpenCV's contour finder does it (the first neighbour
+    searched clockwise from the west for an outer border, from the east for a hole; then
+    counter-clockwise round each pixel from the one it came from). An outer border's pixels
+    passed are written (flat indices) into ``out`` from ``k`` on; returns the next free
+    place."""
+    s_end = 0 if hole else 4
+    s = s_end
+    first = at
+    while True:
+        s = (s - 1) & 7
+        first = at + offsets[s]
+        if flat[first] != 0 or s == s_end:
+            break
+    if flat[first] == 0:  # a single pixel
+        flat[at] = -2
+        if not hole:
+            out[k] = at
+            k += 1
+        return k
+    here = at
+    while True:
+        s_end = s
+        nxt = here
+        while s < 15:
+            s += 1
+            nxt = here + offsets[s]
+            if flat[nxt] != 0:
+                break
+        s &= 7
+        if 1 <= s <= s_end:  # the pixel east of this one was searched: background
+            flat[here] = -2
+        elif flat[here] == 1:
+            flat[here] = 2
+        if not hole:
+            out[k] = here
+            k += 1
+        if nxt == at and here == first:
+            return k
+        here = nxt
+        s = (s + 4) & 7
+
+
+@_compiled
+def contours_at(binary: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64]
+                ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """:func:`outer_contours` of an (H, W) map given pixels (``rows``, ``cols``) in
+    row-major order among which are all its set ones (the others are skipped): the raster
+    scan visits only those and the pixel after each."""
+    h, w = binary.shape
+    wp = w + 2
+    flat = np.zeros((h + 2) * wp, np.int8)
+    n = 0
+    for j in range(rows.shape[0]):
+        if binary[rows[j], cols[j]]:
+            flat[(rows[j] + 1) * wp + cols[j] + 1] = 1
+            n += 1
+    offsets = np.empty(16, np.int64)
+    for d in range(8):
+        offsets[d] = offsets[d + 8] = _STEP_V[d] * wp + _STEP_U[d]
+    # A pixel is passed at most once per set neighbour (once when it has none).
+    out = np.empty(8 * n + 1, np.int64)
+    starts = np.empty(n + 1, np.int64)
+    count, k = 0, 0
+    # The scan's value of the pixel before (0 past a background pixel) and where it is.
+    prev, prev_at = 0, -1
+    for j in range(rows.shape[0]):
+        at = (rows[j] + 1) * wp + cols[j] + 1
+        if flat[at] == 0 and binary[rows[j], cols[j]] == 0:
+            continue  # not a set pixel
+        if at != prev_at + 1:
+            prev = 0
+        p = flat[at]
+        if prev == 0 and p == 1:  # an outer border starts here
+            starts[count] = k
+            count += 1
+            k = _follow_border(flat, at, offsets, False, out, k)
+            p = flat[at]
+        prev, prev_at = p, at
+        # The pixel after: a hole's border starts at this one when it is background.
+        if flat[at + 1] == 0 and p >= 1:
+            _follow_border(flat, at, offsets, True, out, k)
+            prev = 0
+    starts[count] = k
+    # OpenCV lists them last found first.
+    pixels = np.empty((k, 2), np.int32)
+    lengths = np.empty(count, np.int64)
+    m = 0
+    for i in range(count - 1, -1, -1):
+        lengths[count - 1 - i] = starts[i + 1] - starts[i]
+        for q in range(starts[i], starts[i + 1]):
+            pixels[m, 0], pixels[m, 1] = out[q] % wp - 1, out[q] // wp - 1
+            m += 1
+    return pixels, lengths
+
+
+@_compiled
+def outer_contours(binary: NDArray[np.uint8]
+                   ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """The outer borders of the set pixels of an (H, W) map, as
+    ``cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)`` gives the contours
+    without a parent: their pixels (u, v), concatenated in OpenCV's order (the last found in
+    the raster scan first), and their lengths. The holes' borders are followed too (their
+    marks decide where later borders start) but not listed."""
+    rows, cols = set_pixels(binary)
+    return contours_at(binary, rows, cols)
 
 
 @_compiled
@@ -1976,6 +2096,167 @@ def ordered_chains(contours: NDArray[np.int32], lengths: NDArray[np.int64],
 
 
 @_compiled
+def _far_pair(pts: NDArray[np.int32], n: int, iters: int
+              ) -> tuple[int, int, float]:  # pragma: no cover - compiled
+    """Two roughly farthest of the ``n`` pixels ``pts`` (a closed curve), as OpenCV's
+    approximation finds them: from pixel 0 the farthest one, then from there (``iters``
+    rounds; the first of equals). Returns the last round's start, the offset of its
+    farthest pixel from it and their squared distance."""
+    pos, right, far_sq = 0, 0, 0.0
+    for _ in range(iters):
+        pos = (pos + right) % n
+        sx, sy = pts[pos, 0], pts[pos, 1]
+        far_sq = 0.0
+        for j in range(1, n):
+            q = (pos + j) % n
+            dx, dy = float(pts[q, 0] - sx), float(pts[q, 1] - sy)
+            if dx * dx + dy * dy > far_sq:
+                far_sq = dx * dx + dy * dy
+                right = j
+    return pos, right, far_sq
+
+
+@_compiled
+def _far_from_chord(pts: NDArray[np.int32], n: int, lo: int, hi: int
+                    ) -> tuple[float, int, float]:  # pragma: no cover - compiled
+    """The pixel of the stretch ``lo`` .. ``hi`` (cyclically, ends excluded) of the ``n``
+    pixels ``pts`` farthest from the chord as a segment (beyond an end: from that end; the
+    first of equals): its squared distance times the chord's squared length (whole
+    numbers), its index, and the chord's squared length."""
+    sx, sy, ex, ey = pts[lo, 0], pts[lo, 1], pts[hi, 0], pts[hi, 1]
+    dx, dy = float(ex - sx), float(ey - sy)
+    chord_sq = dx * dx + dy * dy
+    far, split = 0.0, 0
+    pos = (lo + 1) % n
+    while pos != hi:
+        qx, qy = pts[pos, 0] - sx, pts[pos, 1] - sy
+        along = qx * dx + qy * dy
+        if along < 0:
+            d = (qx * qx + qy * qy) * chord_sq
+        elif along > chord_sq:
+            rx, ry = pts[pos, 0] - ex, pts[pos, 1] - ey
+            d = (rx * rx + ry * ry) * chord_sq
+        else:
+            across = qy * dx - qx * dy
+            d = across * across
+        if d > far:
+            far, split = d, pos
+        pos = (pos + 1) % n
+    return far, split, chord_sq
+
+
+@_compiled
+def _dp_slices(pts: NDArray[np.int32], n: int, closed: bool, eps_sq: float,
+               out: NDArray[np.int32], stack: NDArray[np.int64]
+               ) -> tuple[int, bool]:  # pragma: no cover - compiled
+    """The Ramer-Douglas-Peucker recursion of :func:`poly_dp` on the ``n`` pixels ``pts``:
+    the kept vertices written into ``out`` (their count returned) and whether the curve was
+    taken as closed (an open one whose ends coincide is). ``stack``: (n + 2, 2) scratch."""
+    top, count, iters = 0, 0, 3
+    if not closed:
+        if pts[n - 1, 0] != pts[0, 0] or pts[n - 1, 1] != pts[0, 1]:
+            stack[0, 0], stack[0, 1] = 0, n - 1
+            top = 1
+        else:
+            closed, iters = True, 1
+    if closed:
+        start, right, far_sq = _far_pair(pts, n, iters)
+        if far_sq > eps_sq:
+            stack[0, 0], stack[0, 1] = (right + start) % n, start
+            stack[1, 0], stack[1, 1] = start, (right + start) % n
+            top = 2
+        else:
+            out[0, 0], out[0, 1] = pts[start, 0], pts[start, 1]
+            count = 1
+    while top > 0:
+        top -= 1
+        lo, hi = stack[top, 0], stack[top, 1]
+        flat, split = True, 0
+        if (lo + 1) % n != hi:
+            far, split, chord_sq = _far_from_chord(pts, n, lo, hi)
+            flat = far <= eps_sq * chord_sq
+        if flat:
+            out[count, 0], out[count, 1] = pts[lo, 0], pts[lo, 1]
+            count += 1
+        else:
+            stack[top, 0], stack[top, 1] = split, hi
+            stack[top + 1, 0], stack[top + 1, 1] = lo, split
+            top += 2
+    if not closed:
+        out[count, 0], out[count, 1] = pts[n - 1, 0], pts[n - 1, 1]
+        count += 1
+    return count, closed
+
+
+@_compiled
+def poly_dp(pts: NDArray[np.int32], closed: bool, eps: float, out: NDArray[np.int32],
+            stack: NDArray[np.int64]) -> int:  # pragma: no cover - compiled
+    """``cv2.approxPolyDP(pts, eps, closed)`` of (n, 2) int32 pixels (n >= 1), the same
+    vertices in the same order (OpenCV's Ramer-Douglas-Peucker recursion: a closed curve
+    split first at two roughly farthest pixels, each stretch split at its pixel farthest
+    from its chord (as a segment) until none is more than ``eps`` off it; then a pass
+    dropping a vertex that lies within eps / sqrt(2) of the line through its neighbours,
+    between them), written into ``out`` ((n + 1, 2) or larger); returns their count.
+    ``stack``: (n + 2, 2) scratch."""
+    n = pts.shape[0]
+    eps_sq = eps * eps
+    count, _ = _dp_slices(pts, n, closed, eps_sq, out, stack)
+    # The clean-up pass over the vertices (cyclically for a closed curve).
+    new_count = count
+    pos = count - 1 if closed else 0
+    sx, sy = out[pos, 0], out[pos, 1]
+    pos = (pos + 1) % count
+    wpos = pos
+    px, py = out[pos, 0], out[pos, 1]
+    pos = (pos + 1) % count
+    i = 0 if closed else 1
+    stop = count if closed else count - 1
+    while i < stop and new_count > 2:
+        ex, ey = out[pos, 0], out[pos, 1]
+        pos = (pos + 1) % count
+        dx, dy = float(ex - sx), float(ey - sy)
+        d = abs((px - sx) * dy - (py - sy) * dx)
+        inner = float((px - sx) * (ex - px) + (py - sy) * (ey - py))
+        if d * d <= 0.5 * eps_sq * (dx * dx + dy * dy) and dx != 0 and dy != 0 and inner >= 0:
+            new_count -= 1
+            out[wpos, 0], out[wpos, 1] = ex, ey
+            sx, sy = ex, ey
+            wpos = (wpos + 1) % count
+            px, py = out[pos, 0], out[pos, 1]
+            pos = (pos + 1) % count
+            i += 2
+            continue
+        out[wpos, 0], out[wpos, 1] = px, py
+        sx, sy = px, py
+        wpos = (wpos + 1) % count
+        px, py = ex, ey
+        i += 1
+    if not closed:
+        out[wpos, 0], out[wpos, 1] = px, py
+    return new_count
+
+
+@_compiled
+def chain_polys(chains: NDArray[np.int32], bounds: NDArray[np.int64],
+                closed: NDArray[np.bool_], eps: float
+                ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """:func:`poly_dp` of each chain (``chains[bounds[c]:bounds[c + 1]]``, ``closed[c]``):
+    the polygons' vertices concatenated and their bounds (C + 1,), as :func:`chain_arcs`
+    takes them."""
+    n_c = bounds.shape[0] - 1
+    polys = np.empty((chains.shape[0] + n_c, 2), np.int32)
+    poly_bounds = np.zeros(n_c + 1, np.int64)
+    stack = np.empty((chains.shape[0] + 2, 2), np.int64)
+    k = 0
+    for c in range(n_c):
+        lo, hi = bounds[c], bounds[c + 1]
+        if hi > lo:
+            k += poly_dp(chains[lo:hi], closed[c], eps, polys[k:], stack)
+        poly_bounds[c + 1] = k
+    return polys[:k], poly_bounds
+
+
+@_compiled
 def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDArray[np.bool_],
                polys: NDArray[np.int32], poly_bounds: NDArray[np.int64], shortest: int,
                corner_deg: float, spike_deg: float, spike_ratio: float, signed_deg: float
@@ -2009,6 +2290,59 @@ def chain_arcs(chains: NDArray[np.int32], bounds: NDArray[np.int64], closed: NDA
                 count += 1
             prev = max(prev, stop)
     return out, ranges[:count]
+
+
+@_compiled
+def longest_contours(contours: NDArray[np.int32], lengths: NDArray[np.int64], shortest: int,
+                     cap: int) -> tuple[NDArray[np.int32],
+                                        NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Of the contours (``contours`` concatenated, ``lengths`` each) of at least ``shortest``
+    pixels, the ``cap`` longest (the first of equals) in their order when there are more
+    (the others give no chain of ``shortest`` pixels); else all of them as they are."""
+    long = np.nonzero(lengths >= shortest)[0]
+    if long.shape[0] <= cap:
+        return contours, lengths
+    order = np.argsort(-lengths[long], kind="mergesort")  # stable: the first of equals
+    kept = np.sort(long[order[:cap]])
+    starts = np.zeros(lengths.shape[0] + 1, np.int64)
+    for i in range(lengths.shape[0]):
+        starts[i + 1] = starts[i] + lengths[i]
+    total = 0
+    for i in kept:
+        total += lengths[i]
+    out = np.empty((total, 2), np.int32)
+    k = 0
+    for i in kept:
+        out[k:k + lengths[i]] = contours[starts[i]:starts[i + 1]]
+        k += lengths[i]
+    return out, lengths[kept]
+
+
+@_compiled
+def linked_chains(edges: NDArray[np.uint8], rows: NDArray[np.int64], cols: NDArray[np.int64],
+                  cap: int, shortest: int, eps: float,
+                  turns: tuple[float, float, float, float]
+                  ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:  # pragma: no cover
+    """The compiled passes of :func:`~stackpick_sim.vision.segments.link_segments` in one
+    call, on a 0/1 map ``edges`` (H, W) whose set pixels are ``rows``, ``cols`` (row-major;
+    when they are not, the map's are read): the junctions cut out and the end points marked
+    (:func:`junctions_cut`), the pieces' outer borders (:func:`contours_at`), the ``cap``
+    longest (``cap`` < 0: all; :func:`longest_contours`), ordered from end to end
+    (:func:`ordered_chains`), their polygons (:func:`chain_polys`, tolerance ``eps``) and
+    the arcs between their corners (:func:`chain_arcs` with ``turns``: the corner angle,
+    the spike angle and ratio, the least signed turn). Returns :func:`chain_arcs`' pixels
+    and arc ranges."""
+    cut, end, valid = junctions_cut(edges, rows, cols)
+    if not valid:
+        rows, cols = set_pixels(edges)
+        cut, end, valid = junctions_cut(edges, rows, cols)
+    contours, lengths = contours_at(cut, rows, cols)
+    if cap >= 0:
+        contours, lengths = longest_contours(contours, lengths, shortest, cap)
+    ordered, bounds, closed = ordered_chains(contours, lengths, end, shortest)
+    polys, poly_bounds = chain_polys(ordered, bounds, closed, eps)
+    return chain_arcs(ordered, bounds, closed, polys, poly_bounds, shortest, turns[0],
+                      turns[1], turns[2], turns[3])
 
 
 @_compiled
@@ -2159,10 +2493,14 @@ def warm_up() -> None:
     stairs_removed(np.zeros((4, 4), np.uint8), table, table)
     grid = np.zeros((4, 4), np.uint8)
     _, end, _ = junctions_cut(grid, *set_pixels(grid))
-    junctions_cut_uv(grid, np.zeros((2, 1)))
-    pixels, bounds, closed = ordered_chains(np.zeros((3, 2), np.int32), np.array([3]), end, 2)
-    chain_arcs(pixels, bounds, closed, np.zeros((3, 2), np.int32), bounds, 2, 1.0, 1.0, 1.0,
-               1.0)
+    uv_rows_cols(np.zeros((2, 1)))
+    pixels, bounds, closed = ordered_chains(*outer_contours(grid), end, 2)
+    contours_at(grid, *set_pixels(grid))
+    polys, poly_bounds = chain_polys(pixels, bounds, closed, 1.0)
+    chain_arcs(pixels, bounds, closed, polys, poly_bounds, 2, 1.0, 1.0, 1.0, 1.0)
+    rows, cols = set_pixels(grid)
+    linked_chains(grid, rows, cols, 1, 2, 1.0, (1.0, 1.0, 1.0, 1.0))
+    longest_contours(*outer_contours(grid), 2, 1)
     stairs_removed_pixels(np.zeros((4, 4), np.uint8), table, table, img, img)
     edge_pixels(np.zeros((4, 4), np.uint8), img, img)
     row_keys(col, col)

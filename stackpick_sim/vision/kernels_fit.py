@@ -353,6 +353,52 @@ def refit_round(forms: NDArray[np.float64], starts: NDArray[np.int64],
     return sel, at, which, rows, degrees, ok
 
 
+
+@_compiled
+def refine_rounds(given: NDArray[np.float64],
+                  columns: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                 NDArray[np.float64]],
+                  tolerances: NDArray[np.float64], cos_sq: float, least: int,
+                  bounds: tuple[float, float, float]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:  # pragma: no cover
+    """Every round of :func:`~stackpick_sim.vision.refine.refine_all` in one call: the
+    ellipses (E, 5) ``given`` (cx, cy, a, b, angle deg), their forms
+    (:func:`~stackpick_sim.vision.kernels.ellipse_forms`) and the (ellipse, pixel) pairs in
+    each one's box grown by the first tolerance and a pixel
+    (:func:`~stackpick_sim.vision.kernels.box_runs` of the pixel ``columns`` u, v, gu, gv),
+    then one :func:`refit_round` per tolerance of ``tolerances`` (px; the cosine bound
+    ``cos_sq``, the least pixels ``least`` and the fit ``bounds``) until no ellipse is
+    active. Returns per ellipse the (cx, cy, a, b, angle deg) of its last refit that passed
+    and whether one did (the others keep ``given``)."""
+    u, v = columns[0], columns[1]
+    n_e = given.shape[0]
+    forms = kernels.ellipse_forms(given)
+    reach = np.empty(n_e)
+    for e in range(n_e):
+        reach[e] = given[e, 2] + tolerances[0] + 1.0
+    pm, starts = kernels.box_runs(u, v, forms[:, 0].copy(), forms[:, 1].copy(), reach)
+    active = np.ones(n_e, np.bool_)
+    final = given.copy()
+    changed = np.zeros(n_e, np.bool_)
+    prev_sel, prev_at = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    for r in range(tolerances.shape[0]):
+        tol = tolerances[r]
+        sel, at, which, rows, degrees, ok = refit_round(
+            forms, starts, active, pm, columns, (4.0 * tol * tol, cos_sq), (prev_sel, prev_at),
+            least, bounds)
+        prev_sel, prev_at = sel, at
+        for k in range(which.shape[0]):
+            if ok[k]:
+                e = which[k]
+                final[e, 0], final[e, 1], final[e, 2], final[e, 3] = (rows[k, 0], rows[k, 1],
+                                                                      rows[k, 2], rows[k, 3])
+                final[e, 4] = degrees[k]
+                changed[e] = True
+        if not active.any():
+            break
+    return final, changed
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) these kernels for the argument types the detector
     passes (see :func:`~stackpick_sim.vision.kernels.warm_up`, which calls this)."""
@@ -368,3 +414,4 @@ def warm_up() -> None:
     refit_round(np.ones((1, 5)), np.array([0, 1], np.int64), np.ones(1, np.bool_),
                 np.zeros(1, np.int64), (col, col, col, col), (1.0, 1.0), (empty, empty), 5,
                 (1.0, 1.0, 1.0))
+    refine_rounds(np.ones((1, 5)), (col, col, col, col), np.ones(3), 1.0, 5, (1.0, 1.0, 1.0))

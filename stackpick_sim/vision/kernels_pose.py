@@ -178,6 +178,90 @@ def interior_counts_of(rows: NDArray[np.float64], margin_px: float, keys: NDArra
 
 
 @_compiled
+def occlusion_counts(ok: NDArray[np.bool_], counts: NDArray[np.int64], pts: NDArray[np.float64],
+                     rows: NDArray[np.float64], pu: NDArray[np.float64],
+                     pv: NDArray[np.float64], margin_px: float, min_gap: int, reach: float,
+                     junction_sq: float, crossing_sq: float, tol_px: float
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
+                                NDArray[np.int64]]:  # pragma: no cover - compiled
+    """Per outline of the ellipses of (E, 6) ``rows`` (``counts[e]`` samples each, (2, N)
+    ``pts``, which are ``ok``), over the edge pixels (pu, pv) (integer values >= 0, any
+    order): :func:`gap_evidence`'s ok samples, longest gap and T-junction ends, and
+    :func:`interior_counts_of` with ``margin_px``; the pixels put in row-major order first
+    (:func:`~stackpick_sim.vision.kernels.row_keys`, a stable sort where they are not in
+    it), as :func:`~stackpick_sim.vision.occlusion._row_major` does: the evidence's counts
+    in one call (the same values)."""
+    keys, width, ascending = kernels.row_keys(pu, pv)
+    if not ascending:
+        order = np.argsort(keys, kind="mergesort")
+        keys, pu, pv = keys[order], pu[order], pv[order]
+    interior = interior_counts_of(rows, margin_px, keys, width)
+    supported, longest, occluded = gap_evidence(ok, counts, pts, rows, pu, pv, min_gap, reach,
+                                                junction_sq, crossing_sq, tol_px)
+    return supported, longest, occluded, interior
+
+
+#: Entries of the cone's form beyond this magnitude (and non-finite ones) are left to
+#: ``np.linalg.eigh`` itself (see :func:`~stackpick_sim.vision.pose.unit_circle_poses`).
+EIGH_DIRECT_MAX = 1e100
+
+
+@_compiled
+def cone_of(cx: float, cy: float, a2: float, b2: float, angle_deg: float, fx: float,
+            fy: float, kcx: float, kcy: float
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:  # pragma: no cover
+    """The cone ``Q = K^T C K`` of the ellipse (centre cx, cy, squared semi-axes a2, b2, as
+    Python's ``a ** 2`` gives them (libm's pow, which can differ from ``a * a`` in the last
+    bit), angle) seen through the pinhole (fx, fy, kcx, kcy), C the ellipse's pixel conic (M
+    = R diag(1/a2, 1/b2) R^T, d = -M c, f = -d.c - 1): the (3, 3) symmetric matrix; what
+    :func:`~stackpick_sim.vision.kernels.circle_solutions` takes besides its eigen
+    decomposition as one (16,) row (Q00, Q01, Q02, Q11, Q12, Q22; cx, cy, the angle's cosine
+    and sine, a^2, b^2; fx, fy, kcx, kcy); and whether every entry is finite and within
+    :data:`EIGH_DIRECT_MAX`. The arithmetic of :func:`~stackpick_sim.vision.pose.
+    unit_circle_poses` on Python floats, step for step (the same values)."""
+    t = angle_deg * (math.pi / 180.0)  # math.radians
+    c, s = math.cos(t), math.sin(t)
+    ia, ib = 1.0 / a2, 1.0 / b2
+    m00, m01, m11 = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
+    d0 = -(m00 * cx + m01 * cy)
+    d1 = -(m01 * cx + m11 * cy)
+    f = -(d0 * cx + d1 * cy) - 1.0
+    r0, r1 = m00 * kcx + m01 * kcy + d0, m01 * kcx + m11 * kcy + d1  # C K's last column
+    packed = np.empty(16)
+    packed[0], packed[1], packed[2] = fx * fx * m00, fx * fy * m01, fx * r0
+    packed[3], packed[4] = fy * fy * m11, fy * r1
+    packed[5] = kcx * r0 + kcy * r1 + (d0 * kcx + d1 * kcy + f)
+    packed[6], packed[7], packed[8], packed[9], packed[10], packed[11] = cx, cy, c, s, a2, b2
+    packed[12], packed[13], packed[14], packed[15] = fx, fy, kcx, kcy
+    cone = np.empty((3, 3))
+    moderate = True
+    for i, j, k in ((0, 0, 0), (0, 1, 1), (0, 2, 2), (1, 1, 3), (1, 2, 4), (2, 2, 5)):
+        cone[i, j] = cone[j, i] = packed[k]
+        if not abs(packed[k]) <= EIGH_DIRECT_MAX:
+            moderate = False
+    return cone, packed, moderate
+
+
+@_compiled
+def cone_solutions(packed: NDArray[np.float64], evals: NDArray[np.float64],
+                   evecs: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], bool, bool]:  # pragma: no cover - compiled
+    """:func:`~stackpick_sim.vision.kernels.circle_solutions` of the (16,) row of
+    :func:`cone_of` and the cone's ascending ``evals`` (3,) and ``evecs`` (3, 3), and whether
+    those are all finite."""
+    finite = True
+    for i in range(3):
+        if not math.isfinite(evals[i]):
+            finite = False
+        for j in range(3):
+            if not math.isfinite(evecs[i, j]):
+                finite = False
+    solutions, ok = kernels.circle_solutions(packed[0:6], evals, evecs, packed[6:12],
+                                             packed[12:16])
+    return solutions, ok, finite
+
+
+@_compiled
 def plane_axes(n0: float, n1: float, n2: float
            ) -> tuple[float, float, float, float, float, float]:  # pragma: no cover - compiled
     """The in-plane axes u, v of the normal (n0, n1, n2), six floats: u = n x e (e the helper
@@ -274,12 +358,16 @@ def warm_up() -> None:
     contrast_ok(rows, counts, col, col, img, img, np.zeros(3), np.zeros(5, np.int64), 8.0,
                 1.0)
     interior_counts_of(rows, 0.5, col, 4)
+    occlusion_counts(np.ones(16, np.bool_), counts, np.zeros((2, 16)), rows, col, col, 0.5, 5,
+                     1.0, 1.0, 1.0, 1.0)
     gap_evidence(np.ones(16, np.bool_), counts, np.zeros((2, 16)), rows, col, col, 5, 1.0,
                  1.0, 1.0, 1.0)
     fixed = np.zeros(1)  # the cached tables (unit circles, depths) are read-only
     fixed.setflags(write=False)
     colour = np.ones(3)
     plane_axes(0.0, 0.0, 1.0)
+    cone, packed, _ = cone_of(1.0, 1.0, 4.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0)
+    cone_solutions(packed, np.ones(3), cone)
     band_points_of(np.ones((2, 2, 3)), fixed, fixed, fixed)
     wall_hits(np.ones((2, 2, 3)), fixed, fixed, fixed, (1.0,) * 6, (1.0,) * 4, 1.0,
               np.zeros((4, 4, 3), np.uint8), colour, (1.0,) * 4, colour, True)

@@ -21,7 +21,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import cast
+from typing import NamedTuple, cast
 
 import cv2
 import numpy as np
@@ -165,11 +165,11 @@ class _Groups:
         self.pair_p = np.concatenate([self.pair_p[other], close])
 
 
-@dataclass(frozen=True, kw_only=True)
-class _Pieces:
+class _Pieces(NamedTuple):
     """The fitted pieces' pixels: ``pixels`` (N, 2) int32 (the fits' input) and ``points``,
     the same as float64; ``everything``: all the chains' pixels (float64) when the pieces
-    lead the chains (None otherwise)."""
+    lead the chains (None otherwise). (A named tuple: built on every frame, at a fraction of
+    a frozen dataclass's cost.)"""
 
     pixels: NDArray[np.int32]
     points: NDArray[np.float64]
@@ -230,10 +230,11 @@ def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]
     params = ellipse_params([e for _, e in fits])
     rest: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
     everything: NDArray[np.float64] | None = None
+    sizes = [chains[i].shape[0] for i in seg_of_piece]
     if leading:
         all_pixels = np.concatenate(chains)
         everything = all_pixels.astype(np.float64)
-        done = sum(chains[i].shape[0] for i in seg_of_piece)
+        done = sum(sizes)
         pixels, points = all_pixels[:done], everything[:done]  # int32: the fits' input
         pair_g, pair_p, *later = within_pairs_split(params, everything, tol_px, done)
         rest = (later[0], later[1])
@@ -241,7 +242,7 @@ def _start(chains: tuple[NDArray[np.int32], ...], fits: list[tuple[int, Ellipse]
         pixels = np.concatenate([chains[i] for i in seg_of_piece])  # int32: the fits' input
         points = pixels.astype(np.float64)
         pair_g, pair_p = within_pairs(params, points, tol_px)
-    owner = np.arange(len(fits)).repeat([chains[i].shape[0] for i in seg_of_piece])
+    owner = np.arange(len(fits)).repeat(sizes)
     state = _Groups(members=[[i] for i in seg_of_piece], ellipses=[e for _, e in fits],
                     owner=owner, pair_g=pair_g, pair_p=pair_p, rest=rest)
     return _Pieces(pixels=pixels, points=points, everything=everything), state

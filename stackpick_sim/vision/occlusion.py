@@ -175,22 +175,19 @@ def evidence_all(ellipses: Sequence[Ellipse], edge_points: NDArray[np.float64],
     rows = outline_rows(ellipses)
     table, sizes = rows[0], rows[1]
     pts, ok = _support_along(rows, support, gradients)
-    # Any order of the pixels gives the same evidence: row-major, as the counts need.
-    edge_points, keys, width = _row_major(edge_points)
-    interior = kernels_pose.interior_counts_of(table, params.interior_margin_px,
-                                               np.ascontiguousarray(keys, np.float64), width)
-    # The gaps (cyclic runs of unsupported samples), the longest of each outline, and the
-    # T-junctions at the ends of those of at least min_gap_px (an edge pixel off the
-    # ellipse, Sampson distance above off_outline_px, within junction_radius_px of the end,
-    # and one inside the outline by more than off_outline_px within crossing_reach_px of
-    # it; only the pixels of the rows within reach of an end are tested), in one compiled
-    # pass (kernels_pose.gap_evidence).
+    # Any order of the pixels gives the same evidence: row-major, as the counts need. The
+    # interior edge pixels, and the gaps (cyclic runs of unsupported samples), the longest
+    # of each outline, and the T-junctions at the ends of those of at least min_gap_px (an
+    # edge pixel off the ellipse, Sampson distance above off_outline_px, within
+    # junction_radius_px of the end, and one inside the outline by more than off_outline_px
+    # within crossing_reach_px of it; only the pixels of the rows within reach of an end are
+    # tested), in one compiled pass (kernels_pose.occlusion_counts).
     radius, crossing = params.junction_radius_px, params.crossing_reach_px
-    supported, longest, occluded_ends = kernels_pose.gap_evidence(
+    supported, longest, occluded_ends, interior = kernels_pose.occlusion_counts(
         ok, sizes, pts, table, np.ascontiguousarray(edge_points[:, 0], np.float64),
-        np.ascontiguousarray(edge_points[:, 1], np.float64), params.min_gap_px,
-        float(max(radius, crossing)), float(radius ** 2), float(crossing ** 2),
-        params.off_outline_px)
+        np.ascontiguousarray(edge_points[:, 1], np.float64), float(params.interior_margin_px),
+        params.min_gap_px, float(max(radius, crossing)), float(radius ** 2),
+        float(crossing ** 2), params.off_outline_px)
     n_e = len(ellipses)
     return tuple(map(OcclusionEvidence.of, (supported / sizes).tolist(), longest.tolist(),
                      occluded_ends.tolist(), interior.tolist(), sizes.tolist(),

@@ -31,7 +31,6 @@ the axis) are checked against the edge map. The settings and their reasons:
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,7 +41,7 @@ from numpy.typing import NDArray
 
 from stackpick_sim.config.vision_params import PoseParams
 from stackpick_sim.geometry import CameraIntrinsics, Ellipse, FloatArray, tilt_angles
-from stackpick_sim.vision import kernels
+from stackpick_sim.vision import kernels_pose
 from stackpick_sim.vision.wall import WallEvidence, face_colour, plane_basis, wall_evidences
 
 #: The default settings (see PoseParams: the reasons for each).
@@ -113,25 +112,15 @@ def circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics, radius: float
 def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
                       ) -> tuple[CirclePose, CirclePose]:
     """:func:`circle_poses` for a unit radius (read-only arrays: they are shared)."""
-    # The cone's form on Python floats (numpy's matmul and array construction cost more
-    # than the arithmetic on this size), numpy for the eigenvectors, then both solutions in
-    # one compiled pass (kernels.circle_solutions: the same arithmetic on floats).
-    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-    # q = K^T C K for K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] and the conic C (symmetric).
-    (m00, m01, d0), (m11, d1, f) = _conic_terms(ellipse)
-    r0, r1 = m00 * cx + m01 * cy + d0, m01 * cx + m11 * cy + d1  # C K's last column
-    q00, q01, q02 = fx * fx * m00, fx * fy * m01, fx * r0
-    q11, q12 = fy * fy * m11, fy * r1
-    q22 = cx * r0 + cy * r1 + (d0 * cx + d1 * cy + f)
-    evals, evecs = _eigh([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-    # The conic's inverse, written out: for C = [[M, -M c], [-c^T M, c^T M c - 1]] (c the
-    # ellipse centre), C^-1 = [[M^-1 - c c^T, -c], [-c^T, -1]], M^-1 = R diag(a^2, b^2) R^T:
-    # the kernel takes the centre, the angle's cosine and sine and the squared axes.
-    t = math.radians(ellipse.angle_deg)
-    solutions, ok = kernels.circle_solutions(
-        np.array([q00, q01, q02, q11, q12, q22]), evals, evecs,
-        np.array([ellipse.cx, ellipse.cy, math.cos(t), math.sin(t), ellipse.a ** 2,
-                  ellipse.b ** 2]), np.array([fx, fy, cx, cy]))
+    # The cone's form Q = K^T C K in one compiled pass (kernels_pose.cone_of: the arithmetic
+    # on floats), numpy for its eigenvectors, then both solutions in another
+    # (kernels.circle_solutions, with the conic's inverse written out: for C = [[M, -M c],
+    # [-c^T M, c^T M c - 1]] (c the ellipse centre), C^-1 = [[M^-1 - c c^T, -c], [-c^T, -1]],
+    # M^-1 = R diag(a^2, b^2) R^T).
+    cone, packed, moderate = kernels_pose.cone_of(
+        ellipse.cx, ellipse.cy, ellipse.a ** 2, ellipse.b ** 2, ellipse.angle_deg,
+        intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy)
+    solutions, ok = _solutions(cone, packed, moderate)
     if not ok:
         raise ZeroDivisionError("float division by zero")
     solutions.setflags(write=False)
@@ -141,38 +130,27 @@ def unit_circle_poses(ellipse: Ellipse, intrinsics: CameraIntrinsics
 
 #: numpy's own eigh kernel (the gufunc np.linalg.eigh calls; None where numpy keeps it
 #: elsewhere): a third of eigh's cost on a 3x3 matrix, the rest being its checks and error
-#: state. Entries beyond this magnitude (and non-finite ones) go to np.linalg.eigh itself,
-#: whose error state keeps overflow quiet and raises on non-convergence.
+#: state. Cones with an entry beyond kernels_pose.EIGH_DIRECT_MAX (or a non-finite one) go
+#: to np.linalg.eigh itself, whose error state keeps overflow quiet and raises on
+#: non-convergence.
 _EIGH_LO = getattr(getattr(np.linalg, "_umath_linalg", None), "eigh_lo", None)
-_EIGH_DIRECT_MAX = 1e100
 
 
-def _eigh(rows: list[list[float]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``np.linalg.eigh`` of the symmetric 3x3 matrix ``rows`` (the same values): its kernel
-    called directly on moderate finite entries (no floating-point warning can arise there),
-    ``np.linalg.eigh`` otherwise and wherever the result is not finite."""
-    if _EIGH_LO is not None and all(abs(x) <= _EIGH_DIRECT_MAX for row in rows for x in row):
-        w, v = _EIGH_LO(np.array(rows), signature="d->dd")
-        # The twelve values checked on Python floats (numpy's two sums cost several times
-        # more; entries within 1e100 give no overflow, so the same test).
-        if all(map(math.isfinite, itertools.chain(w.tolist(), *v.tolist()))):
-            return w, v
-    w, v = np.linalg.eigh(np.array(rows))
-    return w, v
-
-
-def _conic_terms(ellipse: Ellipse) -> tuple[tuple[float, float, float],
-                                           tuple[float, float, float]]:
-    """The six distinct entries of the ellipse's conic C (:meth:`~stackpick_sim.geometry.
-    Ellipse.conic`), ((C00, C01, C02), (C11, C12, C22)), written out on Python floats."""
-    t = math.radians(ellipse.angle_deg)
-    c, s = math.cos(t), math.sin(t)
-    ia, ib = 1.0 / ellipse.a ** 2, 1.0 / ellipse.b ** 2
-    m00, m01, m11 = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
-    d0 = -(m00 * ellipse.cx + m01 * ellipse.cy)
-    d1 = -(m01 * ellipse.cx + m11 * ellipse.cy)
-    f = -(d0 * ellipse.cx + d1 * ellipse.cy) - 1.0
-    return (m00, m01, d0), (m11, d1, f)
+def _solutions(cone: NDArray[np.float64], packed: NDArray[np.float64], moderate: bool
+               ) -> tuple[NDArray[np.float64], bool]:
+    """The (2, 2, 3) circle solutions of :func:`~stackpick_sim.vision.kernels_pose.cone_of`'s
+    ``cone`` and ``packed`` row, and whether they exist, on ``np.linalg.eigh``'s eigen
+    decomposition (the same values): its kernel called directly on a ``moderate`` cone (no
+    floating-point warning can arise there), ``np.linalg.eigh`` otherwise and wherever that
+    decomposition is not finite."""
+    if _EIGH_LO is not None and moderate:
+        w, v = _EIGH_LO(cone, signature="d->dd")
+        solutions, ok, finite = kernels_pose.cone_solutions(packed, w, v)
+        if finite:
+            return solutions, ok
+    w, v = np.linalg.eigh(cone)
+    solutions, ok, _ = kernels_pose.cone_solutions(packed, w, v)
+    return solutions, ok
 
 
 def wall_support(pose: CirclePose, radius: float, intrinsics: CameraIntrinsics,

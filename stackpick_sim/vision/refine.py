@@ -217,34 +217,19 @@ def refine_all(ellipses: list[Ellipse], points: NDArray[np.float64],
     # stage's arrays, transposes of (2, M) rows).
     u, v = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
     gu, gv = np.ascontiguousarray(grads[:, 0]), np.ascontiguousarray(grads[:, 1])
-    # Each fit's quadratic form, a row rewritten after its refit.
     given = np.array([(e.cx, e.cy, e.a, e.b, e.angle_deg) for e in current], np.float64)
-    forms = kernels.ellipse_forms(given)
-    reach = given[:, 2] + params.tolerances_px[0] + 1
-    # The (ellipse, pixel) pairs in each ellipse's box, ellipse by ellipse: per ellipse, a
-    # range of them.
-    pm, starts = kernels.box_runs(u, v, forms[:, 0].copy(), forms[:, 1].copy(), reach)
-    active = np.ones(len(current), np.bool_)
-    # The previous round's selection and its bounds (none before the first round).
-    before = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-    cos_sq = params.min_normal_cos * params.min_normal_cos
-    least = max(5, params.min_pixels)  # fit_ellipse's own least
     bounds = (fits_params.min_axis_px, fits_params.max_axis_diagonals * math.hypot(*shape),
               EQ2_CHECKED_RATIO_SQ)
-    for tol in params.tolerances_px:
-        # The pixels along each active fit, the refits of those whose pixels changed,
-        # fit_ellipse's checks and plausible's bounds on them, in one compiled pass: the
-        # forms of the fits that pass rewritten, the others stopped.
-        sel, at, tried, rows, degrees, ok = kernels_fit.refit_round(
-            forms, starts, active, pm, (u, v, gu, gv), (4.0 * tol * tol, cos_sq), before,
-            least, bounds)
-        before = (sel, at)
-        for e, good, (cx, cy, a, b, _), deg in zip(tried.tolist(), ok.tolist(), rows.tolist(),
-                                                    degrees.tolist(), strict=True):
-            if good:
-                current[e] = Ellipse.of(cx, cy, a, b, deg)
-        if not active.any():
-            break
+    # Every round in one compiled call: the (ellipse, pixel) pairs in each fit's box (grown
+    # by the first tolerance), then per tolerance the pixels along each active fit, the
+    # refits of those whose pixels changed, fit_ellipse's checks and plausible's bounds on
+    # them (a fit that fails stops its ellipse); each ellipse's last refit that passed.
+    final, changed = kernels_fit.refine_rounds(
+        given, (u, v, gu, gv), np.array(params.tolerances_px, np.float64),
+        params.min_normal_cos * params.min_normal_cos, max(5, params.min_pixels), bounds)
+    for e, (cx, cy, a, b, deg) in zip(changed.nonzero()[0].tolist(), final[changed].tolist(),
+                                      strict=True):
+        current[e] = Ellipse.of(cx, cy, a, b, deg)
     return current
 
 

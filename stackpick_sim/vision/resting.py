@@ -20,7 +20,10 @@ over a fixed set of directions, all pairs in one array pass. When the bodies tou
 the top rule's ``rest_contact_gap_m`` .. ``rest_max_penetration_m``) and the normal points up
 (UP_CAM) by ``rest_min_up`` or more, A rests on B (settings: :class:`~stackpick_sim.config.
 vision_params.TopParams`). A face seen square on (neither solution's band visible) takes the smaller
-tilt, as the pose does; a face whose visible bands cannot tell its solution gives no evidence.
+tilt, as the pose does. A face whose visible bands cannot tell its solution can be found
+under another face (``rest_untold_solutions``: the leaning object often hides the band that
+would tell), when the combinations of its solutions that find a rest all find that one; it
+is no evidence as the upper face.
 """
 
 from __future__ import annotations
@@ -173,7 +176,41 @@ def _rests(faces: Sequence[Ellipse], bodies: _Bodies,
             and not apart[(p, q)][picks[p]][picks[q]]]
     for _upper, lower in _resting_pairs(bodies, picks, todo, params):
         under[bodies.kinds[lower][0]] = True
+    if params.rest_untold_solutions:
+        for lower in _untold_rests(bodies, picks, near, apart, params):
+            under[bodies.kinds[lower][0]] = True
     return under
+
+
+def _untold_rests(bodies: _Bodies, picks: dict[int, int], near: list[tuple[int, int]],
+                  apart: dict[tuple[int, int], list[list[bool]]], params: TopParams
+                  ) -> list[int]:
+    """The lower bodies (indices into ``bodies.kinds``) of the ``near`` pairs with a face
+    whose wall bands cannot tell its pose solution (not in ``picks``), found resting under
+    its solutions (``rest_untold_solutions``): every combination of the untold faces'
+    solutions (the told face's own) not ``apart`` is tried, and a rest counts when those
+    that find one all find it one way, the untold face the lower (the failure class *a whole
+    lower face chosen over the face leaning on it, its solution untold*: the leaning object
+    hides the wall band that would tell the lower face's solution)."""
+    lowers = []
+    for p, q in near:
+        if p in picks and q in picks:
+            continue
+        combos = [(j, k) for j in _solutions(picks, p) for k in _solutions(picks, q)
+                  if not apart[(p, q)][j][k]]
+        found = {pair for j, k in combos
+                 for pair in _resting_pairs(bodies, {p: j, q: k}, [(p, q)], params)}
+        lower = found.pop()[1] if len(found) == 1 else None
+        if lower is not None and lower not in picks:
+            # Only the face leaned on: the leaning object hides the band that would tell
+            # its solution; an untold upper face's contact is no evidence.
+            lowers.append(lower)
+    return lowers
+
+
+def _solutions(picks: dict[int, int], p: int) -> tuple[int, ...]:
+    """Body ``p``'s pose solutions to try: its pick, else both."""
+    return (picks[p],) if p in picks else (0, 1)
 
 
 def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,

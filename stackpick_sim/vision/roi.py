@@ -50,6 +50,16 @@ class Roi:
     v1: int
     belt: tuple[float, ...] | None = None
 
+    @classmethod
+    def of(cls, u0: int, v0: int, u1: int, v1: int, belt: tuple[float, ...] | None = None
+           ) -> Roi:
+        """``Roi(u0=u0, ...)`` (an equal object) without the frozen dataclass constructor's
+        cost, as :meth:`~stackpick_sim.geometry.Ellipse.of`."""
+        r = object.__new__(cls)
+        d = r.__dict__
+        d["u0"], d["v0"], d["u1"], d["v1"], d["belt"] = u0, v0, u1, v1, belt
+        return r
+
     @property
     def offset(self) -> tuple[int, int]:
         """(u, v) of the box's top-left pixel in the frame."""
@@ -88,7 +98,7 @@ def find_roi(image: NDArray[np.uint8], params: RoiParams = DEFAULT) -> Roi:
     h, w = image.shape[:2]
     small = decimate(image, params.decimation)
     if min(small.shape[:2]) < 3:
-        return Roi(u0=0, v0=0, u1=w, v1=h)
+        return Roi.of(0, 0, w, h)
     # (H, W, C), C-ordered and writable: the one argument type of the compiled passes.
     small = small.reshape(small.shape[0], small.shape[1], -1)
     if not (small.flags.c_contiguous and small.flags.writeable):
@@ -105,13 +115,13 @@ def find_roi(image: NDArray[np.uint8], params: RoiParams = DEFAULT) -> Roi:
     else:
         belt_colour = tuple(colour.tolist())
     if bw == 0 or bh == 0:
-        return Roi(u0=0, v0=0, u1=w, v1=h, belt=belt_colour)
+        return Roi.of(0, 0, w, h, belt_colour)
     step, margin = params.decimation, params.margin_px
     u0 = max(0, int(bu) * step - margin)
     v0 = max(0, int(bv) * step - margin)
     u1 = min(w, int(bu + bw) * step + margin)
     v1 = min(h, int(bv + bh) * step + margin)
-    return Roi(u0=u0, v0=v0, u1=u1, v1=v1, belt=belt_colour)
+    return Roi.of(u0, v0, u1, v1, belt_colour)
 
 
 def _mode(counts: NDArray[np.float64], window: int) -> int:

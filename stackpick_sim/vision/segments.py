@@ -2,13 +2,12 @@
 
 Each edge pixel is classified by its count of 8-connected edge neighbours: 2 continues a
 segment, 1 ends one, 3 or more is a junction. Junction pixels are cut out, every remaining
-8-connected chain is traced in order (OpenCV's contour follower walks a one-pixel-wide open
-chain from one end to the other and back; the first half is the ordered chain), and chains
-are split again at corners, so a cylinder's straight side wall and the arc of its face that
-meet at a corner are never fitted together.
+8-connected chain is traced in order (a border follower, the one of OpenCV's contour finder,
+walks a one-pixel-wide open chain from one end to the other and back; the first half is the
+ordered chain), and chains are split again at corners, so a cylinder's straight side wall and
+the arc of its face that meet at a corner are never fitted together.
 
-Everything per pixel is done by OpenCV or compiled passes; no Python loop runs per segment
-but the polygon approximation's.
+Everything per pixel is done by compiled passes; no Python loop runs per segment.
 """
 
 from __future__ import annotations
@@ -104,55 +103,33 @@ def link_segments(edges: NDArray[np.uint8], max_contours: int | None = None,
     (u, v) in row-major order when at hand (the edge stage lists them; pixels that are not
     exactly those are ignored, and the map is read instead).
 
-    Three compiled passes around OpenCV's contour follower and polygon approximation: the
-    junctions cut out and the end points marked, the contours ordered from end to end, the
+    One compiled call (:func:`~stackpick_sim.vision.kernels.linked_chains`): the junctions
+    cut out and the end points marked, the pieces' outer borders (OpenCV's contours), the
+    contours ordered from end to end, the chains' polygonal approximations (OpenCV's), the
     chains cut at their corners (:func:`split_chain`, all chains at once)."""
-    shortest = params.min_chain_px
     edges = np.ascontiguousarray(edges, np.uint8)
-    cut, end = _junctions_cut(edges, pixels)
-    contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
-    if hierarchy is None:
-        return EdgeSegments(chains=(), edges=edges)
-    # Hole boundaries (with a parent) repeat their outer contour's pixels.
-    parents = hierarchy[0][:, 3].tolist()
-    # The contours as OpenCV gives them, (N, 1, 2) each: reshaped once, concatenated.
-    kept = [c for c, parent in zip(contours, parents, strict=True)
-            if parent == -1 and c.shape[0] >= shortest]
-    if not kept:
-        return EdgeSegments(chains=(), edges=edges)
-    if max_contours is not None and len(kept) > max_contours:
-        longest = sorted(range(len(kept)), key=lambda i: (-kept[i].shape[0], i))
-        kept = [kept[i] for i in sorted(longest[:max_contours])]
-    ordered, bounds, closed = kernels.ordered_chains(
-        cast("NDArray[np.int32]", np.concatenate(kept).reshape(-1, 2)),
-        np.array([c.shape[0] for c in kept], np.int64),
-        end, shortest)
-    # Each chain's polygon (OpenCV reads an (N, 2) int32 array as N points), then the cuts
-    # of all chains in one pass.
-    starts = bounds.tolist()
-    polys = [cast("NDArray[np.int32]", cv2.approxPolyDP(ordered[i:j], params.poly_epsilon_px,
-                                                        shut))
-             for i, j, shut in zip(starts, starts[1:], closed.tolist(), strict=False)]
-    if not polys:
-        return EdgeSegments(chains=(), edges=edges)
-    turned, arcs = kernels.chain_arcs(
-        ordered, bounds, closed, np.concatenate(polys).reshape(-1, 2),
-        np.array([0, *itertools.accumulate([len(q) for q in polys])], np.int64), shortest,
-        params.corner_angle_deg, params.spike_min_deg, params.spike_ratio,
-        params.min_signed_turn_deg)
+    rows, cols = _set_pixels(edges, pixels)
+    # Every pass in one compiled call (kernels.linked_chains): the junctions cut, the pieces'
+    # outer borders (cv2.findContours' contours without a parent: hole boundaries repeat
+    # their outer contour's pixels) over the edge pixels, the longest that many, ordered,
+    # their polygons (cv2.approxPolyDP's) and the arcs between their corners.
+    turned, arcs = kernels.linked_chains(
+        edges, rows, cols, -1 if max_contours is None else int(max_contours),
+        int(params.min_chain_px), float(params.poly_epsilon_px),
+        (float(params.corner_angle_deg), float(params.spike_min_deg),
+         float(params.spike_ratio), float(params.min_signed_turn_deg)))
     return EdgeSegments(chains=tuple([turned[i:j] for i, j in arcs.tolist()]), edges=edges)
 
 
-def _junctions_cut(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
-                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-    """:func:`~stackpick_sim.vision.kernels.junctions_cut` of the 0/1 map ``edges`` on its
-    set ``pixels`` (M, 2) (u, v) when they are those (row-major), else on the map's."""
+def _set_pixels(edges: NDArray[np.uint8], pixels: NDArray[np.float64] | None
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The rows and columns of the set pixels of the 0/1 map ``edges``, row-major: those of
+    ``pixels`` (M, 2) (u, v) when they are as many whole pixels (the kernels check that they
+    are the map's), else the map's own."""
     if pixels is not None and pixels.shape[0] == cv2.countNonZero(edges):
         # The (2, M) rows u, v the columns are a view of, when they are.
         uv = pixels.T if pixels.T.flags.c_contiguous else np.ascontiguousarray(pixels.T)
-        cut, end, valid = kernels.junctions_cut_uv(edges, np.asarray(uv, np.float64))
-        if valid:
-            return cut, end
-    rows, cols = kernels.set_pixels(edges)
-    cut, end, _ = kernels.junctions_cut(edges, rows, cols)
-    return cut, end
+        rows, cols, whole = kernels.uv_rows_cols(np.asarray(uv, np.float64))
+        if whole:
+            return rows, cols
+    return kernels.set_pixels(edges)
