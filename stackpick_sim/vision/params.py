@@ -24,6 +24,7 @@ from stackpick_sim.config.vision_params import (
     StageSections,
     TopParams,
     UnderWallParams,
+    WholeRefitParams,
     sections_of,
 )
 
@@ -46,5 +47,6 @@ __all__ = [
     "StageSections",
     "TopParams",
     "UnderWallParams",
+    "WholeRefitParams",
     "sections_of",
 ]
