@@ -20,7 +20,13 @@ from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config, make_methods
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
 from stackpick_sim.vision.detector import TopObjectDetector
-from stackpick_sim.vision.params import FALLBACKS, CompleteParams, GateParams, TopParams
+from stackpick_sim.vision.params import (
+    FALLBACKS,
+    CompleteParams,
+    GateParams,
+    TopParams,
+    WholeRefitParams,
+)
 
 #: The paper scene's frames of seeds 857, 1374, 1438, 1769, 2241, 2333, 3032, 3070, 3120,
 #: 3355, 3504, 3791, 3886, 30229 and 40091: PNG and ground-truth JSON as `stackpick dataset
@@ -112,6 +118,10 @@ def test_top_face_broken_into_unfittable_arcs_is_found_from_pairs_of_them(
     frame = _chosen_top(seed)
     monkeypatch.setattr(detector_module, "last_resort_arcs",
                         lambda pieces, *_: (tuple(pieces), list(range(len(pieces)))))
+    # (When every face then reads as occluded, a fit of the top face on part of its outline
+    # refits onto the whole face, and the whole-refit step finds the top too: off.)
+    monkeypatch.setattr(detector_module, "_whole_refit",
+                        lambda state, merged, choice, cues, config: (merged, choice))
     _assert_missed(frame)
 
 
@@ -125,8 +135,11 @@ def test_top_face_linked_with_a_lower_silhouette_is_found_from_the_cut_chain(
     monkeypatch.setattr(detector_module, "split_at_junctions",
                         lambda chains, *_: [[c] for c in chains])
     # (When every face then reads as occluded, the lower face's fit round the top and its
-    # sliver holds the top face inside it, and its inner refit finds the top too: off.)
+    # sliver holds the top face inside it, and its inner refit finds the top too, as does
+    # the whole-refit step from a fit of the top on part of its outline: off.)
     monkeypatch.setattr(detector_module, "_inner_face",
+                        lambda state, merged, choice, cues, config: (merged, choice))
+    monkeypatch.setattr(detector_module, "_whole_refit",
                         lambda state, merged, choice, cues, config: (merged, choice))
     _assert_missed(frame)
 
@@ -152,6 +165,10 @@ def test_last_pair_with_its_own_rim_inside_is_taken(monkeypatch: pytest.MonkeyPa
     # pairs of its arcs shows its whole outline but keeps its own faint rim inside it.
     frame = _chosen_top(3355)
     monkeypatch.setattr(detector_module, "select_rimmed", lambda *a, **k: None)
+    # (The whole-refit step refits that fit onto the face's own outline and finds it too:
+    # off.)
+    monkeypatch.setattr(detector_module, "_whole_refit",
+                        lambda state, merged, choice, cues, config: (merged, choice))
     _assert_missed(frame)
 
 
@@ -224,13 +241,14 @@ def test_the_rest_check_is_an_option_of_the_top_stage() -> None:
                                                 (3355, ("all_arcs",))])
 def test_fallbacks_are_options_of_the_top_stage(seed: int, dropped: tuple[str, ...]) -> None:
     # Frames whose top face only the arc-pair fallbacks find (see the tests above; on frame
-    # 3504 the face completion proposes it too: off): without those fallbacks, or without
-    # any, no face is chosen.
+    # 3504 the face completion proposes it too, on frame 3355 the whole-refit step: off):
+    # without those fallbacks, or without any, no face is chosen.
     frame = _chosen_top(seed)
     kept = tuple(f for f in FALLBACKS if f not in dropped)
     for fallbacks in (kept, ()):
         found = TopObjectDetector(replace(detector_config(frame), top=TopParams(
-            fallbacks=fallbacks), complete=NO_COMPLETION)).detect(frame.image_rgb)
+            fallbacks=fallbacks), complete=NO_COMPLETION,
+            whole_refit=WholeRefitParams(enabled=False))).detect(frame.image_rgb)
         assert found.top_ellipse is None, (fallbacks, found.reason)
 
 

@@ -139,11 +139,15 @@ def test_unobstructed_contrast_refit_is_the_very_last_resort(
     monkeypatch.setattr(detector_module, "_nearest_cut",
                         lambda found, merged, choice, cues, config: (merged, choice))
     # (When every face then reads as occluded, the inner refit of the fit round the top face
-    # and the lower face's arc finds the top too: off.)
-    inner = detector_module._inner_face
-    monkeypatch.setattr(detector_module, "_inner_face",
-                        lambda state, merged, choice, cues, config: (merged, choice))
+    # and the lower face's arc finds the top too, and so does the whole-refit step: off.)
+    inner, whole = detector_module._inner_face, detector_module._whole_refit
+    for step in ("_inner_face", "_whole_refit"):
+        monkeypatch.setattr(detector_module, step,
+                            lambda state, merged, choice, cues, config: (merged, choice))
     assert detect(image, CONFIG).top_ellipse is None
-    monkeypatch.setattr(detector_module, "_inner_face", inner)
-    again = detect(image, CONFIG).top_ellipse
-    assert again is not None and mask_iou(again, top, SHAPE) > 0.85
+    for step, run in (("_inner_face", inner), ("_whole_refit", whole)):
+        monkeypatch.setattr(detector_module, step, run)
+        again = detect(image, CONFIG).top_ellipse
+        assert again is not None and mask_iou(again, top, SHAPE) > 0.85
+        monkeypatch.setattr(detector_module, step,
+                            lambda state, merged, choice, cues, config: (merged, choice))

@@ -384,6 +384,46 @@ class LeanParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class WholeRefitParams(Section):
+    """The top stage's step after a fallback's choice that fails the rule itself: a top face
+    whose fit took in its own wall or a neighbour's arc, shown whole by its refit on its
+    innermost consistent edge (:mod:`~stackpick_sim.vision.whole_refit`; the refit's reach
+    and rounds are the contrast refit's, ``top.contrast_*``)."""
+
+    SECTION: ClassVar[str] = "whole_refit"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {
+        "min_support": (0.0, 1.0, ""), "reach_px": (1, 30, "px"),
+        "settled_iou": (0.0, 1.0, "")}
+
+    enabled: bool = True
+    """When the fallbacks chose no face, or one that fails the rule itself and moves when
+    refitted on its innermost consistent edge (``settled_iou``), each fit that fails the
+    rule with at least ``min_support`` of its outline showing is refitted so; the rule runs
+    again over the refits that pass it outright, and the refit it chooses is the top face,
+    unless it is another face than the fallback's, clearly farther (``top.depth_tie_m``),
+    or the fallback's face passes so refitted too (it shows whole: it keeps the choice).
+    The failure class *a top face fitted round its own wall*: a top face over faces of its
+    colour and shade, fitted on its strong arcs and its wall's silhouette beyond its rim (or
+    a neighbour's arc running on from it), fails the rule on a T-junction, edges inside or
+    support, while the fallbacks take a lower face, a misfit of one, or none. Costs nothing
+    on frames where a face passes the rule outright."""
+    min_support: float = 0.6
+    """Share [0, 1] of its outline a fit must show to be refitted: at least half of a face
+    (as the scoring counts faces, and ``top.hidden_min_support``); fits of arcs of two
+    outlines and slivers of lower faces show less."""
+    reach_px: int = 20
+    """How far (px) inside a fit the refit looks for the face's innermost consistent edge:
+    the widest band of its own wall a fit takes in beyond a top face's rim."""
+    settled_iou: float = 0.95
+    """A fallback's face whose refit on its innermost consistent edge overlaps its fit by at
+    least this area intersection over union (ratio) lies on its own outline and keeps the
+    choice: its boundary with a face of its colour shows no contrast, but what shows is its
+    own. Fitted on their outline, such faces move by under a pixel (overlap 0.98 and more on
+    rendered cluttered and grey frames); a fit round part of a face's wall or on arcs of two
+    outlines moves by several (0.92 and less)."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class UnderWallParams(Section):
     """The top stage's check of its choice against the other faces' cylinders: a face lying
     under a nearer cylinder's body (the cover test in reverse,
@@ -1052,6 +1092,7 @@ class StageSections:
     inner_face: InnerFaceParams = field(default_factory=InnerFaceParams)
     lean: LeanParams = field(default_factory=LeanParams)
     under_wall: UnderWallParams = field(default_factory=UnderWallParams)
+    whole_refit: WholeRefitParams = field(default_factory=WholeRefitParams)
     top: TopParams = field(default_factory=TopParams)
     markings: MarkingParams = field(default_factory=MarkingParams)
     report: ReportParams = field(default_factory=ReportParams)

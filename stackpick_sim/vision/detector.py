@@ -126,6 +126,7 @@ from stackpick_sim.vision.stages import (
 from stackpick_sim.vision.under_wall import under_a_wall
 from stackpick_sim.vision.undistort import undistort
 from stackpick_sim.vision.wall import FACE_SAMPLE_SCALE, face_colour
+from stackpick_sim.vision.whole_refit import below, settled, whole_refits
 
 #: Vertical field of view (deg) assumed when no intrinsics are given: the wrist camera's.
 DEFAULT_FOVY_DEG = 45.0
@@ -406,9 +407,9 @@ def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
     (``top.rest_check``), the check for a face leaning on it (``lean``), the hidden-face
     check (``top.hidden_check``) and the inner refit (``top.inner_refit``), and when it
-    chose none, its fallbacks (``top.fallbacks``), then
-    a face inside a fit that reads as occluded (``inner_face``). Before
-    those, when its first choice is not clear, faces the merge never fitted whose outline is
+    chose none, its fallbacks (``top.fallbacks``), then a face inside a fit that reads as
+    occluded (``inner_face``) and a top face fitted round its own wall (``whole_refit``).
+    Before those, when its first choice is not clear, faces the merge never fitted whose outline is
     faint along part of its length join it (``complete``), and when no ellipse passed the
     rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
     cues = _cues(state, config)
@@ -434,6 +435,8 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _fallbacks(state, merged, choice, cues, config)
         # Every face reads as occluded: a top face inside a lower face's fit.
         merged, choice = _inner_face(state, merged, choice, cues, config)
+        # A top face fitted round its own wall, shown whole by its refit.
+        merged, choice = _whole_refit(state, merged, choice, cues, config)
     elif config.top.inner_refit:
         merged, choice = _inner_refit(state, merged, choice, config)
     return _unless_under_wall(state, state.updated(cues=cues, merged=merged, choice=choice),
@@ -528,6 +531,41 @@ def _inner_face(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
     if i is None or i not in refits:
         return merged, choice
     merged, choice = _inner_choice(merged, choice, i, refits[i], again.evidence[i])
+    return merged, replace(choice, reason="")
+
+
+def _whole_refit(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                 config: DetectorConfig) -> tuple[list[MergedEllipse], TopChoice]:
+    """With ``whole_refit.enabled``, when the choice (a fallback's) is none, or fails the rule
+    itself and moves when refitted on its innermost consistent edge (not :func:`~stackpick_
+    sim.vision.whole_refit.settled`, ``whole_refit.settled_iou``): the top rule over the
+    refits of the fits that fail it which pass it outright (:func:`~stackpick_sim.vision.
+    whole_refit.whole_refits`), unless the fallback's face is one of them (it shows whole);
+    the refit it chooses replaces its fit in ``merged`` and is chosen (``inner``: the pose's
+    final fit keeps to it). Otherwise both unchanged."""
+    params, i = config.whole_refit, choice.index
+    if not params.enabled or (i is not None and not choice.evidence[i].occluded):
+        return merged, choice
+    check_time(state.deadline, "top")
+    grad = state.edges("top")
+    if i is not None and settled(merged[i].ellipse, grad, params.reach_px, config.top,
+                                 params.settled_iou):
+        return merged, choice
+    refits = whole_refits([m.ellipse for m in merged], choice.evidence, grad, state.points,
+                          state.crop, state.gate, params.min_support, params.reach_px,
+                          config.top, config.fits)
+    if i in refits:  # the fallback's face shows whole so refitted: it keeps the choice
+        return merged, choice
+    keys = list(refits)
+    again = _select([refits[k] for k in keys], state, cues)
+    if again.index is None:
+        return merged, choice
+    j = keys[again.index]
+    if (i is not None and cues.depth_radius_of is not None
+            and below(refits[j], merged[i].ellipse, cues.k_crop, cues.depth_radius_of,
+                      config.top)):
+        return merged, choice
+    merged, choice = _inner_choice(merged, choice, j, refits[j], again.evidence[again.index])
     return merged, replace(choice, reason="")
 
 

@@ -25,6 +25,7 @@ from stackpick_sim.config.vision_params import (
     StageSections,
     TopParams,
     UnderWallParams,
+    WholeRefitParams,
     sections_of,
 )
 
@@ -48,5 +49,6 @@ __all__ = [
     "StageSections",
     "TopParams",
     "UnderWallParams",
+    "WholeRefitParams",
     "sections_of",
 ]
