@@ -6,8 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from stackpick_sim.config.loader import load_scene
-from stackpick_sim.geometry import CameraIntrinsics
+from stackpick_sim.geometry import CameraIntrinsics, mask_iou
 from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
+from stackpick_sim.vision.detector import DetectorConfig, TopObjectDetector
 
 DATA = Path(__file__).parent / "data" / "cluttered_dev_frames"
 GREY_DATA = Path(__file__).parent / "data" / "grey_dev_frames"
@@ -24,3 +25,11 @@ def dev_frame(seed: int, directory: Path = DATA, scene: str = "cluttered",
     kinds = tuple((t.radius, (t.rgba[0], t.rgba[1], t.rgba[2]), t.height)
                   for t in cfg.object_types.values())
     return load_frame(directory, seed, cfg.conveyor.top_z, cfg.objects.max_face_height, kinds)
+
+
+def top_iou(frame: BenchFrame, config: DetectorConfig) -> float:
+    """The best overlap (IoU) of the top face detected with ``config`` in ``frame`` with
+    one of its true top faces (a top face must be found)."""
+    found = TopObjectDetector(config).detect(frame.image_rgb).top_ellipse
+    assert found is not None
+    return max(mask_iou(found, f.ellipse, frame.shape) for f in frame.tops)

@@ -10,15 +10,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from dev_frames import K, dev_frame
+from dev_frames import K, dev_frame, top_iou
 
 from stackpick_sim.config.loader import load_scene
 from stackpick_sim.exceptions import ConfigError
-from stackpick_sim.geometry import mask_iou, project_circle
+from stackpick_sim.geometry import project_circle
 from stackpick_sim.vision.benchmark.frames import BenchFrame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
-from stackpick_sim.vision.detector import TopObjectDetector
 from stackpick_sim.vision.params import UnderWallParams
 from stackpick_sim.vision.under_wall import hidden_share, under_a_wall
 
@@ -73,11 +72,8 @@ def test_a_second_fit_of_the_same_face_hides_nothing() -> None:
 
 
 def _top_iou(frame: BenchFrame, enabled: bool) -> float:
-    config = detector_config(frame)
-    config = replace(config, under_wall=UnderWallParams(enabled=enabled))
-    found = TopObjectDetector(config).detect(frame.image_rgb).top_ellipse
-    assert found is not None
-    return max(mask_iou(found, f.ellipse, frame.shape) for f in frame.tops)
+    config = replace(detector_config(frame), under_wall=UnderWallParams(enabled=enabled))
+    return top_iou(frame, config)
 
 
 def test_a_steep_cylinders_far_rim_gives_up_the_choice() -> None:

@@ -363,7 +363,8 @@ class VisionCfg(StageSections):
     scenes), the marking test, and one table per stage (``[vision.roi]``, ``[vision.edges]``,
     ``[vision.segments]``, ``[vision.fits]``, ``[vision.merging]``, ``[vision.refine]``,
     ``[vision.gate]``, ``[vision.complete]``, ``[vision.inner_face]``,
-    ``[vision.under_wall]``, ``[vision.whole_refit]``, ``[vision.top]``, ``[vision.markings]``,
+    ``[vision.lean]``, ``[vision.under_wall]``, ``[vision.whole_refit]``, ``[vision.top]``,
+    ``[vision.markings]``,
     ``[vision.report]``, ``[vision.pose]``, ``[vision.ellipses]``:
     stackpick_sim/config/vision_params.py)."""
 

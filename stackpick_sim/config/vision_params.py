@@ -356,6 +356,34 @@ class InnerFaceParams(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
+class LeanParams(Section):
+    """The top stage's check of a face that passed the rule outright against the faces
+    leaning on it whose outline falls short of the rule's support
+    (:mod:`~stackpick_sim.vision.leaning`). The contact is the rest test's
+    (``top.rest_*``); the leaning face's edges inside may lie within ``top.rim_band_px``
+    of its outline only."""
+
+    SECTION: ClassVar[str] = "lean"
+    RANGES: ClassVar[dict[str, tuple[float, float, str]]] = {"min_support": (0.0, 1.0, "")}
+
+    enabled: bool = True
+    """Whether a face with no T-junction, its outline short of ``top.min_support``, whose
+    reconstructed cylinder rests on the chosen whole face's takes the choice. The failure
+    class *a short-outlined face leaning on the chosen one*: a steep top object leaning its
+    wall on a lower object's whole face shows no T-junction, and its boundary with its own
+    wall or a neighbour of its colour is faint, so it fails the rule on support alone, below
+    ``top.unobstructed_min_support``, and the rule's rest test never weighs it against the
+    whole lower face, which passes. Needs a colour image and the object kinds' heights and
+    radii (from colour, else every kind a face's size admits)."""
+    min_support: float = 0.6
+    """Least share [0, 1] of its outline a leaning face shows (edge support): 0.6, as
+    ``top.hidden_min_support`` (a face at least half visible). A lower face's sliver, or an
+    arc of a face with most of its outline hidden, is fitted too loosely for its cylinder to
+    be placed: on rendered cluttered and grey development frames the faces found leaning
+    show 0.73 or more, while fits below 0.6 read no lean or the contact the wrong way."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class WholeRefitParams(Section):
     """The top stage's step after a fallback's choice that fails the rule itself: a top face
     whose fit took in its own wall or a neighbour's arc, shown whole by its refit on its
@@ -1062,6 +1090,7 @@ class StageSections:
     gate: GateParams = field(default_factory=GateParams)
     complete: CompleteParams = field(default_factory=CompleteParams)
     inner_face: InnerFaceParams = field(default_factory=InnerFaceParams)
+    lean: LeanParams = field(default_factory=LeanParams)
     under_wall: UnderWallParams = field(default_factory=UnderWallParams)
     whole_refit: WholeRefitParams = field(default_factory=WholeRefitParams)
     top: TopParams = field(default_factory=TopParams)

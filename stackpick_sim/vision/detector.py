@@ -64,6 +64,7 @@ from stackpick_sim.vision.fitting import (
 )
 from stackpick_sim.vision.inner_face import inner_refit, refitted
 from stackpick_sim.vision.kind_size import depth_radius, kinds_by_size
+from stackpick_sim.vision.leaning import select_leaning
 from stackpick_sim.vision.limits import (
     Deadline,
     WorkLimits,
@@ -110,6 +111,7 @@ from stackpick_sim.vision.regroup import (
     chains_on,
     split_at_junctions,
 )
+from stackpick_sim.vision.resting import rests_on, rests_on_any_kind
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import (
@@ -403,11 +405,11 @@ def gate_stage(state: State, config: DetectorConfig) -> State:
 
 def top_stage(state: State, config: DetectorConfig) -> State:
     """The top rule with every cue, then, when it chose a face, the rest check
-    (``top.rest_check``), the hidden-face check (``top.hidden_check``) and the inner refit
-    (``top.inner_refit``), and when it chose none, its fallbacks (``top.fallbacks``), then
-    a face inside a fit that reads as occluded (``inner_face``) and a top face fitted round
-    its own wall (``whole_refit``). Before
-    those, when its first choice is not clear, faces the merge never fitted whose outline is
+    (``top.rest_check``), the check for a face leaning on it (``lean``), the hidden-face
+    check (``top.hidden_check``) and the inner refit (``top.inner_refit``), and when it
+    chose none, its fallbacks (``top.fallbacks``), then a face inside a fit that reads as
+    occluded (``inner_face``) and a top face fitted round its own wall (``whole_refit``).
+    Before those, when its first choice is not clear, faces the merge never fitted whose outline is
     faint along part of its length join it (``complete``), and when no ellipse passed the
     rule outright, faces with markings fitted on arc pairs (``top.marked_arcs``)."""
     cues = _cues(state, config)
@@ -422,6 +424,7 @@ def top_stage(state: State, config: DetectorConfig) -> State:
         merged, choice = _marked_arc_faces(state, merged, choice, cues, config)
     if config.top.rest_check and choice.index is not None:
         choice = _rest_check(state, merged, choice, cues, config.top)
+    choice = _lean_check(state, merged, choice, cues, config)
     if (config.top.hidden_check and choice.index is not None and cues.radius_of is not None
             and hidden_by_no_outline(choice, config.top.hidden_min_support)):
         # A face cut short by an occluder that shows no outline: a top face of its colour
@@ -606,6 +609,43 @@ def _rest_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
                                   state.points, cues.k_crop, cues.radius_of, cues.height_of,
                                   cues.rgb, cues.belt, params, cues.pose)
     return choice if above is None else replace(choice, index=above)
+
+
+def _lean_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cues: Cues,
+                config: DetectorConfig) -> TopChoice:
+    """``choice``, unless, with ``lean.enabled``, it passed the rule outright and a face with
+    no T-junction, its outline short of the rule's support, rests on it (:func:`~stackpick_sim.
+    vision.leaning.select_leaning`): that face takes it. Unchanged without a choice, the
+    kinds' heights and colour, or their radii (from colour, else of two kinds or more)."""
+    if (not config.lean.enabled or choice.index is None
+            or choice.evidence[choice.index].occluded):
+        return choice
+    rests = _rest_test_of(cues, config)
+    if rests is None:
+        return choice
+    above = select_leaning([m.ellipse for m in merged], choice.evidence, choice.index,
+                           state.points, rests, config.lean)
+    return choice if above is None else replace(choice, index=above)
+
+
+def _rest_test_of(cues: Cues, config: DetectorConfig
+                  ) -> Callable[[list[Ellipse]], list[bool]] | None:
+    """The top rule's rest test on a list of faces (:func:`~stackpick_sim.vision.resting.
+    rests_on`, radii from colour; without them, :func:`~stackpick_sim.vision.resting.
+    rests_on_any_kind` over the kinds' radii), or None without heights, colour or radii."""
+    rgb, height_of = cues.rgb, cues.height_of
+    if rgb is None or height_of is None:
+        return None
+    if cues.radius_of is not None:
+        radius_of = cues.radius_of
+        return lambda faces: rests_on(faces, cues.k_crop, radius_of, height_of, rgb,
+                                      belt=cues.belt, params=config.top,
+                                      pose_params=config.pose)
+    if len(cues.radii) < 2:
+        return None
+    return lambda faces: rests_on_any_kind(faces, cues.k_crop, cues.radii, height_of, rgb,
+                                           belt=cues.belt, params=config.top,
+                                           pose_params=config.pose, kinds_of=cues.kinds_of)
 
 
 def pose_stage(state: State, config: DetectorConfig) -> State:
