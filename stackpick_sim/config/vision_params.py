@@ -317,7 +317,8 @@ class CompleteParams(Section):
     a whole lower face whose boundary with it is faint, which then passes the rule
     outright. Off by default for its cost (pairs of every arc on every frame: about half of
     a paper-scene frame's detection); and a whole lower face the merge never fitted, which
-    an object leans on, is proposed too, for the rule's rest test to reject."""
+    an object leans on, is proposed too, for the rule's rest test to reject. The cluttered
+    scene, whose piles lay such faces often, turns it on."""
     min_contrast_share: float = 0.9
     """Share [0, 1] of a proposed face's outline that must show a consistent edge in the
     gradients (windowed normal gradient above the ``edges.support_*`` threshold): a top face
