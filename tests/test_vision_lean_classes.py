@@ -20,6 +20,7 @@ from stackpick_sim.geometry import (
     project_circle,
 )
 from stackpick_sim.vision import occlusion as occlusion_module
+from stackpick_sim.vision import resting as resting_module
 from stackpick_sim.vision.benchmark.frames import BenchFrame, load_frame
 from stackpick_sim.vision.benchmark.methods import detector_config
 from stackpick_sim.vision.benchmark.scoring import MATCH_IOU
@@ -99,7 +100,7 @@ def test_a_lean_is_found_when_colour_cannot_tell_the_kinds_apart(
     frame = _frame(seed, "grey_dev_frames", "paper", GREY)
     top, _ = _ious(frame)
     assert top > MATCH_IOU
-    monkeypatch.setattr(occlusion_module, "rests_on_any_kind",
+    monkeypatch.setattr(resting_module, "rests_on_any_kind",
                         lambda faces, *args, **kwargs: [False] * len(faces))
     _, other = _ious(frame)
     assert other > MATCH_IOU

@@ -111,7 +111,7 @@ from stackpick_sim.vision.regroup import (
     chains_on,
     split_at_junctions,
 )
-from stackpick_sim.vision.resting import rests_on, rests_on_any_kind
+from stackpick_sim.vision.resting import rest_test
 from stackpick_sim.vision.roi import Roi, find_roi
 from stackpick_sim.vision.segments import link_segments
 from stackpick_sim.vision.stages import (
@@ -629,23 +629,15 @@ def _lean_check(state: State, merged: list[MergedEllipse], choice: TopChoice, cu
 
 
 def _rest_test_of(cues: Cues, config: DetectorConfig
-                  ) -> Callable[[list[Ellipse]], list[bool]] | None:
-    """The top rule's rest test on a list of faces (:func:`~stackpick_sim.vision.resting.
-    rests_on`, radii from colour; without them, :func:`~stackpick_sim.vision.resting.
-    rests_on_any_kind` over the kinds' radii), or None without heights, colour or radii."""
-    rgb, height_of = cues.rgb, cues.height_of
-    if rgb is None or height_of is None:
+                  ) -> Callable[[Sequence[Ellipse]], list[bool]] | None:
+    """The top rule's rest test on a list of faces with the cues' radii, heights and colours
+    (:func:`~stackpick_sim.vision.resting.rest_test`), or None without heights, colour or
+    radii."""
+    if cues.rgb is None or cues.height_of is None:
         return None
-    if cues.radius_of is not None:
-        radius_of = cues.radius_of
-        return lambda faces: rests_on(faces, cues.k_crop, radius_of, height_of, rgb,
-                                      belt=cues.belt, params=config.top,
-                                      pose_params=config.pose)
-    if len(cues.radii) < 2:
-        return None
-    return lambda faces: rests_on_any_kind(faces, cues.k_crop, cues.radii, height_of, rgb,
-                                           belt=cues.belt, params=config.top,
-                                           pose_params=config.pose, kinds_of=cues.kinds_of)
+    return rest_test(cues.k_crop, cues.radius_of, cues.radii, cues.height_of, cues.rgb,
+                     belt=cues.belt, params=config.top, pose_params=config.pose,
+                     kinds_of=cues.kinds_of)
 
 
 def pose_stage(state: State, config: DetectorConfig) -> State:

@@ -77,7 +77,7 @@ def _better_fit(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidenc
 
 def select_leaning(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEvidence],
                    chosen: int, edge_points: NDArray[np.float64],
-                   rests: Callable[[list[Ellipse]], list[bool]], params: LeanParams
+                   rests: Callable[[Sequence[Ellipse]], list[bool]], params: LeanParams
                    ) -> int | None:
     """Index of the best-supported of the :func:`leaning_faces` of face ``chosen``
     (``params``) whose cylinder rests on the chosen face's, or None. ``rests``: per face of

@@ -69,7 +69,7 @@ from stackpick_sim.vision.markings import (
 )
 from stackpick_sim.vision.merging import support_map
 from stackpick_sim.vision.pose import unit_circle_poses
-from stackpick_sim.vision.resting import cover_check, rests_on, rests_on_any_kind
+from stackpick_sim.vision.resting import cover_check, rest_test, rests_on
 from stackpick_sim.vision.wall_cover import BandCache, under_another
 
 #: The top rule's default settings (the reasons for each: TopParams).
@@ -596,19 +596,13 @@ def _rest_test(ellipses: Sequence[Ellipse], pool: list[int], candidates: list[in
     if (cues.intrinsics is None or cues.height_of is None or cues.image is None
             or cues.image.ndim != 3 or len(pool) < 2):
         return pool, candidates
-    faces = [ellipses[i] for i in pool]
-    if cues.radius_of is not None:
-        under = rests_on(faces, cues.intrinsics, cues.radius_of, cues.height_of, cues.image,
-                         colour_of=cues.colour_of, cache=bands, belt=cues.belt,
-                         params=cues.params, pose_params=cues.pose_params)
-    elif len(cues.kind_radii) > 1:
-        under = rests_on_any_kind(faces, cues.intrinsics, cues.kind_radii, cues.height_of,
-                                  cues.image, colour_of=cues.colour_of, cache=bands,
-                                  belt=cues.belt, params=cues.params,
-                                  pose_params=cues.pose_params, kinds_of=cues.kinds_of)
-    else:
+    test = rest_test(cues.intrinsics, cues.radius_of, cues.kind_radii, cues.height_of,
+                     cues.image, colour_of=cues.colour_of, cache=bands, belt=cues.belt,
+                     params=cues.params, pose_params=cues.pose_params, kinds_of=cues.kinds_of)
+    if test is None:
         return pool, candidates
-    return _without_under(pool, candidates, _shared_by_refits(faces, under), True)
+    faces = [ellipses[i] for i in pool]
+    return _without_under(pool, candidates, _shared_by_refits(faces, test(faces)), True)
 
 
 def _shared_by_refits(faces: Sequence[Ellipse], under: list[bool]) -> list[bool]:

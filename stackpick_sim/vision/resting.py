@@ -249,6 +249,31 @@ def rests_on_any_kind(faces: Sequence[Ellipse], intrinsics: CameraIntrinsics,
     return under
 
 
+def rest_test(intrinsics: CameraIntrinsics, radius_of: Callable[[Ellipse], float | None] | None,
+              radii: Sequence[float], height_of: Callable[[float], float | None],
+              image: NDArray[np.uint8], *,
+              colour_of: Callable[[Ellipse], NDArray[np.float64]] | None = None,
+              cache: BandCache | None = None, belt: NDArray[np.float64] | None = None,
+              params: TopParams = DEFAULT_TOP, pose_params: PoseParams = DEFAULT_POSE,
+              kinds_of: Callable[[Ellipse], tuple[float, ...]] | None = None
+              ) -> Callable[[Sequence[Ellipse]], list[bool]] | None:
+    """The top rule's rest test on a list of faces, per face whether another face's cylinder
+    rests on its own: :func:`rests_on` with ``radius_of`` (radii from colour), else
+    :func:`rests_on_any_kind` over ``radii`` when they hold two kinds or more; None with
+    neither (a face's kind is then unknown and no assignment of radii can be weighed)."""
+    if radius_of is not None:
+        known = radius_of
+        return lambda faces: rests_on(faces, intrinsics, known, height_of, image,
+                                      colour_of=colour_of, cache=cache, belt=belt,
+                                      params=params, pose_params=pose_params)
+    if len(radii) < 2:
+        return None
+    return lambda faces: rests_on_any_kind(faces, intrinsics, radii, height_of, image,
+                                           colour_of=colour_of, cache=cache, belt=belt,
+                                           params=params, pose_params=pose_params,
+                                           kinds_of=kinds_of)
+
+
 def _pair_verdict(pair: tuple[Ellipse, Ellipse], intrinsics: CameraIntrinsics,
                   radius_of: Callable[[Ellipse], float | None],
                   height_of: Callable[[float], float | None], image: NDArray[np.uint8],
