@@ -61,6 +61,7 @@ from stackpick_sim.vision.fitting import (
     fit_all,
     plausible,
     rms_residual,
+    within_gate,
 )
 from stackpick_sim.vision.inner_face import inner_refit, refitted
 from stackpick_sim.vision.kind_size import depth_radius, kinds_by_size
@@ -1273,7 +1274,7 @@ def _retry_on_contrast(merged: list[MergedEllipse], evidence: tuple[OcclusionEvi
     # contour can shrink to a sliver's arc).
     tries = [(i, r) for innermost in (False, True) for i in todo
              if (r := refit_on_contrast(merged[i].ellipse, grad, innermost, params)) is not None
-             and plausible(r, shape, fits_params) and (gate is None or gate[0] <= r.a <= gate[1])]
+             and plausible(r, shape, fits_params) and within_gate(r, gate)]
     if not tries:
         return merged, False, None
     checked = select_top([r for _, r in tries], grad, params=params).evidence
@@ -1348,7 +1349,7 @@ def _arc_pair_faces(arcs: Sequence[int], arc_chains: tuple[NDArray[np.int32], ..
     found = arc_pair_ellipses(arc_chains, arcs, shape, gate, config)
     if found:
         found = [e for e in refine_all(found, points, grads, shape, fits_params=config.fits)
-                 if gate is None or gate[0] <= e.a <= gate[1]]
+                 if within_gate(e, gate)]
     if not found:
         return [], TopChoice(index=None, evidence=())
     return found, select_top(found, grad, edge_points=points, params=config.top)

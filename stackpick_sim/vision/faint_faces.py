@@ -35,6 +35,7 @@ from stackpick_sim.config.vision_params import CompleteParams, StageSections
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import outline_rows, supported_samples
 from stackpick_sim.vision.edges import EdgeImage
+from stackpick_sim.vision.fitting import within_gate
 from stackpick_sim.vision.limits import longest
 from stackpick_sim.vision.merging import MergedEllipse
 from stackpick_sim.vision.occlusion import select_top
@@ -130,7 +131,7 @@ def complete_faces(merged: Sequence[MergedEllipse], shown: Sequence[float],
     if found:
         found = _whole([e for e in refine_all(found, *edge_pixels, shape, sections.refine,
                                               sections.fits)
-                        if gate is None or gate[0] <= e.a <= gate[1]], image, share)
+                        if within_gate(e, gate)], image, share)
     if not found:
         return []
     evidence = select_top(found, image, edge_points=edge_pixels[0], params=sections.top)

@@ -220,6 +220,12 @@ def plausible(ellipse: Ellipse, shape: tuple[int, int], params: FitParams = DEFA
     return params.min_axis_px <= ellipse.b and ellipse.a <= params.max_axis_diagonals * diagonal
 
 
+def within_gate(ellipse: Ellipse, gate: tuple[float, float] | None) -> bool:
+    """Whether the semi-major axis lies in the size ``gate`` (min, max px; any size without
+    one)."""
+    return gate is None or gate[0] <= ellipse.a <= gate[1]
+
+
 def fit_segment(points: NDArray, shape: tuple[int, int], params: FitParams = DEFAULT
                 ) -> tuple[Ellipse, float] | None:
     """(ellipse, rms residual px) of a segment (N, 2), or None if too short, straight or bad."""

@@ -34,7 +34,7 @@ from stackpick_sim.config.vision_params import FitParams, TopParams
 from stackpick_sim.geometry import Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast, widest_inset_px
 from stackpick_sim.vision.edges import EdgeImage
-from stackpick_sim.vision.fitting import plausible
+from stackpick_sim.vision.fitting import plausible, within_gate
 from stackpick_sim.vision.occlusion import OcclusionEvidence
 
 
@@ -60,7 +60,7 @@ def inner_refit(fit: Ellipse, grad: EdgeImage, shape: tuple[int, int],
     if (refit is None or refit.a * refit.b > top.inner_refit_max_area * fit.a * fit.b
             or widest_inset_px(fit, refit) < top.inner_refit_min_inset_px
             or not plausible(refit, shape, fits)
-            or (gate is not None and not gate[0] <= refit.a <= gate[1])):
+            or not within_gate(refit, gate)):
         return None
     return refit
 

@@ -37,7 +37,7 @@ from stackpick_sim.geometry import CameraIntrinsics, Ellipse
 from stackpick_sim.vision.contrast import refit_on_contrast
 from stackpick_sim.vision.edges import EdgeImage
 from stackpick_sim.vision.faint_faces import area_iou
-from stackpick_sim.vision.fitting import plausible
+from stackpick_sim.vision.fitting import plausible, within_gate
 from stackpick_sim.vision.occlusion import (
     OcclusionEvidence,
     clearly_nearest,
@@ -75,7 +75,7 @@ def whole_refits(ellipses: Sequence[Ellipse], evidence: Sequence[OcclusionEviden
     for i in candidates(evidence, min_support):
         refit = refit_on_contrast(ellipses[i], grad, True, top, inner_reach_px=reach_px)
         if (refit is not None and plausible(refit, shape, fits)
-                and (gate is None or gate[0] <= refit.a <= gate[1])):
+                and within_gate(refit, gate)):
             found[i] = refit
     if not found:
         return found
